@@ -1,0 +1,38 @@
+"""User-facing errors.
+
+Every error a user can cause by bad input is a :class:`BlastvoxError`. The CLI
+prints it as one line (``blastvox: error: <message>``) and exits non-zero, so
+messages must name the file (and key, where there is one) and the problem.
+"""
+
+from __future__ import annotations
+
+
+class BlastvoxError(Exception):
+    """Base class for errors caused by user input; the message is shown as is."""
+
+    exit_code = 1
+
+
+class InputError(BlastvoxError):
+    """An input file is missing, unreadable, or not what it claims to be."""
+
+
+class MeshError(InputError):
+    """A mesh cannot be turned into a solid (open, degenerate, empty, NaN...)."""
+
+
+class MaterialError(BlastvoxError):
+    """A material is unknown or its definition is invalid."""
+
+
+class SceneError(BlastvoxError):
+    """A scene file does not match the schema."""
+
+
+class ContractError(InputError):
+    """A stage file (VoxelModel, SimCache) is foreign, truncated or of another version."""
+
+
+class BudgetError(BlastvoxError):
+    """A configured resource budget (voxel count, memory) would be exceeded."""
