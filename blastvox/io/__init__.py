@@ -1,0 +1,1 @@
+"""File plumbing shared by the stages: deterministic, atomic .npz contracts."""

@@ -1,0 +1,454 @@
+"""``voxelize(requests, settings) -> VoxelModel``: the whole first stage.
+
+Per input (one lattice each): read parts, clean them, pick cells by winding
+number, place (jittered) lattice vertices, clip conform cells, measure mass
+properties, link face neighbours. Then across inputs: split into objects
+(connected components), assign materials and region rules, perturb yield
+limits from the seed, tag foundation voxels, and pack the flat arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from blastvox import __version__
+from blastvox.errors import BudgetError, MeshError
+from blastvox.materials import MaterialLibrary, material_table, perturbed
+from blastvox.model import SURFACE_BIT, VoxelModel
+from blastvox.voxelize import cells as cellsel
+from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
+from blastvox.voxelize.hashing import uniform_by_key
+from blastvox.voxelize.lattice import CORNER_OFFSETS, Grid, fit_grid, hex_triangles, spacing_for
+from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
+from blastvox.voxelize.mesh_io import load_parts
+from blastvox.voxelize.regions import RegionRule
+from blastvox.voxelize.topology import (face_neighbours, hex_face_area_centroid, index_grid,
+                                        tagged_area_centroid)
+
+DEFAULT_MAX_VOXELS = 4_000_000
+#: Conform cells keeping less than this fraction of the cell volume are dropped.
+MIN_CONFORM_FRACTION = 1e-6
+#: Links whose contact area is below this fraction of the face area are not made.
+MIN_LINK_FRACTION = 1e-6
+
+
+@dataclass
+class ObjectRequest:
+    """One input mesh file and how to voxelize it.
+
+    voxel_size: metres, (sx, sy, sz); or resolution: voxels along the longest axis.
+    shape: "cube" or "conform"; jitter: fraction of the voxel size, [0, 0.5).
+    material: default library material; material_map: mesh material name -> library name.
+    transform: (4, 4) applied to the mesh before voxelizing.
+    """
+
+    mesh: Path
+    name: str | None = None
+    voxel_size: tuple[float, float, float] | None = None
+    resolution: int | None = None
+    shape: str = "cube"
+    jitter: float = 0.0
+    material: str = "concrete"
+    material_map: dict[str, str] = field(default_factory=dict)
+    transform: np.ndarray | None = None
+    rules: list[RegionRule] = field(default_factory=list)
+
+
+@dataclass
+class VoxelizeSettings:
+    """Settings shared by all inputs. ground: "auto", a height in metres, or None."""
+
+    up_axis: str = "Y"
+    ground: str | float | None = "auto"
+    seed: int = 0
+    max_voxels: int = DEFAULT_MAX_VOXELS
+    library: MaterialLibrary = field(default_factory=MaterialLibrary.builtin)
+    recorded: dict = field(default_factory=dict)  # settings to record in the file
+
+
+class Progress:
+    """Progress sink; the CLI passes one that draws bars. Methods are no-ops here."""
+
+    def start(self, description: str, total: int) -> None: ...
+    def advance(self, amount: int = 1) -> None: ...
+    def stop(self) -> None: ...
+
+
+@dataclass
+class _Lattice:
+    """Voxels of one input before they are merged with the others."""
+
+    request: ObjectRequest
+    name: str
+    grid: Grid
+    solids: list
+    ijk: np.ndarray
+    part: np.ndarray
+    vertex_ids: np.ndarray      # (V,) lattice vertex ids used
+    positions: np.ndarray       # (V, 3)
+    voxel_vertices: np.ndarray  # (N, 8) into positions
+    volume: np.ndarray
+    centroid: np.ndarray
+    inertia: np.ndarray
+    conform_local: np.ndarray   # (C,) local voxel indices
+    conform_offsets: np.ndarray
+    conform_triangles: np.ndarray
+    conform_tags: np.ndarray
+    link_voxels: np.ndarray
+    link_face: np.ndarray
+    link_midpoint: np.ndarray
+    link_area: np.ndarray
+    boundary: np.ndarray
+
+
+def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
+             progress: Progress | None = None,
+             warn: Callable[[str], None] | None = None) -> VoxelModel:
+    """Turn the requested meshes into one connected-voxel model."""
+    progress = progress or Progress()
+    warn = warn or (lambda message: None)
+    up = "XYZ".index(settings.up_axis)
+    lattices: list[_Lattice] = []
+    budget_left = settings.max_voxels
+    for index, request in enumerate(requests):
+        lattice = _voxelize_one(index, request, settings, up, budget_left, progress, warn)
+        budget_left -= len(lattice.ijk)
+        lattices.append(lattice)
+    return _assemble(lattices, settings, up)
+
+
+def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings, up: int,
+                  budget_left: int, progress: Progress, warn) -> _Lattice:
+    source = str(request.mesh)
+    progress.start(f"reading {Path(source).name}", 1)
+    parts = load_parts(Path(request.mesh))
+    if request.transform is not None:
+        for part in parts:
+            part.mesh.apply_transform(request.transform)
+    solids = cellsel.prepare_solids(parts, warn)
+    progress.advance()
+    bounds = np.array([np.min([s.mesh.bounds[0] for s in solids], axis=0),
+                       np.max([s.mesh.bounds[1] for s in solids], axis=0)])
+    spacing = spacing_for(bounds, request.voxel_size, request.resolution)
+    if np.any(spacing <= 0) or not np.all(np.isfinite(spacing)):
+        raise MeshError(f"{source}: voxel size must be positive and finite (got {spacing.tolist()})")
+    grid = fit_grid(bounds, spacing, up)
+    cellsel.check_grid_budget(source, grid, settings.max_voxels)
+    progress.start(f"inside test {Path(source).name}", 1)
+    conform = request.shape == "conform"
+    chosen = cellsel.choose_cells(solids, grid, conform, warn)
+    progress.advance()
+    if int(np.count_nonzero(chosen.inside | chosen.touched)) > budget_left:
+        raise BudgetError(
+            f"{source}: {len(chosen.ijk):,} voxels exceed the budget (--max-voxels "
+            f"{settings.max_voxels:,}); use a larger --voxel-size or raise --max-voxels")
+    vertex_ids, positions, voxel_vertices = _place_vertices(
+        chosen.ijk, grid, request.jitter, settings.seed, index, up)
+    volume, centroid, inertia = hex_mass_properties(positions, voxel_vertices)
+    keep = chosen.inside.copy()
+    conform_data = (np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros((0, 3, 3)),
+                    np.zeros(0, np.uint8))
+    if conform:
+        keep, conform_data = _clip_conform(solids, chosen, positions, voxel_vertices, volume,
+                                           progress)
+        if conform_data[0].size:
+            cv, cc, ci = soup_mass_properties(conform_data[2], conform_data[1])
+            volume[conform_data[0]], centroid[conform_data[0]] = cv, cc
+            inertia[conform_data[0]] = ci
+    if not keep.any():
+        raise MeshError(f"{source}: no voxel lies inside the mesh at voxel size "
+                        f"{_fmt_size(spacing)} m; use a smaller --voxel-size")
+    # renumber to the kept voxels
+    new_index = np.cumsum(keep) - 1
+    conform_local = new_index[conform_data[0]]
+    ijk, part = chosen.ijk[keep], chosen.part[keep]
+    voxel_vertices = voxel_vertices[keep]
+    used, voxel_vertices = np.unique(voxel_vertices, return_inverse=True)
+    voxel_vertices = voxel_vertices.reshape(-1, 8)
+    vertex_ids, positions = vertex_ids[used], positions[used]
+    lat = _Lattice(request=request, name=request.name or Path(source).stem, grid=grid,
+                   solids=solids, ijk=ijk, part=part, vertex_ids=vertex_ids,
+                   positions=positions, voxel_vertices=voxel_vertices, volume=volume[keep],
+                   centroid=centroid[keep], inertia=inertia[keep], conform_local=conform_local,
+                   conform_offsets=conform_data[1], conform_triangles=conform_data[2],
+                   conform_tags=conform_data[3], link_voxels=None, link_face=None,
+                   link_midpoint=None, link_area=None, boundary=None)
+    _link(lat)
+    return lat
+
+
+def _fmt_size(spacing: np.ndarray) -> str:
+    if np.allclose(spacing, spacing[0]):
+        return f"{spacing[0]:g}"
+    return ",".join(f"{s:g}" for s in spacing)
+
+
+def _place_vertices(ijk: np.ndarray, grid: Grid, jitter: float, seed: int, stream: int,
+                    up: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lattice vertices of the cells: ids (V,), positions (V, 3), voxel corners (K, 8).
+
+    Jitter moves every vertex by a uniform random fraction in [-jitter, jitter)
+    of the spacing per axis, keyed by the vertex's lattice id so neighbours
+    share it; vertices on the bottom layer keep their height so the object
+    still rests on the ground.
+    """
+    nx, ny, _ = grid.shape
+    corner_ijk = ijk[:, None, :] + CORNER_OFFSETS[None, :, :]  # (K, 8, 3)
+    ids = corner_ijk[..., 0] + (nx + 1) * (corner_ijk[..., 1] + (ny + 1) * corner_ijk[..., 2])
+    vertex_ids, inverse = np.unique(ids, return_inverse=True)
+    lattice = np.stack([vertex_ids % (nx + 1), (vertex_ids // (nx + 1)) % (ny + 1),
+                        vertex_ids // ((nx + 1) * (ny + 1))], axis=1)
+    positions = grid.origin + lattice * grid.spacing
+    if jitter > 0:
+        keys = vertex_ids[:, None] * 3 + np.arange(3)[None, :]
+        offset = (2.0 * uniform_by_key(seed, stream, keys) - 1.0) * jitter * grid.spacing
+        offset[lattice[:, up] == 0, up] = 0.0
+        positions = positions + offset
+    return vertex_ids, positions, inverse.reshape(-1, 8)
+
+
+def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progress):
+    label = solids[0].label
+    solid = solid_manifold(solids[0].mesh, label)
+    for other in solids[1:]:
+        solid = solid + solid_manifold(other.mesh, other.label)
+    candidates = np.flatnonzero(chosen.touched)
+    progress.start(f"conform clip ({len(candidates):,} cells)", len(candidates))
+    corners = positions[voxel_vertices[candidates]]
+    local_tris = _local_hex_triangles(voxel_vertices[candidates])
+    clipped = clip_cells(solid, corners, local_tris, block_keys_for(chosen.ijk[candidates]),
+                         MIN_CONFORM_FRACTION * hex_volume[candidates], progress.advance)
+    keep = chosen.inside & ~chosen.touched
+    keep[candidates[clipped.cells]] = True
+    return keep, (candidates[clipped.cells], clipped.offsets, clipped.triangles, clipped.tags)
+
+
+def _local_hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:
+    """(K, 12, 3) corner numbers 0..7 of each hexahedron's triangles (shared split rule)."""
+    tris = hex_triangles(voxel_vertices)  # global ids
+    # map global ids back to corner numbers
+    match = tris[..., None] == voxel_vertices[:, None, None, :]
+    return np.argmax(match, axis=-1)
+
+
+def _link(lat: _Lattice) -> None:
+    """Fill in the links and exposed faces of one lattice's voxels."""
+    grid = index_grid(lat.ijk, lat.grid.shape)
+    neighbours = face_neighbours(lat.ijk, grid)
+    is_conform = np.zeros(len(lat.ijk), dtype=bool)
+    is_conform[lat.conform_local] = True
+    slot = np.full(len(lat.ijk), -1, dtype=np.int64)
+    slot[lat.conform_local] = np.arange(len(lat.conform_local))
+    a_list, f_list, mid_list, area_list = [], [], [], []
+    for f in (1, 3, 5):
+        a = np.flatnonzero(neighbours[:, f] >= 0)
+        b = neighbours[a, f]
+        area, mid = hex_face_area_centroid(lat.positions, lat.voxel_vertices, np.full(len(a), f))
+        full_area = area.copy()
+        for side, face in ((a, f), (b, f - 1)):
+            conf = is_conform[side]
+            if conf.any():
+                ca, cm = tagged_area_centroid(lat.conform_triangles, lat.conform_tags,
+                                              lat.conform_offsets, slot[side[conf]],
+                                              np.full(int(conf.sum()), face))
+                smaller = ca < area[conf]
+                idx = np.flatnonzero(conf)[smaller]
+                area[idx], mid[idx] = ca[smaller], cm[smaller]
+        ok = area > MIN_LINK_FRACTION * full_area
+        a_list.append(a[ok])
+        f_list.append(np.full(int(ok.sum()), f, dtype=np.uint8))
+        mid_list.append(mid[ok])
+        area_list.append(area[ok])
+    voxels = np.stack([np.concatenate(a_list), neighbours[np.concatenate(a_list),
+                                                          np.concatenate(f_list)]], axis=1)
+    face = np.concatenate(f_list)
+    order = np.lexsort((voxels[:, 1], voxels[:, 0]))
+    lat.link_voxels, lat.link_face = voxels[order], face[order]
+    lat.link_midpoint = np.concatenate(mid_list)[order]
+    lat.link_area = np.concatenate(area_list)[order]
+    linked = np.zeros((len(lat.ijk), 6), dtype=bool)
+    linked[lat.link_voxels[:, 0], lat.link_face] = True
+    linked[lat.link_voxels[:, 1], lat.link_face - 1] = True
+    bits = (~linked).astype(np.uint8) << np.arange(6, dtype=np.uint8)
+    boundary = bits.sum(axis=1).astype(np.uint8)
+    has_surface = np.zeros(len(lat.ijk), dtype=bool)
+    for k, v in enumerate(lat.conform_local.tolist()):
+        tags = lat.conform_tags[lat.conform_offsets[k]:lat.conform_offsets[k + 1]]
+        has_surface[v] = bool(np.any(tags == 6))
+    boundary[has_surface] |= np.uint8(1 << SURFACE_BIT)
+    lat.boundary = boundary
+
+
+def _components(link_voxels: np.ndarray, n: int) -> np.ndarray:
+    """Connected-component label (N,) of each voxel, numbered by lowest voxel index."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    graph = coo_matrix((np.ones(len(link_voxels)), (link_voxels[:, 0], link_voxels[:, 1])),
+                       shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return labels
+
+
+def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> VoxelModel:
+    library = settings.library
+    objects: list[dict] = []
+    material_names: list[str] = []
+    per: dict[str, list[np.ndarray]] = {k: [] for k in (
+        "vertices", "voxel_vertices", "voxel_ijk", "voxel_object", "material_name_idx",
+        "voxel_volume", "voxel_centroid", "voxel_inertia", "voxel_boundary", "strength",
+        "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
+        "conform_offsets", "conform_triangles", "conform_tag")}
+    voxel_base = vertex_base = tri_base = 0
+
+    def material_index(name: str) -> int:
+        key = library[name].name
+        if key not in material_names:
+            material_names.append(key)
+        return material_names.index(key)
+
+    for lat in lattices:
+        n = len(lat.ijk)
+        labels = _components(lat.link_voxels, n)
+        count = int(labels.max()) + 1
+        for c in range(count):
+            objects.append({"name": lat.name if count == 1 else f"{lat.name}.{c:03d}",
+                            "source": str(lat.request.mesh), "shape": lat.request.shape,
+                            "voxel_size_m": lat.grid.spacing.tolist(),
+                            "jitter": lat.request.jitter, "lattice_origin_m":
+                            lat.grid.origin.tolist(), "voxel_count": int((labels == c).sum())})
+        object_ids = len(objects) - count + labels
+        names = _voxel_materials(lat)
+        scale = np.ones(n)
+        for rule in lat.request.rules:
+            inside = rule.contains(lat.centroid)
+            if rule.material is not None:
+                names[inside] = library[rule.material].name
+            scale[inside] *= rule.strength_scale
+        unique_names, inverse = np.unique(names, return_inverse=True)
+        lookup = np.array([material_index(str(u)) for u in unique_names], dtype=np.int32)
+        per["material_name_idx"].append(lookup[inverse.ravel()])
+        per["vertices"].append(lat.positions)
+        per["voxel_vertices"].append(lat.voxel_vertices + vertex_base)
+        per["voxel_ijk"].append(lat.ijk)
+        per["voxel_object"].append(object_ids)
+        per["voxel_volume"].append(lat.volume)
+        per["voxel_centroid"].append(lat.centroid)
+        per["voxel_inertia"].append(lat.inertia)
+        per["voxel_boundary"].append(lat.boundary)
+        per["strength"].append(scale)
+        per["link_voxels"].append(lat.link_voxels + voxel_base)
+        per["link_face"].append(lat.link_face)
+        per["link_midpoint"].append(lat.link_midpoint)
+        per["link_area"].append(lat.link_area)
+        per["conform_voxels"].append(lat.conform_local + voxel_base)
+        per["conform_offsets"].append(lat.conform_offsets[:-1] + tri_base)
+        per["conform_triangles"].append(lat.conform_triangles)
+        per["conform_tag"].append(lat.conform_tags)
+        voxel_base += n
+        vertex_base += len(lat.positions)
+        tri_base += len(lat.conform_triangles)
+
+    cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in per.items()}
+    arrays = _material_arrays(cat, material_names, library, settings, up)
+    arrays.update(
+        vertices=cat["vertices"].astype(np.float64).reshape(-1, 3),
+        voxel_vertices=cat["voxel_vertices"].astype(np.int32).reshape(-1, 8),
+        voxel_ijk=cat["voxel_ijk"].astype(np.int32).reshape(-1, 3),
+        voxel_object=cat["voxel_object"].astype(np.int32),
+        voxel_material=cat["material_name_idx"].astype(np.int32),
+        voxel_volume=cat["voxel_volume"].astype(np.float64),
+        voxel_centroid=cat["voxel_centroid"].reshape(-1, 3),
+        voxel_inertia=cat["voxel_inertia"].reshape(-1, 3, 3),
+        voxel_boundary=cat["voxel_boundary"].astype(np.uint8),
+        link_voxels=cat["link_voxels"].astype(np.int32).reshape(-1, 2),
+        link_face=cat["link_face"].astype(np.uint8),
+        link_midpoint=cat["link_midpoint"].reshape(-1, 3),
+        link_area=cat["link_area"].astype(np.float64),
+        conform_voxels=cat["conform_voxels"].astype(np.int32),
+        conform_offsets=np.append(cat["conform_offsets"], tri_base).astype(np.int64),
+        conform_triangles=cat["conform_triangles"].reshape(-1, 3, 3).astype(np.float64),
+        conform_tag=cat["conform_tag"].astype(np.uint8),
+    )
+    lv = arrays["link_voxels"]
+    d = arrays["voxel_centroid"][lv[:, 1]] - arrays["voxel_centroid"][lv[:, 0]]
+    arrays["link_direction"] = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    density = arrays["material_density"][arrays["voxel_material"]]
+    arrays["voxel_mass"] = arrays["voxel_volume"] * density
+    arrays["voxel_inertia"] = arrays["voxel_inertia"] * density[:, None, None]
+    ground = _ground_height(settings.ground, arrays["vertices"], up)
+    meta = {
+        "tool_version": __version__, "up_axis": settings.up_axis, "ground_height": ground,
+        "seed": settings.seed, "settings": settings.recorded, "objects": objects,
+        "materials": material_names,
+    }
+    _foundations(arrays, ground, up, cat["strength"], settings.seed)
+    return VoxelModel(arrays=arrays, meta=meta)
+
+
+def _voxel_materials(lat: _Lattice) -> np.ndarray:
+    """Material name per voxel before region rules: object default, then mesh material."""
+    library_names = {lat.request.material}
+    per_part = []
+    mapping = {k.lower(): v for k, v in lat.request.material_map.items()}
+    for solid in lat.solids:
+        own = (solid.part.material or "").lower()
+        name = mapping.get(own, lat.request.material)
+        per_part.append(name)
+        library_names.add(name)
+    return np.array(per_part, dtype=object)[lat.part].astype(str)
+
+
+def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up) -> dict:
+    table = material_table(library, material_names)
+    mat = cat["material_name_idx"].astype(np.int64)
+    strength = cat["strength"]
+    n = len(mat)
+    seq = np.random.SeedSequence(settings.seed)
+    rng_voxel, rng_link, rng_found = (np.random.default_rng(s) for s in seq.spawn(3))
+    voxel_yield = perturbed(table["material_voxel_yield_mean"][mat],
+                            table["material_voxel_yield_var"][mat], rng_voxel, n) * strength
+    lv = cat["link_voxels"].astype(np.int64).reshape(-1, 2)
+    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
+    weaker = np.where(table["material_link_yield_mean"][la] <= table["material_link_yield_mean"][lb],
+                      la, lb)
+    link_strength = np.minimum(strength[lv[:, 0]], strength[lv[:, 1]])
+    link_yield = perturbed(table["material_link_yield_mean"][weaker],
+                           table["material_link_yield_var"][weaker], rng_link, len(lv)) * link_strength
+    table.update(voxel_yield=voxel_yield, link_yield=link_yield,
+                 voxel_combustibility=table["material_combustibility"][mat].astype(np.float64),
+                 _rng_found=np.asarray(rng_found.random(n)))
+    return table
+
+
+def _ground_height(ground, vertices: np.ndarray, up: int) -> float | None:
+    if ground is None or ground == "none":
+        return None
+    if ground == "auto":
+        return float(vertices[:, up].min())
+    return float(ground)
+
+
+def _foundations(arrays: dict, ground: float | None, up: int, strength: np.ndarray,
+                 seed: int) -> None:
+    """Tag voxels touching the ground and give them perturbed foundation yields."""
+    u = arrays.pop("_rng_found")
+    n = len(arrays["voxel_mass"])
+    if ground is None:
+        arrays["voxel_foundation"] = np.zeros(n, dtype=bool)
+        arrays["voxel_foundation_yield"] = np.zeros(n)
+        return
+    lowest = arrays["vertices"][arrays["voxel_vertices"], up].min(axis=1)
+    size = np.cbrt(np.maximum(arrays["voxel_volume"], 0.0))
+    found = lowest <= ground + 1e-3 * size
+    mat = arrays["voxel_material"]
+    mean = arrays["material_foundation_yield"][mat]
+    rel = np.divide(arrays["material_voxel_yield_var"][mat], arrays["material_voxel_yield_mean"][mat],
+                    out=np.zeros(n), where=arrays["material_voxel_yield_mean"][mat] > 0)
+    value = mean * (1.0 + rel * (2.0 * u - 1.0)) * strength
+    arrays["voxel_foundation"] = found
+    arrays["voxel_foundation_yield"] = np.where(found, np.maximum(value, 0.0), 0.0)
