@@ -1,0 +1,33 @@
+# Shot-build entry points. Each target creates the virtualenv it needs.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+## demo: install, then voxelize the bundled building example into out/building/
+demo: $(STAMP)
+	$(BIN)/blastvox voxelize --scene examples/building/scene.toml
+	$(BIN)/blastvox info out/building/model.npz
+
+## test: install, then lint and run the whole test suite
+test: $(STAMP)
+	$(BIN)/ruff check blastvox tests benchmarks
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check blastvox tests benchmarks
+
+## bench: print the benchmark tables
+bench: $(STAMP)
+	$(BIN)/python benchmarks/voxelize.py
+
+clean:
+	rm -rf out .pytest_cache

@@ -1,0 +1,50 @@
+"""Shared terminal output: a stderr console, warnings and a rich progress sink."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def err_console() -> Any:
+    """A rich Console on stderr (imported lazily)."""
+    from rich.console import Console
+
+    return Console(stderr=True, highlight=False)
+
+
+class RichProgress:
+    """Adapter from the pipeline's Progress protocol to a rich progress bar."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self._progress = None
+        self._task = None
+
+    def __enter__(self) -> RichProgress:
+        if self.enabled:
+            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                                       TimeElapsedColumn)
+
+            self._progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                                      MofNCompleteColumn(), TimeElapsedColumn(),
+                                      console=err_console(), transient=True)
+            self._progress.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+
+    def start(self, description: str, total: int) -> None:
+        if self._progress is None:
+            return
+        if self._task is not None:
+            self._progress.update(self._task, completed=self._progress.tasks[-1].total)
+        self._task = self._progress.add_task(description, total=max(total, 1))
+
+    def advance(self, amount: int = 1) -> None:
+        if self._progress is not None and self._task is not None:
+            self._progress.advance(self._task, amount)
+
+    def stop(self) -> None:
+        pass

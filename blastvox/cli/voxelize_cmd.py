@@ -1,0 +1,186 @@
+"""``blastvox voxelize``: meshes -> VoxelModel."""
+
+from __future__ import annotations
+
+import time
+from enum import Enum
+from pathlib import Path
+
+import typer
+
+from blastvox.errors import BlastvoxError, SceneError
+
+DEFAULT_RESOLUTION = 32
+
+
+class Shape(str, Enum):
+    cube = "cube"
+    conform = "conform"
+
+
+class UpAxis(str, Enum):
+    Y = "Y"
+    Z = "Z"
+
+
+def _parse_size(text: str, where: str) -> tuple[float, float, float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise BlastvoxError(f"{where}: --voxel-size must be S or SX,SY,SZ in metres "
+                            f"(got {text!r})") from None
+    if len(values) == 1:
+        values *= 3
+    if len(values) != 3:
+        raise BlastvoxError(f"{where}: --voxel-size needs 1 or 3 values (got {len(values)})")
+    if not all(v > 0 and v < float("inf") for v in values):
+        raise BlastvoxError(f"{where}: --voxel-size must be positive and finite (got {text})")
+    return values[0], values[1], values[2]
+
+
+def _parse_ground(text: str) -> str | float | None:
+    if text.lower() == "none":
+        return None
+    if text.lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise BlastvoxError(f"--ground must be auto, none or a height in metres (got {text!r})"
+                            ) from None
+
+
+def voxelize(
+    meshes: list[Path] = typer.Argument(None, help="Mesh files: OBJ, STL, PLY, OFF, glTF/GLB, "
+                                        "or volume meshes meshio reads (.vtu, .msh, ...).",
+                                        show_default=False),
+    output: Path = typer.Option(None, "-o", "--output", help="VoxelModel file to write (.npz). "
+                                "Default: the scene's output.model."),
+    scene: Path = typer.Option(None, "--scene", help="Scene TOML with [[objects]] to voxelize "
+                               "instead of MESH arguments."),
+    voxel_size: str = typer.Option(None, "--voxel-size", help="Voxel edge in metres, S or "
+                                   "SX,SY,SZ."),
+    resolution: int = typer.Option(None, "--resolution", help="Voxels along the longest axis "
+                                   f"(default {DEFAULT_RESOLUTION} if no --voxel-size)."),
+    shape: Shape = typer.Option(Shape.cube, "--shape", help="cube: hexahedral voxels; "
+                                "conform: boundary voxels are the exact cell-and-mesh shape."),
+    jitter: float = typer.Option(0.0, "--jitter", help="Displace lattice vertices by a seeded "
+                                 "random fraction of the voxel size, [0, 0.5)."),
+    material: str = typer.Option("concrete", "--material", help="Default material "
+                                 "(see `blastvox materials`)."),
+    materials_file: Path = typer.Option(None, "--materials", help="TOML file of extra or "
+                                        "overriding materials."),
+    up_axis: UpAxis = typer.Option(None, "--up-axis", help="Which input axis points up "
+                                   "[default: Y, as glTF; Z for most CAD/STL files]."),
+    ground: str = typer.Option(None, "--ground", help="Ground height: auto (lowest point), "
+                               "none (free-floating, no foundation), or metres [default: auto]."),
+    seed: int = typer.Option(None, "--seed", help="Seed for jitter and yield perturbation "
+                             "[default: 0]."),
+    max_voxels: int = typer.Option(4_000_000, "--max-voxels", help="Refuse to make more voxels "
+                                   "than this."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar or summary."),
+) -> None:
+    """Voxelize meshes into a connected-voxel model.
+
+    Inside is decided by a ray-averaged winding number, so small holes are
+    tolerated; triangle soups and open sheets are refused. Each connected body
+    becomes an object; face-adjacent voxels are linked.
+    """
+    from blastvox.cli.console import RichProgress, err_console
+    from blastvox.materials import MaterialLibrary
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings
+    from blastvox.voxelize.pipeline import voxelize as run
+
+    meshes = list(meshes or [])
+    if scene is not None and meshes:
+        raise BlastvoxError(f"{scene}: give either --scene or MESH arguments, not both")
+    if scene is None and not meshes:
+        raise BlastvoxError("no input: give MESH files or --scene SCENE.toml")
+    where = str(scene or meshes[0])
+    if max_voxels < 1:
+        raise BlastvoxError(f"{where}: --max-voxels must be at least 1 (got {max_voxels})")
+    if not 0.0 <= jitter < 0.5:
+        raise BlastvoxError(f"{where}: --jitter must be in [0, 0.5) (got {jitter})")
+    size = _parse_size(voxel_size, where) if voxel_size is not None else None
+    if resolution is not None and resolution < 1:
+        raise BlastvoxError(f"{where}: --resolution must be at least 1 (got {resolution})")
+    if size is not None and resolution is not None:
+        raise BlastvoxError(f"{where}: give --voxel-size or --resolution, not both")
+
+    if scene is not None:
+        from blastvox.scene import load_scene
+        from blastvox.voxelize.requests import requests_from_scene
+
+        spec = load_scene(scene)
+        requests = requests_from_scene(spec)
+        library = spec.material_library()
+        if materials_file is not None:
+            library = library.extended(_read_toml(materials_file), str(materials_file))
+        settings = VoxelizeSettings(
+            up_axis=(up_axis.value if up_axis else spec.up_axis),
+            ground=_parse_ground(ground) if ground is not None else
+            (None if spec.ground == "none" else spec.ground),
+            seed=spec.seed if seed is None else seed, max_voxels=max_voxels, library=library)
+        if output is None:
+            output = spec.output.model
+        if output is None:
+            raise SceneError(f"{scene}: output.model: not set, and no -o given")
+    else:
+        library = MaterialLibrary.load(materials_file)
+        library[material]  # unknown material -> error before any work
+        if size is None and resolution is None:
+            resolution = DEFAULT_RESOLUTION
+        requests = [ObjectRequest(mesh=m, voxel_size=size, resolution=resolution,
+                                  shape=shape.value, jitter=jitter, material=material)
+                    for m in meshes]
+        settings = VoxelizeSettings(up_axis=up_axis.value if up_axis else "Y",
+                                    ground=_parse_ground(ground or "auto"),
+                                    seed=0 if seed is None else seed, max_voxels=max_voxels,
+                                    library=library)
+        if output is None:
+            raise BlastvoxError(f"{where}: no output file: give -o MODEL.npz")
+    settings.recorded = _recorded(requests, settings, scene)
+
+    console = err_console()
+    started = time.perf_counter()
+    with RichProgress(enabled=not quiet and console.is_terminal) as progress:
+        model = run(requests, settings, progress=progress,
+                    warn=lambda m: console.print(f"[yellow]warning:[/] {m}"))
+    model.save(output)
+    if not quiet:
+        _print_summary(console, model, output, time.perf_counter() - started)
+
+
+def _read_toml(path: Path) -> dict:
+    from blastvox.errors import MaterialError
+    from blastvox.materials import read_toml
+
+    return read_toml(path, MaterialError)
+
+
+def _recorded(requests, settings, scene) -> dict:
+    """The settings that made the model, JSON-safe, without absolute paths."""
+    return {
+        "scene": Path(scene).name if scene else None,
+        "up_axis": settings.up_axis, "ground": settings.ground, "seed": settings.seed,
+        "max_voxels": settings.max_voxels,
+        "objects": [{
+            "mesh": Path(r.mesh).name, "name": r.name,
+            "voxel_size": list(r.voxel_size) if r.voxel_size else None,
+            "resolution": r.resolution, "shape": r.shape, "jitter": r.jitter,
+            "material": r.material, "material_map": dict(r.material_map),
+            "transform": r.transform.tolist() if r.transform is not None else None,
+            "rules": [{"kind": x.kind, "a": list(x.a), "b": x.b if isinstance(x.b, float)
+                       else list(x.b), "material": x.material,
+                       "strength_scale": x.strength_scale} for x in r.rules],
+        } for r in requests],
+    }
+
+
+def _print_summary(console, model, output: Path, seconds: float) -> None:
+    s = model.summary()
+    console.print(
+        f"[bold]{output}[/]: {s['voxel_count']:,} voxels, {s['link_count']:,} links, "
+        f"{s['object_count']} object(s), {s['foundation_voxel_count']:,} foundation voxels, "
+        f"{s['total_mass_kg']:.4g} kg, materials {', '.join(s['materials_used'])} "
+        f"({seconds:.2f} s, {s['voxel_count'] / max(seconds, 1e-9):,.0f} voxels/s)")

@@ -1,0 +1,49 @@
+"""Building voxelize requests from a scene file or from command-line flags."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blastvox.voxelize.pipeline import ObjectRequest
+from blastvox.voxelize.regions import RegionRule
+
+
+def transform_matrix(translate, rotate_deg, scale) -> np.ndarray:
+    """4x4 matrix: scale, then rotate (XYZ Euler angles in degrees), then translate (m)."""
+    from trimesh.transformations import euler_matrix
+
+    m = euler_matrix(*np.radians(np.asarray(rotate_deg, dtype=np.float64)), axes="sxyz")
+    m[:3, :3] = m[:3, :3] @ np.diag(np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,)))
+    m[:3, 3] = translate
+    return m
+
+
+def rule_from_scene(rule: Any) -> RegionRule:
+    """Convert a scene ``Rule`` into a :class:`RegionRule`."""
+    scale = 1.0 if rule.strength_scale is None else float(rule.strength_scale)
+    if rule.box is not None:
+        return RegionRule("box", tuple(rule.box.min), tuple(rule.box.max), rule.material, scale)
+    if rule.sphere is not None:
+        return RegionRule("sphere", tuple(rule.sphere.center), float(rule.sphere.radius),
+                          rule.material, scale)
+    return RegionRule("halfspace", tuple(rule.halfspace.point), tuple(rule.halfspace.normal),
+                      rule.material, scale)
+
+
+def requests_from_scene(scene: Any) -> list[ObjectRequest]:
+    """One :class:`ObjectRequest` per ``[[objects]]`` entry of a validated scene."""
+    out = []
+    for obj in scene.objects:
+        t = obj.transform
+        matrix = transform_matrix(t.translate, t.rotate_deg, t.scale)
+        out.append(ObjectRequest(
+            mesh=Path(obj.mesh), name=obj.name,
+            voxel_size=tuple(obj.voxel_size) if obj.voxel_size is not None else None,
+            resolution=obj.resolution, shape=obj.shape, jitter=obj.jitter,
+            material=obj.material, material_map=dict(obj.material_map),
+            transform=None if np.allclose(matrix, np.eye(4)) else matrix,
+            rules=[rule_from_scene(r) for r in obj.rules]))
+    return out
