@@ -1,0 +1,369 @@
+"""Materials: per-voxel physical and destruction parameters.
+
+A :class:`Material` holds what the simulator needs per voxel (Martins 2001 §4.2
+and §6): density, link and voxel yield limits with their random variance,
+foundation yield, coefficient of restitution, combustibility, and the colours
+of outside and fracture faces.
+
+Yield limits are *effective blast overpressure thresholds* (Pa) for destroying
+a building element, not tensile strengths. The built-in library
+(``blastvox/data/materials.toml``) calibrates link yields against the failure
+overpressures of building elements in Glasstone & Dolan (1977), "The Effects of
+Nuclear Weapons", Table 5.139 (glass windows 0.5-1 psi, wood siding panels
+1-2 psi, unreinforced concrete/cinder-block wall panels 1.5-2 psi, unreinforced
+brick wall panels 7-8 psi); the other materials are set by analogy, as the file
+notes.
+
+User libraries are TOML files whose top-level tables are materials::
+
+    [weak_brick]
+    base = "brick"               # inherit every field, then override
+    link_yield_mean = 20000.0
+
+A table without ``base`` that names an existing material overrides that
+material's fields; a new name without ``base`` must give every field
+(``description`` is optional).
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+import tomllib
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, fields, replace
+from functools import cache
+from importlib import resources
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from blastvox.errors import BlastvoxError, ContractError, MaterialError
+
+RGB = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Material:
+    """One material. All quantities SI; yields are blast overpressures.
+
+    Attributes:
+        name: Lower-case library name.
+        density: kg/m^3.
+        link_yield_mean: Pa; overpressure at a link midpoint that breaks the link.
+        link_yield_var: Pa; half-width of the uniform perturbation of the link yield.
+        voxel_yield_mean: Pa; overpressure at a voxel centre that turns it to dust.
+        voxel_yield_var: Pa; half-width of the uniform perturbation of the voxel yield.
+        foundation_yield: Pa; foundation strength, diminished by the overpressure at
+            the voxel centre until the voxel stops being a foundation voxel.
+        restitution: Coefficient of restitution, 0 (inelastic) .. 1 (elastic).
+        combustibility: Pa of scaled overpressure needed to ignite; ``inf`` never burns.
+        color: Linear RGB 0..1 of outside faces.
+        damage_color: Linear RGB 0..1 of faces that were inside the object.
+        description: Free text, including the source of the values.
+    """
+
+    name: str
+    density: float
+    link_yield_mean: float
+    link_yield_var: float
+    voxel_yield_mean: float
+    voxel_yield_var: float
+    foundation_yield: float
+    restitution: float
+    combustibility: float
+    color: RGB
+    damage_color: RGB
+    description: str = ""
+
+
+# Field name -> kind; the kind selects the check in _check_field.
+_FIELD_KINDS: dict[str, str] = {
+    "density": "positive",
+    "link_yield_mean": "threshold",
+    "link_yield_var": "variance",
+    "voxel_yield_mean": "threshold",
+    "voxel_yield_var": "variance",
+    "foundation_yield": "threshold",
+    "restitution": "unit",
+    "combustibility": "threshold",
+    "color": "rgb",
+    "damage_color": "rgb",
+    "description": "text",
+}
+_REQUIRED = [k for k in _FIELD_KINDS if k != "description"]
+_SCALARS = [k for k, kind in _FIELD_KINDS.items() if kind not in ("rgb", "text")]
+_TOML_POSITION = re.compile(r"\s*\(at (line \d+, column \d+|end of document)\)$")
+
+
+def read_toml(path: Path, error: type[BlastvoxError]) -> dict[str, Any]:
+    """Read a TOML file, turning every failure into a one-line ``error`` naming ``path``."""
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise error(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a directory, not a TOML file") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise error(f"{path}: not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        text = str(exc)
+        match = _TOML_POSITION.search(text)
+        if match:
+            text = f"at {match.group(1)}: {text[: match.start()]}"
+        raise error(f"{path}: TOML syntax error {text}") from None
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise MaterialError(f"{where}: must be a number (got {value!r})")
+    number = float(value)
+    if math.isnan(number):
+        raise MaterialError(f"{where}: must not be nan")
+    return number
+
+
+def _check_field(key: str, value: Any, where: str) -> Any:
+    """Validate one material field from a TOML table and return its stored form."""
+    kind = _FIELD_KINDS[key]
+    if kind == "text":
+        if not isinstance(value, str):
+            raise MaterialError(f"{where}: must be a string (got {value!r})")
+        return value
+    if kind == "rgb":
+        if not isinstance(value, list | tuple) or len(value) != 3:
+            raise MaterialError(f"{where}: must be a list of 3 numbers in [0, 1] (got {value!r})")
+        rgb = tuple(_number(c, where) for c in value)
+        if not all(0.0 <= c <= 1.0 for c in rgb):
+            raise MaterialError(f"{where}: components must be in [0, 1] (got {list(rgb)})")
+        return rgb
+    number = _number(value, where)
+    if kind == "positive" and not (0.0 < number < math.inf):
+        raise MaterialError(f"{where}: must be > 0 and finite (got {number})")
+    if kind == "threshold" and number < 0.0:
+        raise MaterialError(f"{where}: must be >= 0 (inf allowed) (got {number})")
+    if kind == "variance" and not (0.0 <= number < math.inf):
+        raise MaterialError(f"{where}: must be >= 0 and finite (got {number})")
+    if kind == "unit" and not (0.0 <= number <= 1.0):
+        raise MaterialError(f"{where}: must be in [0, 1] (got {number})")
+    return number
+
+
+def _normalise(name: Any, where: str) -> str:
+    if not isinstance(name, str) or not name.strip():
+        raise MaterialError(f"{where}: material name must be a non-empty string (got {name!r})")
+    return name.strip().lower()
+
+
+class MaterialLibrary(Mapping[str, Material]):
+    """Immutable, case-insensitive mapping from material name to :class:`Material`."""
+
+    __slots__ = ("_materials",)
+
+    def __init__(self, materials: Mapping[str, Material] | None = None) -> None:
+        """Wrap ``materials`` (name -> Material); names are normalised to lower case."""
+        items = {m.name.strip().lower(): m for m in (materials or {}).values()}
+        self._materials: Mapping[str, Material] = MappingProxyType(items)
+
+    @classmethod
+    def builtin(cls) -> MaterialLibrary:
+        """The library shipped in ``blastvox/data/materials.toml``."""
+        return _builtin()
+
+    @classmethod
+    def load(cls, path: Path | None) -> MaterialLibrary:
+        """The built-in library extended by the TOML file at ``path`` (if not None)."""
+        library = cls.builtin()
+        if path is None:
+            return library
+        return library.extended(read_toml(Path(path), MaterialError), str(path))
+
+    def extended(self, table: Mapping[str, Any], source: str, prefix: str = "") -> MaterialLibrary:
+        """A new library with the materials of ``table`` added or overridden.
+
+        Each entry maps a material name to a table of fields. ``base = "name"``
+        inherits every field from that material (of this library, or earlier or
+        later in ``table``) before the entry's own fields override them.
+        Errors name ``source``, then ``prefix`` + material + key.
+        """
+        if not isinstance(table, Mapping):
+            raise MaterialError(f"{source}: {prefix or 'materials'}: must be a table of materials")
+        raw: dict[str, tuple[str, Mapping[str, Any]]] = {}
+        for key, entry in table.items():
+            where = f"{source}: {prefix}{key}"
+            name = _normalise(key, where)
+            if name in raw:
+                raise MaterialError(f"{where}: defined twice (names are case-insensitive)")
+            if not isinstance(entry, Mapping):
+                raise MaterialError(f"{where}: must be a table of material fields (got {entry!r})")
+            raw[name] = (key, entry)
+
+        new = dict(self._materials)
+        done: set[str] = set()
+        resolving: set[str] = set()
+
+        def resolve(name: str) -> Material:
+            if name in done:
+                return new[name]
+            key, entry = raw[name]
+            where = f"{source}: {prefix}{key}"
+            resolving.add(name)
+            parent = self._materials.get(name)
+            if "base" in entry:
+                base = _normalise(entry["base"], f"{where}.base")
+                if base in resolving and base != name:
+                    raise MaterialError(f"{where}.base: circular inheritance via '{base}'")
+                if base in raw and base != name:
+                    parent = resolve(base)
+                elif base in self._materials:
+                    parent = self._materials[base]
+                else:
+                    known = [n for n in (*new, *raw) if n != name]
+                    raise MaterialError(f"{where}.base: {_unknown(base, known)}")
+            values = {}
+            for field, value in entry.items():
+                if field == "base":
+                    continue
+                if field not in _FIELD_KINDS:
+                    raise MaterialError(f"{where}.{field}: unknown key{_suggest(field)}")
+                values[field] = _check_field(field, value, f"{where}.{field}")
+            if parent is not None:
+                material = replace(parent, name=name, **values)
+            else:
+                missing = [k for k in _REQUIRED if k not in values]
+                if missing:
+                    raise MaterialError(
+                        f"{where}: new material is missing {', '.join(missing)} "
+                        "(give them, or inherit with base = \"<material>\")"
+                    )
+                material = Material(name=name, **values)
+            new[name] = material
+            done.add(name)
+            resolving.discard(name)
+            return material
+
+        for name in raw:
+            resolve(name)
+        return MaterialLibrary(new)
+
+    def names(self) -> list[str]:
+        """Material names in library order (built-ins first, then additions)."""
+        return list(self._materials)
+
+    def __getitem__(self, name: str) -> Material:
+        """Look up ``name`` case-insensitively; unknown names raise :class:`MaterialError`."""
+        key = name.strip().lower() if isinstance(name, str) else name
+        try:
+            return self._materials[key]
+        except (KeyError, TypeError):
+            raise MaterialError(_unknown(name, self._materials)) from None
+
+    def get(self, name: str, default: Material | None = None) -> Material | None:
+        """Like ``lib[name]`` but returns ``default`` for an unknown name."""
+        return self[name] if name in self else default
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name.strip().lower() in self._materials
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._materials)
+
+    def __len__(self) -> int:
+        return len(self._materials)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, MaterialLibrary):
+            return NotImplemented
+        return dict(self._materials) == dict(other._materials)
+
+    def __repr__(self) -> str:
+        return f"MaterialLibrary({', '.join(self._materials)})"
+
+
+def _unknown(name: object, known: Any) -> str:
+    return f"unknown material {name!r} (known: {', '.join(sorted(set(known)))})"
+
+
+def _suggest(key: str) -> str:
+    close = difflib.get_close_matches(key, list(_FIELD_KINDS), n=1)
+    if close:
+        return f" (did you mean '{close[0]}'?)"
+    return f" (known: base, {', '.join(_FIELD_KINDS)})"
+
+
+@cache
+def _builtin() -> MaterialLibrary:
+    text = resources.files("blastvox").joinpath("data/materials.toml").read_text("utf-8")
+    return MaterialLibrary().extended(tomllib.loads(text), "built-in materials.toml")
+
+
+def perturbed(mean: float | np.ndarray, var: float | np.ndarray, rng: np.random.Generator,
+              n: int) -> np.ndarray:
+    """Random yield limits ``mean + U(-var, var)`` (Martins 2001, eq. 4-1), in Pa.
+
+    ``mean`` and ``var`` are scalars or arrays broadcastable to ``(n,)``. The
+    result is float64 of shape ``(n,)``, clipped at 0; an infinite mean stays
+    infinite. Exactly ``n`` uniforms are always drawn, so the random stream
+    consumed does not depend on the values.
+    """
+    if n < 0:
+        raise ValueError(f"n must be >= 0 (got {n})")
+    mean_a = np.broadcast_to(np.asarray(mean, dtype=np.float64), (n,))
+    var_a = np.broadcast_to(np.asarray(var, dtype=np.float64), (n,))
+    if np.isnan(mean_a).any() or not (np.isfinite(var_a) & (var_a >= 0.0)).all():
+        raise ValueError("mean must not be nan and var must be finite and >= 0")
+    return np.maximum(mean_a + var_a * rng.uniform(-1.0, 1.0, n), 0.0)
+
+
+def material_table(lib: MaterialLibrary, names: list[str]) -> dict[str, np.ndarray]:
+    """Flat arrays describing the materials ``names`` (in that order), for a ``.npz``.
+
+    Keys are ``material_<field>``: float64 ``(M,)`` for scalar fields, float64
+    ``(M, 3)`` for ``material_color`` and ``material_damage_color``, and a
+    unicode ``(M,)`` array ``material_description`` (no pickles needed).
+    The names themselves are not included; store them alongside.
+    """
+    materials = [lib[n] for n in names]
+    table = {
+        f"material_{k}": np.array([getattr(m, k) for m in materials], dtype=np.float64)
+        for k in _SCALARS
+    }
+    for k in ("color", "damage_color"):
+        table[f"material_{k}"] = np.array(
+            [getattr(m, k) for m in materials], dtype=np.float64).reshape(len(materials), 3)
+    table["material_description"] = np.array([m.description for m in materials], dtype=np.str_)
+    return table
+
+
+def materials_from_table(names: list[str], arrays: Mapping[str, np.ndarray]) -> list[Material]:
+    """Inverse of :func:`material_table`; raises :class:`ContractError` if arrays are malformed."""
+    count = len(names)
+    columns: dict[str, np.ndarray] = {}
+    for f in fields(Material):
+        if f.name == "name":
+            continue
+        key = f"material_{f.name}"
+        if key not in arrays:
+            if f.name == "description":
+                continue
+            raise ContractError(f"material table: missing array {key!r}")
+        column = np.asarray(arrays[key])
+        shape = (count, 3) if f.name in ("color", "damage_color") else (count,)
+        if column.shape != shape:
+            raise ContractError(f"material table: {key} has shape {column.shape}, expected {shape}")
+        columns[f.name] = column
+    result = []
+    for i, name in enumerate(names):
+        values: dict[str, Any] = {k: float(columns[k][i]) for k in _SCALARS}
+        for k in ("color", "damage_color"):
+            values[k] = tuple(float(c) for c in columns[k][i])
+        if "description" in columns:
+            values["description"] = str(columns["description"][i])
+        result.append(Material(name=name, **values))
+    return result

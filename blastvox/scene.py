@@ -1,0 +1,483 @@
+"""Scene files: the TOML configuration shared by every stage.
+
+A scene names the meshes to voxelize (``[[objects]]``), the charges
+(``[[charges]]``), the simulation settings, which effects to model, an optional
+camera and output paths, plus optional extra materials (``materials_file`` and
+inline ``[materials.<name>]`` tables in the format of :mod:`blastvox.materials`).
+
+Conventions (all SI: metres, seconds, kilograms, pascals):
+
+* Every coordinate in the scene (transforms, rule regions, charge positions,
+  camera, ``ground`` height) is in the scene's world frame, whose up axis is
+  ``up_axis`` -- the same axis that points up in the input meshes. Rule regions
+  are tested against voxel centres *after* the object's transform.
+* ``transform`` maps mesh coordinates to world: scale, then rotate, then
+  translate. ``rotate_deg`` is XYZ Euler in degrees, extrinsic (rotate about X,
+  then Y, then Z: R = Rz @ Ry @ Rx), as Blender's ``XYZ`` mode.
+* Paths are relative to the scene file and are stored resolved (absolute).
+  Mesh files are not checked here: the voxelize stage reads them.
+
+Loading never raises anything but :class:`~blastvox.errors.SceneError`, whose
+message is one line: ``<file>: <key.path>: <what is wrong>``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import os
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal, get_args, get_origin
+
+import numpy as np
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    StringConstraints,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+
+from blastvox.errors import MaterialError, SceneError
+from blastvox.materials import MaterialLibrary, read_toml
+
+_UNKNOWN_SOURCE = "<scene>"
+
+
+class _At(ValueError):
+    """A validation error about a key below the one being validated."""
+
+    def __init__(self, path: tuple[str | int, ...], message: str) -> None:
+        super().__init__(message)
+        self.path = path
+
+
+def _got(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _vec3(value: Any) -> tuple[float, float, float]:
+    if (not isinstance(value, list | tuple) or len(value) != 3
+            or not all(_is_number(v) and math.isfinite(v) for v in value)):
+        raise ValueError(f"must be a list of 3 finite numbers (got {_got(value)})")
+    return (float(value[0]), float(value[1]), float(value[2]))
+
+
+def _size3(value: Any) -> tuple[float, float, float]:
+    vec3 = [value] * 3 if _is_number(value) else value
+    if (not isinstance(vec3, list | tuple) or len(vec3) != 3
+            or not all(_is_number(v) for v in vec3)):
+        raise ValueError(f"must be a number or a list of 3 numbers (got {_got(value)})")
+    vec = _vec3(vec3)
+    if min(vec) <= 0.0:
+        raise ValueError(f"must be > 0 (got {_got(value)})")
+    return vec
+
+
+def _path(value: Any, info: ValidationInfo) -> Path:
+    if not isinstance(value, str | Path) or not str(value).strip():
+        raise ValueError(f"must be a non-empty path string (got {_got(value)})")
+    path = Path(value).expanduser()
+    base = (info.context or {}).get("base_dir")
+    if base is not None and not path.is_absolute():
+        path = Path(os.path.normpath(Path(base).absolute() / path))
+    return path
+
+
+def _material_name(value: Any) -> Any:
+    return value.strip().lower() if isinstance(value, str) else value
+
+
+def _case(fold: str) -> BeforeValidator:
+    """Fold strings to ``fold`` ("lower"/"upper") case before validation."""
+
+    def convert(value: Any) -> Any:
+        return getattr(value, fold)() if isinstance(value, str) else value
+    return BeforeValidator(convert)
+
+
+def _ground(value: Any) -> Any:
+    if isinstance(value, str) and value.strip().lower() in ("auto", "none"):
+        return value.strip().lower()
+    if _is_number(value) and math.isfinite(value):
+        return float(value)
+    raise ValueError(f"must be 'auto', 'none' or a finite height in metres (got {_got(value)})")
+
+
+Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
+NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
+Vec3 = Annotated[tuple[float, float, float], BeforeValidator(_vec3)]
+Size3 = Annotated[tuple[float, float, float], BeforeValidator(_size3)]
+FilePath = Annotated[Path, BeforeValidator(_path)]
+Name = Annotated[str, StringConstraints(strict=True, strip_whitespace=True, min_length=1)]
+MaterialName = Annotated[Name, BeforeValidator(_material_name)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, ser_json_inf_nan="constants")
+
+
+class Transform(_Model):
+    """Mesh-to-world transform: scale, then rotate (XYZ Euler, degrees), then translate (m)."""
+
+    translate: Vec3 = (0.0, 0.0, 0.0)
+    rotate_deg: Vec3 = (0.0, 0.0, 0.0)
+    scale: Size3 = (1.0, 1.0, 1.0)
+
+
+class Box(_Model):
+    """Axis-aligned box (m), boundary inclusive."""
+
+    min: Vec3
+    max: Vec3
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Box:
+        if any(lo > hi for lo, hi in zip(self.min, self.max, strict=True)):
+            raise _At(("max",), f"must be >= min on every axis (min {list(self.min)})")
+        return self
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Boolean mask of the (N, 3) ``points`` inside the box."""
+        pts = np.asarray(points, dtype=np.float64)
+        return np.all((pts >= self.min) & (pts <= self.max), axis=-1)
+
+
+class Sphere(_Model):
+    """Ball with ``center`` (m) and ``radius`` (m > 0), boundary inclusive."""
+
+    center: Vec3
+    radius: Positive
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Boolean mask of the (N, 3) ``points`` inside the ball."""
+        d = np.asarray(points, dtype=np.float64) - self.center
+        return np.einsum("...i,...i->...", d, d) <= self.radius**2
+
+
+class Halfspace(_Model):
+    """Points x with (x - point) . normal >= 0; ``normal`` need not be unit length."""
+
+    point: Vec3
+    normal: Vec3
+
+    @field_validator("normal")
+    @classmethod
+    def _nonzero(cls, normal: tuple[float, float, float]) -> tuple[float, float, float]:
+        if not any(normal):
+            raise ValueError("must not be the zero vector")
+        return normal
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Boolean mask of the (N, 3) ``points`` in the half-space."""
+        return (np.asarray(points, dtype=np.float64) - self.point) @ np.asarray(self.normal) >= 0
+
+
+class Rule(_Model):
+    """A region (exactly one of box/sphere/halfspace) that sets material and/or scales strength.
+
+    ``strength_scale`` multiplies the link, voxel and foundation yields inside.
+    Rules apply in order; a later rule wins where regions overlap.
+    """
+
+    box: Box | None = None
+    sphere: Sphere | None = None
+    halfspace: Halfspace | None = None
+    material: MaterialName | None = None
+    strength_scale: Positive | None = None
+
+    @model_validator(mode="after")
+    def _complete(self) -> Rule:
+        given = [k for k in ("box", "sphere", "halfspace") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"needs exactly one of box, sphere, halfspace (got {given or 'none'})")
+        if self.material is None and self.strength_scale is None:
+            raise ValueError("needs material and/or strength_scale (otherwise it does nothing)")
+        return self
+
+    @property
+    def region(self) -> Box | Sphere | Halfspace:
+        """The rule's region."""
+        return self.box or self.sphere or self.halfspace  # type: ignore[return-value]
+
+
+class SceneObject(_Model):
+    """One mesh to voxelize. Exactly one of ``voxel_size`` (m) and ``resolution`` is set."""
+
+    mesh: FilePath
+    name: Name
+    voxel_size: Size3 | None = None
+    resolution: Annotated[int, Field(strict=True, ge=1)] | None = None
+    shape: Annotated[Literal["cube", "conform"], _case("lower")] = "cube"
+    jitter: Annotated[float, Field(strict=True, ge=0, lt=0.5)] = 0.0
+    material: MaterialName = "concrete"
+    material_map: dict[str, MaterialName] = {}
+    transform: Transform = Transform()
+    rules: list[Rule] = []
+
+    @model_validator(mode="before")
+    @classmethod
+    def _defaults(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            data = dict(data)
+            if "name" not in data and isinstance(data.get("mesh"), str | Path):
+                data["name"] = Path(data["mesh"]).stem
+            if "voxel_size" not in data and "resolution" not in data:
+                data["resolution"] = 32
+        return data
+
+    @field_validator("resolution")
+    @classmethod
+    def _one_size(cls, resolution: int | None, info: ValidationInfo) -> int | None:
+        if resolution is not None and info.data.get("voxel_size") is not None:
+            raise ValueError("give either voxel_size or resolution, not both")
+        return resolution
+
+    @model_validator(mode="after")
+    def _has_size(self) -> SceneObject:
+        if self.voxel_size is None and self.resolution is None:
+            raise _At(("resolution",), "give voxel_size or resolution")
+        return self
+
+
+class Charge(_Model):
+    """``mass_kg`` (kg) of ``explosive`` at ``position`` (m), detonated at ``time_s`` (s)."""
+
+    position: Vec3
+    mass_kg: Positive
+    explosive: Name = "TNT"
+    time_s: NonNegative = 0.0
+
+
+class Simulation(_Model):
+    """Integrator and physics settings (s, 1/s, m/s^2; weakening is a fraction 0..1)."""
+
+    dt: Positive = 1.0 / 240.0
+    fps: Positive = 24.0
+    duration: Positive = 5.0
+    fracture: Annotated[Literal["yield", "damage"], _case("lower")] = "yield"
+    gravity: NonNegative = 9.81
+    linear_drag: NonNegative = 0.0
+    angular_drag: NonNegative = 0.0
+    weakening: Annotated[float, Field(strict=True, ge=0, le=1)] = 0.5
+
+
+class Effects(_Model):
+    """Which effects to model; an effect that is off costs nothing."""
+
+    collisions: Annotated[bool, Field(strict=True)] = True
+    ground: Annotated[bool, Field(strict=True)] = True
+    fire: Annotated[bool, Field(strict=True)] = True
+    dust: Annotated[bool, Field(strict=True)] = True
+    fireball: Annotated[bool, Field(strict=True)] = True
+    shock_sphere: Annotated[bool, Field(strict=True)] = True
+    camera_shake: Annotated[bool, Field(strict=True)] = True
+
+
+class Camera(_Model):
+    """Shot camera: ``position`` and ``look_at`` in m, focal length in mm (35 mm film back)."""
+
+    position: Vec3
+    look_at: Vec3
+    focal_length_mm: Positive = 35.0
+
+    @model_validator(mode="after")
+    def _distinct(self) -> Camera:
+        if self.position == self.look_at:
+            raise _At(("look_at",), "must differ from position")
+        return self
+
+
+class Output(_Model):
+    """Default output paths of the stages (absolute once loaded)."""
+
+    model: FilePath | None = None
+    cache: FilePath | None = None
+    export: FilePath | None = None
+
+
+class Scene(_Model):
+    """A validated scene. Build with :func:`load_scene` or :func:`scene_from_dict`.
+
+    ``Scene.model_validate(data)`` also works; pass
+    ``context={"base_dir": dir, "source": name}`` to resolve paths and name the
+    source in errors. Material references are checked against
+    :meth:`material_library` during validation.
+    """
+
+    seed: Annotated[int, Field(strict=True, ge=0)] = 0
+    up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = "Y"
+    ground: Annotated[Literal["auto", "none"] | float, BeforeValidator(_ground)] = "auto"
+    materials_file: FilePath | None = None
+    materials: dict[str, dict[str, Any]] = {}
+    objects: Annotated[list[SceneObject], Field(min_length=1)]
+    charges: list[Charge] = []
+    simulation: Simulation = Simulation()
+    effects: Effects = Effects()
+    camera: Camera | None = None
+    output: Output = Output()
+
+    _library: MaterialLibrary | None = PrivateAttr(default=None)
+
+    @field_validator("objects")
+    @classmethod
+    def _unique_names(cls, objects: list[SceneObject]) -> list[SceneObject]:
+        seen: dict[str, int] = {}
+        for i, obj in enumerate(objects):
+            if obj.name in seen:
+                raise _At((i, "name"), f"duplicate object name {obj.name!r} "
+                                       f"(also objects[{seen[obj.name]}])")
+            seen[obj.name] = i
+        return objects
+
+    @model_validator(mode="after")
+    def _check_materials(self, info: ValidationInfo) -> Scene:
+        source = (info.context or {}).get("source", _UNKNOWN_SOURCE)
+        self._library = library = _build_library(self, source)
+        for key, name in self._material_refs():
+            try:
+                library[name]
+            except MaterialError as exc:
+                raise SceneError(f"{source}: {key}: {exc}") from None
+        return self
+
+    def _material_refs(self) -> list[tuple[str, str]]:
+        refs = []
+        for i, obj in enumerate(self.objects):
+            refs.append((f"objects[{i}].material", obj.material))
+            refs += [(f"objects[{i}].material_map{_key(k)}", v)
+                     for k, v in obj.material_map.items()]
+            refs += [(f"objects[{i}].rules[{j}].material", r.material)
+                     for j, r in enumerate(obj.rules) if r.material is not None]
+        return refs
+
+    def material_library(self) -> MaterialLibrary:
+        """Built-in materials, extended by ``materials_file``, then by inline ``materials``."""
+        if self._library is None:
+            self._library = _build_library(self, _UNKNOWN_SOURCE)
+        return self._library
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-compatible dict (paths as strings; ``inf`` kept as float) for metadata."""
+        return self.model_dump(mode="json")
+
+
+def _build_library(scene: Scene, source: str) -> MaterialLibrary:
+    library = MaterialLibrary.builtin()
+    if scene.materials_file is not None:
+        try:
+            library = MaterialLibrary.load(scene.materials_file)
+        except MaterialError as exc:
+            raise SceneError(f"{source}: materials_file: {exc}") from None
+    try:
+        return library.extended(scene.materials, source, prefix="materials.")
+    except MaterialError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def load_scene(path: Path) -> Scene:
+    """Read, validate and resolve the scene file at ``path``; errors are :class:`SceneError`."""
+    path = Path(path)
+    return scene_from_dict(read_toml(path, SceneError), str(path), path.parent)
+
+
+def scene_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Scene:
+    """Validate ``data`` (a parsed scene file) with relative paths resolved against ``base_dir``.
+
+    ``source`` names the file in error messages.
+    """
+    context = {"source": source, "base_dir": Path(base_dir).absolute()}
+    try:
+        return Scene.model_validate(data, context=context)
+    except ValidationError as exc:
+        raise SceneError(format_validation_error(exc, source)) from None
+
+
+def format_validation_error(exc: ValidationError, source: str) -> str:
+    """One line ``<source>: <key.path>: <problem> [(+N more)]`` for a pydantic error."""
+    errors = exc.errors()
+    first = errors[0]
+    loc = tuple(first["loc"])
+    cause = (first.get("ctx") or {}).get("error")
+    if isinstance(cause, _At):
+        loc += cause.path
+    where = "".join(f"[{p}]" if isinstance(p, int) else _key(p) for p in loc).lstrip(".")
+    text = f"{source}: {where + ': ' if where else ''}{_describe(first, loc)}"
+    return text + (f" (+{len(errors) - 1} more)" if len(errors) > 1 else "")
+
+
+def _key(part: str) -> str:
+    return f".{part}" if re.fullmatch(r"[A-Za-z0-9_-]+", part) else f".{json.dumps(part)}"
+
+
+def _describe(error: Any, loc: tuple[str | int, ...]) -> str:
+    kind, ctx, got = error["type"], error.get("ctx") or {}, _got(error.get("input"))
+    bounds = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="),
+              "less_than": ("lt", "<"), "less_than_equal": ("le", "<=")}
+    if kind in ("value_error", "assertion_error"):
+        return str(ctx["error"])
+    if kind in bounds:
+        name, op = bounds[kind]
+        return f"must be {op} {ctx[name]:g} (got {got})"
+    simple = {
+        "missing": "required key is missing",
+        "finite_number": "must be finite",
+        "float_type": f"must be a number (got {got})",
+        "int_type": f"must be an integer (got {got})",
+        "int_from_float": f"must be an integer (got {got})",
+        "bool_type": f"must be true or false (got {got})",
+        "string_type": f"must be a string (got {got})",
+        "string_too_short": "must not be empty",
+        "dict_type": f"must be a table (got {got})",
+        "model_type": f"must be a table (got {got})",
+        "model_attributes_type": f"must be a table (got {got})",
+        "list_type": f"must be a list (got {got})",
+    }
+    if kind in simple:
+        return simple[kind]
+    if kind == "literal_error":
+        return f"must be one of {ctx['expected'].replace(' or ', ', ')} (got {got})"
+    if kind == "too_short":
+        return f"must have at least {ctx['min_length']} entry (got {ctx.get('actual_length')})"
+    if kind == "extra_forbidden":
+        allowed = _fields_at(loc[:-1])
+        close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
+        if close:
+            return f"unknown key (did you mean '{close[0]}'?)"
+        return f"unknown key (allowed: {', '.join(allowed)})" if allowed else "unknown key"
+    message = error["msg"]
+    return message[:1].lower() + message[1:]
+
+
+def _fields_at(loc: tuple[str | int, ...]) -> list[str]:
+    """Keys allowed in the table at ``loc`` of a scene (empty if not a model)."""
+    model: type[BaseModel] | None = Scene
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        field = model.model_fields.get(part) if model else None
+        model = _find_model(field.annotation) if field else None
+    return list(model.model_fields) if model else []
+
+
+def _find_model(annotation: Any) -> type[BaseModel] | None:
+    if (get_origin(annotation) is None and isinstance(annotation, type)
+            and issubclass(annotation, BaseModel)):
+        return annotation
+    for arg in get_args(annotation):
+        found = _find_model(arg)
+        if found is not None:
+            return found
+    return None
