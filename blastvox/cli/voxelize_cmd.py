@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 
 import typer
@@ -13,12 +13,12 @@ from blastvox.errors import BlastvoxError, SceneError
 DEFAULT_RESOLUTION = 32
 
 
-class Shape(str, Enum):
+class Shape(StrEnum):
     cube = "cube"
     conform = "conform"
 
 
-class UpAxis(str, Enum):
+class UpAxis(StrEnum):
     Y = "Y"
     Z = "Z"
 

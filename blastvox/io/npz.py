@@ -77,7 +77,8 @@ def read_npz(path: str | os.PathLike, schema: str, max_version: int,
     except ValueError as exc:  # pickled members refuse to load with allow_pickle=False
         raise ContractError(f"{p}: not a blastvox {what} ({exc})") from None
     except (OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise ContractError(f"{p}: not a readable .npz {what} (truncated or foreign: {exc})") from None
+        raise ContractError(
+            f"{p}: not a readable .npz {what} (truncated or foreign: {exc})") from None
     try:
         meta = json.loads(arrays.pop(META_KEY).tobytes().decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:

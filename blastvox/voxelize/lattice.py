@@ -58,11 +58,13 @@ def fit_grid(bounds: np.ndarray, spacing: np.ndarray, up_axis: int) -> Grid:
     bounds = np.asarray(bounds, dtype=np.float64)
     spacing = np.asarray(spacing, dtype=np.float64)
     extent = bounds[1] - bounds[0]
-    counts = np.maximum(1, np.ceil(extent / spacing - 1e-9)).astype(np.int64)
+    # 1e-6: float32 mesh files store "exact" sizes with ~1e-7 relative error
+    counts = np.maximum(1, np.ceil(extent / spacing - 1e-6)).astype(np.int64)
     slack = counts * spacing - extent
     origin = bounds[0] - 0.5 * slack
     origin[up_axis] = bounds[0, up_axis]
-    return Grid(origin=origin, spacing=spacing, shape=(int(counts[0]), int(counts[1]), int(counts[2])))
+    shape = (int(counts[0]), int(counts[1]), int(counts[2]))
+    return Grid(origin=origin, spacing=spacing, shape=shape)
 
 
 def spacing_for(bounds: np.ndarray, voxel_size: float | tuple[float, float, float] | None,

@@ -26,8 +26,12 @@ from blastvox.voxelize.lattice import CORNER_OFFSETS, Grid, fit_grid, hex_triang
 from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
 from blastvox.voxelize.mesh_io import load_parts
 from blastvox.voxelize.regions import RegionRule
-from blastvox.voxelize.topology import (face_neighbours, hex_face_area_centroid, index_grid,
-                                        tagged_area_centroid)
+from blastvox.voxelize.topology import (
+    face_neighbours,
+    hex_face_area_centroid,
+    index_grid,
+    tagged_area_centroid,
+)
 
 DEFAULT_MAX_VOXELS = 4_000_000
 #: Conform cells keeping less than this fraction of the cell volume are dropped.
@@ -135,7 +139,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                        np.max([s.mesh.bounds[1] for s in solids], axis=0)])
     spacing = spacing_for(bounds, request.voxel_size, request.resolution)
     if np.any(spacing <= 0) or not np.all(np.isfinite(spacing)):
-        raise MeshError(f"{source}: voxel size must be positive and finite (got {spacing.tolist()})")
+        raise MeshError(
+            f"{source}: voxel size must be positive and finite (got {spacing.tolist()})")
     grid = fit_grid(bounds, spacing, up)
     cellsel.check_grid_budget(source, grid, settings.max_voxels)
     progress.start(f"inside test {Path(source).name}", 1)
@@ -414,11 +419,11 @@ def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up
                             table["material_voxel_yield_var"][mat], rng_voxel, n) * strength
     lv = cat["link_voxels"].astype(np.int64).reshape(-1, 2)
     la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
-    weaker = np.where(table["material_link_yield_mean"][la] <= table["material_link_yield_mean"][lb],
-                      la, lb)
+    link_mean = table["material_link_yield_mean"]
+    weaker = np.where(link_mean[la] <= link_mean[lb], la, lb)
     link_strength = np.minimum(strength[lv[:, 0]], strength[lv[:, 1]])
-    link_yield = perturbed(table["material_link_yield_mean"][weaker],
-                           table["material_link_yield_var"][weaker], rng_link, len(lv)) * link_strength
+    link_yield = perturbed(link_mean[weaker], table["material_link_yield_var"][weaker],
+                           rng_link, len(lv)) * link_strength
     table.update(voxel_yield=voxel_yield, link_yield=link_yield,
                  voxel_combustibility=table["material_combustibility"][mat].astype(np.float64),
                  _rng_found=np.asarray(rng_found.random(n)))
@@ -447,8 +452,9 @@ def _foundations(arrays: dict, ground: float | None, up: int, strength: np.ndarr
     found = lowest <= ground + 1e-3 * size
     mat = arrays["voxel_material"]
     mean = arrays["material_foundation_yield"][mat]
-    rel = np.divide(arrays["material_voxel_yield_var"][mat], arrays["material_voxel_yield_mean"][mat],
-                    out=np.zeros(n), where=arrays["material_voxel_yield_mean"][mat] > 0)
+    voxel_mean = arrays["material_voxel_yield_mean"][mat]
+    rel = np.divide(arrays["material_voxel_yield_var"][mat], voxel_mean, out=np.zeros(n),
+                    where=np.isfinite(voxel_mean) & (voxel_mean > 0))
     value = mean * (1.0 + rel * (2.0 * u - 1.0)) * strength
     arrays["voxel_foundation"] = found
     arrays["voxel_foundation_yield"] = np.where(found, np.maximum(value, 0.0), 0.0)
