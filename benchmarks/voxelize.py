@@ -1,0 +1,170 @@
+"""Voxelize benchmark: prints a markdown table of timings for the voxelize stage.
+
+    python benchmarks/voxelize.py            # all cases (about a minute)
+    python benchmarks/voxelize.py --quick    # small cases, one timed run each (~15 s)
+    python benchmarks/voxelize.py --repeat 5 # best of 5 (default: 3, or 1 with --quick)
+
+Each case runs in its own Python process (so the peak RSS column belongs to
+that case alone), calls :func:`blastvox.voxelize.pipeline.voxelize` directly,
+first does one warm-up run of the same mesh and shape at a tiny resolution
+(imports, numba compilation or cache load), then reports the best of N timed
+runs. Reading the mesh file is part of every timed run, writing the model is not.
+
+Targets: the bunny at ~1M cube voxels in under 10 s, and the example building
+in conform mode (~5,000 voxels) in under 5 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "tests" / "data"
+WARMUP_RESOLUTION = 12
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    mesh: Path
+    shape: str
+    resolution: int
+    up_axis: str = "Y"
+    quick: bool = False          # included in --quick
+    target_s: float | None = None
+
+
+CASES = [
+    Case("bunny r60", DATA / "bunny.ply", "cube", 60, quick=True),
+    Case("bunny r120", DATA / "bunny.ply", "cube", 120),
+    Case("bunny r172 (~1M)", DATA / "bunny.ply", "cube", 172, target_s=10.0),
+    # The bunny has small holes in its base: cube mode's winding number tolerates them,
+    # conform mode needs a closed manifold and refuses it (reported as an error row).
+    Case("bunny r40", DATA / "bunny.ply", "conform", 40, quick=True),
+    # A closed CAD part, so there is a conform row at a moderate resolution anyway.
+    Case("fandisk r40", DATA / "fandisk.obj", "conform", 40, quick=True),
+    # As examples/building/scene.toml (same mesh, resolution, shape; no region rule).
+    Case("building r40", DATA / "no_indices_3storybuilding.glb", "conform", 40, quick=True,
+         target_s=5.0),
+]
+
+
+def peak_rss_mib() -> float:
+    """Peak resident set size of this process so far, MiB."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10  # bytes vs KiB
+
+
+def run_case(case: Case, repeat: int) -> dict:
+    """Warm up, then time ``repeat`` runs of one case (called in a worker process)."""
+    from blastvox.errors import BlastvoxError
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    def once(resolution: int):
+        request = ObjectRequest(mesh=case.mesh, resolution=resolution, shape=case.shape)
+        return voxelize([request], VoxelizeSettings(up_axis=case.up_axis))
+
+    try:
+        once(WARMUP_RESOLUTION)
+        seconds = []
+        for _ in range(repeat):
+            started = time.perf_counter()
+            model = once(case.resolution)
+            seconds.append(time.perf_counter() - started)
+    except BlastvoxError as exc:
+        return {"error": str(exc)}
+    return {"voxels": model.voxel_count, "links": model.link_count, "seconds": seconds,
+            "peak_rss_mib": peak_rss_mib()}
+
+
+def run_in_subprocess(index: int, repeat: int) -> dict:
+    proc = subprocess.run([sys.executable, __file__, "--worker", str(index),
+                           "--repeat", str(repeat)], capture_output=True, text=True)
+    if proc.returncode != 0:
+        lines = proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"]
+        return {"error": f"worker crashed: {lines[-1]}", "crashed": True}
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            cpu = next(line.split(":", 1)[1].strip() for line in fh
+                       if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    versions = ", ".join(f"{p} {_version(p)}" for p in ("blastvox", "numpy", "numba", "trimesh",
+                                                         "manifold3d"))
+    return (f"Machine: {platform.platform()}; {cpu}; {os.cpu_count()} CPUs; "
+            f"Python {platform.python_version()}; {versions}")
+
+
+def _version(package: str) -> str:
+    try:
+        return metadata.version(package)
+    except metadata.PackageNotFoundError:
+        return "?"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="only the small cases")
+    parser.add_argument("--repeat", type=int, help="timed runs per case, best of them counts "
+                        "(default: 3, or 1 with --quick)")
+    parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.repeat is None:
+        args.repeat = 1 if args.quick else 3
+    if args.repeat < 1:
+        parser.error("--repeat must be at least 1")
+    if args.worker is not None:
+        print(json.dumps(run_case(CASES[args.worker], args.repeat)))
+        return 0
+
+    print(machine())
+    print()
+    runs = f"Best of {args.repeat} warm runs" if args.repeat > 1 else "One warm run"
+    print(f"{runs} per case (after one warm-up run); "
+          "targets: ~1M cube voxels < 10 s, building conform (~5k voxels) < 5 s.")
+    print()
+    print("| case | mode | voxels | links | seconds | voxels/s | peak RSS MiB | target "
+          "| result |")
+    print("|---|---|--:|--:|--:|--:|--:|---|---|")
+    notes, crashed = [], False
+    for index, case in enumerate(CASES):
+        if args.quick and not case.quick:
+            continue
+        result = run_in_subprocess(index, args.repeat)
+        target = f"< {case.target_s:g} s" if case.target_s else ""
+        if "error" in result:
+            crashed |= bool(result.get("crashed"))
+            notes.append(f"{case.name} ({case.shape}): {result['error']}")
+            print(f"| {case.name} | {case.shape} | — | — | — | — | — | {target} | "
+                  f"error [{len(notes)}] |")
+            continue
+        best = min(result["seconds"])
+        verdict = "" if case.target_s is None else (
+            "pass" if best < case.target_s else "FAIL")
+        print(f"| {case.name} | {case.shape} | {result['voxels']:,} | {result['links']:,} | "
+              f"{best:.2f} | {result['voxels'] / best:,.0f} | {result['peak_rss_mib']:,.0f} | "
+              f"{target} | {verdict} |", flush=True)
+    for number, note in enumerate(notes, 1):
+        if number == 1:
+            print()
+        print(f"[{number}] {note}")
+    return 1 if crashed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
