@@ -262,7 +262,14 @@ class Charge(_Model):
 
 
 class Simulation(_Model):
-    """Integrator and physics settings (s, 1/s, m/s^2; weakening is a fraction 0..1)."""
+    """Integrator and physics settings.
+
+    dt, duration: s; fps: 1/s; gravity: m/s^2 along -up; drags: 1/s.
+    weakening: fraction of a wave's peak overpressure taken off the yield of a
+    link or voxel it did not break. orientation_factor k: a link parallel to
+    the wave's radius holds only (1 - k) of its yield. damage_b (-) and
+    damage_c (1/(Pa s)): Davison-Stevens constants for ``fracture = "damage"``.
+    """
 
     dt: Positive = 1.0 / 240.0
     fps: Positive = 24.0
@@ -272,6 +279,9 @@ class Simulation(_Model):
     linear_drag: NonNegative = 0.0
     angular_drag: NonNegative = 0.0
     weakening: Annotated[float, Field(strict=True, ge=0, le=1)] = 0.5
+    orientation_factor: Annotated[float, Field(strict=True, ge=0, lt=1)] = 0.5
+    damage_b: NonNegative = 0.05
+    damage_c: NonNegative = 0.02
 
 
 class Effects(_Model):

@@ -138,7 +138,8 @@ BAD_INPUTS: dict[str, tuple[tuple[str | Path, ...], tuple[str, ...]]] = {
     "empty": (("empty.stl", *SMALL), ("empty.stl",)),
     "nan": (("nan.obj", *SMALL), ("nan.obj",)),
     "missing": (("missing.stl", *SMALL), ("missing.stl",)),
-    "unknown_material": ((BUNNY, *SMALL, "--material", "unobtainium"), ("unobtainium",)),
+    "unknown_material": ((BUNNY, *SMALL, "--material", "unobtainium"),
+                         ("bunny.ply", "--material", "unobtainium")),
     "voxel_size_zero": ((BUNNY, "--voxel-size", "0"), ("--voxel-size",)),
     "voxel_size_negative": ((BUNNY, "--voxel-size=-1"), ("--voxel-size",)),
     "budget": ((BUNNY, *SMALL, "--max-voxels", "10"), ("bunny.ply", "--max-voxels")),
@@ -232,21 +233,11 @@ def test_console_script_help(tmp_path: Path) -> None:
         assert command in result.stdout
 
 
-@pytest.mark.xfail(strict=True, reason="bug: --version is a plain option of the group "
-                   "callback, so click fails with 'Missing command.' before the callback "
-                   "runs, and app.main then crashes on `import click` (typer vendors click "
-                   "as typer._click)")
 def test_version(tmp_path: Path) -> None:
     result = ok(run_cli("--version", cwd=tmp_path))
     assert result.stdout.strip() == f"blastvox {blastvox.__version__}"
 
 
-CLICK_BUG = ("bug: app.main handles click usage errors with `import click`, but typer "
-             "vendors click as typer._click and click is not installed, so every usage "
-             "error ends in a ModuleNotFoundError traceback")
-
-
-@pytest.mark.xfail(strict=True, reason=CLICK_BUG)
 @pytest.mark.parametrize("args, flag", [
     (("voxelize", "x.stl", "--shape", "sphere", "-o", "x.npz"), "--shape"),
     (("voxelize", "x.stl", "--resolution", "many", "-o", "x.npz"), "--resolution"),

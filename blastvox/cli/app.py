@@ -6,7 +6,7 @@ import sys
 
 import typer
 
-from blastvox.cli import info_cmd, materials_cmd, voxelize_cmd
+from blastvox.cli import blast_cmd, info_cmd, materials_cmd, voxelize_cmd
 
 app = typer.Typer(
     name="blastvox",
@@ -24,38 +24,37 @@ app.command("info", help="Summarise a blastvox file (VoxelModel); --json for scr
     info_cmd.info)
 app.command("materials", help="List the material library (built-in plus a TOML file).")(
     materials_cmd.materials)
+app.command("blast", help="Blast-wave calculator: overpressure, arrival, duration and impulse "
+            "at distances.")(blast_cmd.blast)
 
 
-@app.callback()
-def _root(version: bool = typer.Option(False, "--version", help="Print the version and exit.",
-                                       is_eager=True)) -> None:
-    if version:
+def _print_version(value: bool) -> None:
+    if value:
         from blastvox import __version__
 
         typer.echo(f"blastvox {__version__}")
         raise typer.Exit()
 
 
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", help="Print the version and exit.",
+                                       is_eager=True, callback=_print_version)) -> None:
+    """Connected-voxel blast-wave destruction for shot pipelines."""
+
+
 def main() -> None:
-    """Console entry point: run the app; user errors become one line and exit code 1."""
+    """Console entry point: user errors become one line on stderr and exit code 1.
+
+    Usage errors are click's (exit 2); an interrupt exits 130 with nothing written
+    (outputs are atomic).
+    """
     from blastvox.errors import BlastvoxError
 
     try:
-        app(standalone_mode=False)
+        app()
     except BlastvoxError as exc:
         typer.echo(f"blastvox: error: {exc}", err=True)
         sys.exit(exc.exit_code)
     except KeyboardInterrupt:
         typer.echo("blastvox: interrupted; no output written", err=True)
         sys.exit(130)
-    except typer.Exit as exc:
-        sys.exit(exc.exit_code)
-    except typer.Abort:
-        sys.exit(130)
-    except Exception as exc:  # click usage errors carry their own formatting
-        import click
-
-        if isinstance(exc, click.ClickException):
-            exc.show()
-            sys.exit(exc.exit_code)
-        raise

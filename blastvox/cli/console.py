@@ -7,9 +7,13 @@ from typing import Any
 
 def err_console() -> Any:
     """A rich Console on stderr (imported lazily)."""
+    import sys
+
     from rich.console import Console
 
-    return Console(stderr=True, highlight=False)
+    # piped (a shot build's log): one message per line, never wrapped at 80 columns
+    width = None if sys.stderr.isatty() else 10_000
+    return Console(stderr=True, highlight=False, width=width, soft_wrap=width is not None)
 
 
 class RichProgress:

@@ -19,7 +19,12 @@ def materials(
 
     library = MaterialLibrary.load(materials_file)
     if as_json:
-        typer.echo(json.dumps({n: asdict(library[n]) for n in library.names()}, indent=2))
+        def finite(value):  # JSON has no Infinity: unbounded limits are the string "inf"
+            return "inf" if value == float("inf") else value
+
+        table = {n: {k: finite(v) for k, v in asdict(library[n]).items()}
+                 for n in library.names()}
+        typer.echo(json.dumps(table, indent=2))
         return
     from rich.console import Console
     from rich.table import Table

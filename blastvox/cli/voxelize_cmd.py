@@ -108,6 +108,14 @@ def voxelize(
         raise BlastvoxError(f"{where}: give --voxel-size or --resolution, not both")
 
     if scene is not None:
+        mesh_flags = (("--voxel-size", voxel_size), ("--resolution", resolution),
+                      ("--material", None if material == "concrete" else material),
+                      ("--shape", None if shape == Shape.cube else shape),
+                      ("--jitter", jitter or None))
+        given = [flag for flag, value in mesh_flags if value is not None]
+        if given:
+            raise BlastvoxError(f"{scene}: {given[0]} applies to MESH arguments; with --scene "
+                                f"set it per object in the scene file")
         from blastvox.scene import load_scene
         from blastvox.voxelize.requests import requests_from_scene
 
@@ -127,7 +135,11 @@ def voxelize(
             raise SceneError(f"{scene}: output.model: not set, and no -o given")
     else:
         library = MaterialLibrary.load(materials_file)
-        library[material]  # unknown material -> error before any work
+        if material not in library:  # fail before any work
+            from blastvox.errors import MaterialError
+
+            raise MaterialError(f"{where}: --material: unknown material {material!r} "
+                                f"(known: {', '.join(library.names())})")
         if size is None and resolution is None:
             resolution = DEFAULT_RESOLUTION
         requests = [ObjectRequest(mesh=m, voxel_size=size, resolution=resolution,

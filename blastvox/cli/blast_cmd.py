@@ -1,0 +1,107 @@
+"""``blastvox blast``: the artist's blast-wave calculator."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import typer
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        value = float(text.strip())
+    except ValueError:
+        from blastvox.errors import BlastvoxError
+
+        raise BlastvoxError(f"{what}: {text.strip()!r} is not a number") from None
+    if not math.isfinite(value):
+        from blastvox.errors import BlastvoxError
+
+        raise BlastvoxError(f"{what}: {text.strip()!r} is not a finite number")
+    return value
+
+
+def parse_charge(text: str | None) -> float:
+    """The --charge value in kg: a finite number > 0."""
+    from blastvox.errors import BlastvoxError
+
+    if text is None:
+        raise BlastvoxError("--charge KG is required (mass of explosive in kg)")
+    value = _number(text, "--charge")
+    if value <= 0.0:
+        raise BlastvoxError(f"--charge: {value:g} kg is not a positive mass")
+    return value
+
+
+def parse_distances(text: str | None) -> list[float]:
+    """The --distance list in m: comma-separated finite numbers >= 0."""
+    from blastvox.errors import BlastvoxError
+
+    if text is None:
+        raise BlastvoxError("--distance R[,R,...] is required (distances in m)")
+    parts = text.split(",")
+    if not any(p.strip() for p in parts):
+        raise BlastvoxError("--distance: no distances given")
+    values = []
+    for part in parts:
+        if not part.strip():
+            raise BlastvoxError(f"--distance: empty entry in {text!r}")
+        value = _number(part, "--distance")
+        if value < 0.0:
+            raise BlastvoxError(f"--distance: {value:g} m is negative")
+        values.append(value)
+    return values
+
+
+def blast(
+    charge: str = typer.Option(None, "--charge", metavar="KG",
+                               help="Mass of explosive in kg (required)."),
+    explosive: str = typer.Option("TNT", "--explosive", metavar="NAME",
+                                  help="Explosive, converted to a TNT-equivalent mass "
+                                       "(e.g. TNT, C4, PETN, RDX, ANFO, Semtex)."),
+    distance: str = typer.Option(None, "--distance", metavar="R[,R,...]",
+                                 help="Distance(s) from the charge centre in m, "
+                                      "comma-separated (required)."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per "
+                                 "distance, in SI units."),
+) -> None:
+    """Free-air blast wave of a spherical charge at the given distances.
+
+    Kingery-Bulmash free-air fits (ConWep, UFC 3-340-02), Hopkinson-Cranz scaled.
+    JSON keys: distance_m, scaled_distance (m/kg^(1/3), TNT-equivalent), peak_overpressure_pa,
+    arrival_time_s, positive_duration_s, decay_coefficient (Friedlander b), impulse_pa_s.
+    """
+    from blastvox.simulate.blast import Z_MAX, Z_MIN, blast_parameters, tnt_equivalent
+
+    mass = parse_charge(charge)
+    distances = parse_distances(distance)
+    factor = tnt_equivalent(explosive)
+    params = blast_parameters(distances, mass, explosive)
+    records = params.records()
+    if as_json:
+        typer.echo(json.dumps(records, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    title = (f"{mass:g} kg {explosive} = {mass * factor:.4g} kg TNT (factor {factor:g}); "
+             "spherical charge, free air, sea level")
+    caption = ("Z scaled distance m/kg^(1/3); Ps peak incident overpressure; ta arrival; "
+               "Td positive duration; b Friedlander decay; I positive impulse")
+    table = Table(title=title, caption=caption, title_justify="left", caption_justify="left")
+    for header in ("R m", "Z", "Ps kPa", "ta ms", "Td ms", "b", "I Pa s", "note"):
+        table.add_column(header, justify="left" if header == "note" else "right")
+    for row in records:
+        z = row["scaled_distance"]
+        note = "in charge" if z < Z_MIN else "far field" if z > Z_MAX else ""
+        table.add_row(f"{row['distance_m']:g}", f"{z:.4g}",
+                      f"{row['peak_overpressure_pa'] / 1e3:.4g}",
+                      f"{row['arrival_time_s'] * 1e3:.4g}",
+                      f"{row['positive_duration_s'] * 1e3:.4g}",
+                      f"{row['decay_coefficient']:.4g}", f"{row['impulse_pa_s']:.4g}", note)
+    Console().print(table)
+    if any(r["scaled_distance"] < Z_MIN or r["scaled_distance"] > Z_MAX for r in records):
+        Console(stderr=True, highlight=False).print(
+            f"note: data cover Z {Z_MIN:g}-{Z_MAX:g} m/kg^(1/3); in charge = held at the "
+            "charge surface, far field = acoustic 1/R decay")

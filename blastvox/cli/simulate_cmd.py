@@ -1,0 +1,143 @@
+"""``blastvox simulate``: VoxelModel + scene -> SimCache."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+from blastvox.errors import BlastvoxError
+
+
+def _parse_charge(text: str) -> tuple[tuple[float, float, float], float, float]:
+    """'X,Y,Z:KG[@T]' -> (position m, mass kg, time s)."""
+    try:
+        where, rest = text.split(":", 1)
+        mass, _, when = rest.partition("@")
+        x, y, z = (float(v) for v in where.split(","))
+        kg = float(mass)
+        t = float(when) if when else 0.0
+    except ValueError:
+        raise BlastvoxError(f"--charge {text!r}: expected X,Y,Z:KG or X,Y,Z:KG@T "
+                            f"(metres, kg TNT, seconds)") from None
+    if not kg > 0 or not t >= 0 or not all(abs(v) < float("inf") for v in (x, y, z, kg, t)):
+        raise BlastvoxError(f"--charge {text!r}: mass must be > 0 and time >= 0, all finite")
+    return (x, y, z), kg, t
+
+
+def simulate(
+    model_path: Path = typer.Argument(..., metavar="MODEL", help="VoxelModel .npz from "
+                                      "`blastvox voxelize`."),
+    output: Path = typer.Option(None, "-o", "--output", help="SimCache file to write (.npz). "
+                                "Default: the scene's output.cache."),
+    scene: Path = typer.Option(None, "--scene", help="Scene TOML: charges, [simulation] and "
+                               "[effects]."),
+    charge: list[str] = typer.Option(None, "--charge", help="X,Y,Z:KG[@T] of TNT at metres, "
+                                     "detonated at T s; repeatable; replaces the scene's "
+                                     "charges."),
+    explosive: str = typer.Option("TNT", "--explosive", help="Explosive of --charge masses."),
+    dt: float = typer.Option(None, "--dt", help="Fixed step, s [default: 1/240]."),
+    fps: float = typer.Option(None, "--fps", help="Output frames per second [default: 24]."),
+    duration: float = typer.Option(None, "--duration", help="Simulated seconds [default: 5]."),
+    gravity: float = typer.Option(None, "--gravity", help="m/s^2 along -up; 0 switches it off "
+                                  "[default: 9.81]."),
+    fracture: str = typer.Option(None, "--fracture", help="yield or damage "
+                                 "(Davison-Stevens) [default: yield]."),
+    no_ground: bool = typer.Option(False, "--no-ground", help="No ground: foundations are "
+                                   "ignored and the model floats free."),
+    seed: int = typer.Option(None, "--seed", help="Seed recorded in the cache [default: the "
+                             "scene's or 0]."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar or summary."),
+) -> None:
+    """Blow up a voxel model: blast wave, fracture, fragments, rigid-body motion.
+
+    Runs at a fixed step, writes piece transforms at --fps, destroyed voxels,
+    damage, link breaks, dust emitters and shock radii.
+    """
+    from dataclasses import replace
+
+    from blastvox.cli.console import err_console
+    from blastvox.model import VoxelModel
+    from blastvox.simulate.run import simulate as run
+    from blastvox.simulate.settings import ChargeSpec, SimSettings, settings_from_scene
+
+    model = VoxelModel.load(model_path)
+    settings = SimSettings()
+    if scene is not None:
+        from blastvox.scene import load_scene
+
+        spec = load_scene(scene)
+        settings = settings_from_scene(spec)
+        if output is None:
+            output = spec.output.cache
+    if output is None:
+        raise BlastvoxError(f"{model_path}: no output file: give -o SIM.npz")
+    overrides = {k: v for k, v in {"dt": dt, "fps": fps, "duration": duration,
+                                   "gravity": gravity, "fracture": fracture, "seed": seed}.items()
+                 if v is not None}
+    for key in ("dt", "fps", "duration"):
+        if key in overrides and not 0 < overrides[key] < float("inf"):
+            raise BlastvoxError(f"--{key} must be positive and finite (got {overrides[key]})")
+    if "gravity" in overrides and not 0 <= overrides["gravity"] < float("inf"):
+        raise BlastvoxError(f"--gravity must be >= 0 (got {overrides['gravity']})")
+    if overrides.get("fracture", "yield") not in ("yield", "damage"):
+        raise BlastvoxError(f"--fracture must be yield or damage (got {fracture!r})")
+    if no_ground:
+        overrides["ground"] = False
+    if charge:
+        specs = []
+        for text in charge:
+            position, kg, t = _parse_charge(text)
+            specs.append(ChargeSpec(position, kg, explosive, t))
+        overrides["charges"] = tuple(specs)
+    settings = replace(settings, **overrides)
+    if not settings.charges:
+        raise BlastvoxError(f"{scene or model_path}: no charges: give --charge X,Y,Z:KG or "
+                            f"[[charges]] in the scene")
+
+    console = err_console()
+    started = time.perf_counter()
+    progress = _Progress(enabled=not quiet and console.is_terminal, console=console)
+    with progress:
+        cache = run(model, settings, progress=progress,
+                    warn=lambda m: console.print(f"warning: {m}", markup=False))
+    cache.save(output)
+    if not quiet:
+        s = cache.summary()
+        seconds = time.perf_counter() - started
+        console.print(f"{output}: {s['piece_count']:,} pieces ({s['moving_piece_count']:,} "
+                      f"moving), {s['broken_link_count']:,} broken links, "
+                      f"{s['destroyed_voxel_count']:,} voxels to dust, {s['frame_count']} frames, "
+                      f"{seconds:.2f} s wall", markup=False, highlight=False)
+
+
+class _Progress:
+    """Rich progress bar showing simulated time and steps per second."""
+
+    def __init__(self, enabled: bool, console) -> None:
+        self.enabled, self.console = enabled, console
+        self._bar = self._task = None
+        self._start = time.perf_counter()
+
+    def __enter__(self):
+        if self.enabled:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+            self._bar = Progress(TextColumn("simulating"), BarColumn(),
+                                 TextColumn("{task.fields[sim]}"), TimeRemainingColumn(),
+                                 console=self.console, transient=True)
+            self._bar.start()
+            self._task = self._bar.add_task("sim", total=1, sim="")
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+    def update(self, sim_time: float, done: int, total: int) -> None:
+        if self._bar is None:
+            return
+        rate = done / max(time.perf_counter() - self._start, 1e-9)
+        self._bar.update(self._task, completed=done, total=total,
+                         sim=f"t = {sim_time:.3f} s, {rate:,.0f} steps/s")
