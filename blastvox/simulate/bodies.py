@@ -1,0 +1,69 @@
+"""Rigid bodies: mass properties from voxels, and momentum-exact splits.
+
+Bodies live in flat arrays with one slot per possible body (a body is a set
+of voxels; there are never more bodies than voxels plus the initial objects).
+Per body: mass (kg), rest centre of mass ``com`` (m, model frame), inertia
+``inertia`` (kg m^2, about the rest centre of mass, model frame), world
+position ``pos`` of the centre of mass (m), orientation ``quat`` (rest -> world),
+linear momentum ``lin`` (kg m/s) and angular momentum ``ang`` about the centre
+of mass (kg m^2/s, world frame).
+
+A split gives each fragment the velocity of the parent's rigid motion at the
+fragment's centre of mass, v + omega x (c_frag - c), and keeps omega. The
+velocity field is unchanged, so total linear and angular momentum are
+conserved exactly (to round-off), unlike the mass-weighted shares of
+Martins 2001 eqs. 4-6/4-7, which lose the orbital part.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from blastvox.simulate.quaternion import to_matrix
+
+
+@nb.njit(cache=True)
+def aggregate(members: np.ndarray, voxel_mass: np.ndarray, voxel_centroid: np.ndarray,
+              voxel_inertia: np.ndarray):
+    """Mass (kg), centre of mass (3,) and inertia (3, 3) about it of the voxels ``members``.
+
+    The inertia is the sum of each voxel's own inertia and its parallel-axis
+    term, all in the model (rest) frame.
+    """
+    mass = 0.0
+    first = np.zeros(3)
+    for v in members:
+        m = voxel_mass[v]
+        mass += m
+        for a in range(3):
+            first[a] += m * voxel_centroid[v, a]
+    com = first / mass if mass > 0.0 else voxel_centroid[members[0]].copy()
+    inertia = np.zeros((3, 3))
+    for v in members:
+        m = voxel_mass[v]
+        d0 = voxel_centroid[v, 0] - com[0]
+        d1 = voxel_centroid[v, 1] - com[1]
+        d2 = voxel_centroid[v, 2] - com[2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        d = (d0, d1, d2)
+        for r in range(3):
+            for s in range(3):
+                inertia[r, s] += voxel_inertia[v, r, s] - m * d[r] * d[s]
+            inertia[r, r] += m * dd
+    return mass, com, inertia
+
+
+@nb.njit(cache=True)
+def world_inverse_inertia(inertia: np.ndarray, quat: np.ndarray) -> np.ndarray:
+    """I_world^-1 = R I_rest^-1 R^T (3, 3); zero for a body with no rotational inertia."""
+    rot = to_matrix(quat)
+    if np.abs(np.linalg.det(inertia)) <= 1e-300:
+        return np.zeros((3, 3))
+    return rot @ np.linalg.inv(inertia) @ rot.T
+
+
+@nb.njit(cache=True)
+def angular_velocity(inertia: np.ndarray, quat: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """omega (rad/s, world) from angular momentum about the centre of mass."""
+    return world_inverse_inertia(inertia, quat) @ ang

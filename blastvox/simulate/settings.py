@@ -1,0 +1,80 @@
+"""Run settings and charges, from a scene and/or command-line overrides."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ChargeSpec:
+    """A charge: ``mass_kg`` of ``explosive`` at ``position`` (m), detonated at ``time_s``."""
+
+    position: tuple[float, float, float]
+    mass_kg: float
+    explosive: str = "TNT"
+    time_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Integrator and physics settings (see :class:`blastvox.scene.Simulation`).
+
+    ground: False means no ground at all: foundation voxels are ignored, so
+    founded structures float free.
+    """
+
+    dt: float = 1.0 / 240.0
+    fps: float = 24.0
+    duration: float = 5.0
+    fracture: str = "yield"
+    gravity: float = 9.81
+    linear_drag: float = 0.0
+    angular_drag: float = 0.0
+    weakening: float = 0.5
+    orientation_factor: float = 0.5
+    damage_b: float = 0.05
+    damage_c: float = 0.02
+    seed: int = 0
+    ground: bool = True
+    charges: tuple[ChargeSpec, ...] = field(default_factory=tuple)
+
+    def steps_per_frame(self) -> int:
+        """Whole steps per output frame; dt is shortened to divide the frame interval."""
+        return max(1, math.ceil(1.0 / (self.fps * self.dt) - 1e-9))
+
+    def step_seconds(self) -> float:
+        """The step actually used, s: 1 / (fps x steps_per_frame), never above dt."""
+        return 1.0 / (self.fps * self.steps_per_frame())
+
+    def frame_count(self) -> int:
+        """Output frames, the first at t = 0 and the last at or before ``duration``."""
+        return int(math.floor(self.duration * self.fps + 1e-9)) + 1
+
+    def to_dict(self) -> dict:
+        d = {k: getattr(self, k) for k in ("dt", "fps", "duration", "fracture", "gravity",
+                                           "linear_drag", "angular_drag", "weakening",
+                                           "orientation_factor", "damage_b", "damage_c", "seed",
+                                           "ground")}
+        d["charges"] = [{"position": list(c.position), "mass_kg": c.mass_kg,
+                         "explosive": c.explosive, "time_s": c.time_s} for c in self.charges]
+        return d
+
+
+def settings_from_scene(scene) -> SimSettings:
+    """SimSettings from a validated :class:`blastvox.scene.Scene`."""
+    s = scene.simulation
+    charges = tuple(ChargeSpec(tuple(c.position), c.mass_kg, c.explosive, c.time_s)
+                    for c in scene.charges)
+    return SimSettings(dt=s.dt, fps=s.fps, duration=s.duration, fracture=s.fracture,
+                       gravity=s.gravity, linear_drag=s.linear_drag, angular_drag=s.angular_drag,
+                       weakening=s.weakening, orientation_factor=s.orientation_factor,
+                       damage_b=s.damage_b, damage_c=s.damage_c, seed=scene.seed,
+                       ground=scene.effects.ground and scene.ground != "none", charges=charges)
+
+
+def gravity_vector(up: np.ndarray, gravity: float) -> np.ndarray:
+    """(3,) m/s^2 pointing down the model's up axis."""
+    return -gravity * np.asarray(up, dtype=np.float64)

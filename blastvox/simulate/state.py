@@ -1,0 +1,155 @@
+"""The simulator's immutable model and mutable state, as flat arrays.
+
+Like MuJoCo's mjModel/mjData or Warp's Model/State: :class:`SimModel` is built
+once from a VoxelModel and the scene and never changes during a run;
+:class:`State` holds everything a step changes. Kernels take the arrays they
+need explicitly; no per-voxel Python objects exist anywhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from blastvox.model import VoxelModel
+from blastvox.voxelize.lattice import FACE_CORNERS, face_triangles
+
+CONFORM_FACES = 7  # cell faces 0..5 plus the original surface
+
+
+@dataclass(frozen=True)
+class SimModel:
+    """Static data of a run (SI units; model frame = the VoxelModel's frame).
+
+    vertices (V, 3), voxel_vertices (N, 8): voxel corners at rest.
+    voxel_mass (N,), voxel_centroid (N, 3), voxel_inertia (N, 3, 3): rest mass properties.
+    link_voxels (L, 2), link_face (L,), link_midpoint (L, 3), link_direction (L, 3).
+    voxel_link_offsets (N+1,), voxel_link_ids (2L,): links of each voxel (CSR).
+    conform_slot (N,): row in the conform tables or -1; conform_face_area (C, 7, 3)
+    vector areas (m^2, outward) and conform_face_centroid (C, 7, 3) of each face.
+    up (3,): unit up vector; gravity: m/s^2 along -up.
+    """
+
+    vertices: np.ndarray
+    voxel_vertices: np.ndarray
+    voxel_mass: np.ndarray
+    voxel_centroid: np.ndarray
+    voxel_inertia: np.ndarray
+    link_voxels: np.ndarray
+    link_face: np.ndarray
+    link_midpoint: np.ndarray
+    link_direction: np.ndarray
+    voxel_link_offsets: np.ndarray
+    voxel_link_ids: np.ndarray
+    conform_slot: np.ndarray
+    conform_face_area: np.ndarray
+    conform_face_centroid: np.ndarray
+    voxel_material: np.ndarray
+    voxel_object: np.ndarray
+    up: np.ndarray
+
+    @property
+    def n_voxels(self) -> int:
+        return len(self.voxel_mass)
+
+    @property
+    def n_links(self) -> int:
+        return len(self.link_voxels)
+
+
+@dataclass
+class State:
+    """Everything a step changes.
+
+    Voxels: body (N,) body slot; alive (N,); link_mask (N,) bit f = alive link
+    across face f; yield_pa (N,) current voxel yield; foundation (N,) and
+    foundation_pa (N,); damage (N,) Davison-Stevens damage (links' worth).
+    Links: alive (L,), yield_pa (L,).
+    Bodies (capacity B): see :mod:`blastvox.simulate.bodies`; plus fixed (has a
+    foundation), live (exists now), dust (destroyed voxel), parent, born/died
+    (step numbers; died = -1 while alive).
+    """
+
+    voxel_body: np.ndarray
+    voxel_alive: np.ndarray
+    voxel_link_mask: np.ndarray
+    voxel_yield: np.ndarray
+    voxel_foundation: np.ndarray
+    voxel_foundation_yield: np.ndarray
+    voxel_damage: np.ndarray
+    link_alive: np.ndarray
+    link_yield: np.ndarray
+    body_mass: np.ndarray
+    body_com: np.ndarray
+    body_inertia: np.ndarray
+    body_pos: np.ndarray
+    body_quat: np.ndarray
+    body_lin: np.ndarray
+    body_ang: np.ndarray
+    body_fixed: np.ndarray
+    body_live: np.ndarray
+    body_dust: np.ndarray
+    body_parent: np.ndarray
+    body_born: np.ndarray
+    body_died: np.ndarray
+    n_bodies: np.ndarray  # (1,) int64, slots used
+
+
+def build_model(model: VoxelModel) -> SimModel:
+    """Derive the static simulation arrays from a VoxelModel."""
+    a = model.arrays
+    n = model.voxel_count
+    links = a["link_voxels"].astype(np.int64)
+    ends = np.concatenate([links[:, 0], links[:, 1]])
+    ids = np.concatenate([np.arange(len(links)), np.arange(len(links))])
+    order = np.argsort(ends, kind="stable")
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(offsets, ends + 1, 1)
+    offsets = np.cumsum(offsets)
+    slot = np.full(n, -1, dtype=np.int64)
+    conform = a["conform_voxels"].astype(np.int64)
+    slot[conform] = np.arange(len(conform))
+    area, centroid = _conform_faces(a["conform_triangles"], a["conform_tag"],
+                                    a["conform_offsets"])
+    up = np.zeros(3)
+    up[model.up_index] = 1.0
+    return SimModel(
+        vertices=np.ascontiguousarray(a["vertices"], dtype=np.float64),
+        voxel_vertices=a["voxel_vertices"].astype(np.int64),
+        voxel_mass=a["voxel_mass"].astype(np.float64),
+        voxel_centroid=np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64),
+        voxel_inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
+        link_voxels=links, link_face=a["link_face"].astype(np.int64),
+        link_midpoint=np.ascontiguousarray(a["link_midpoint"], dtype=np.float64),
+        link_direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64),
+        voxel_link_offsets=offsets, voxel_link_ids=ids[order].astype(np.int64),
+        conform_slot=slot, conform_face_area=area, conform_face_centroid=centroid,
+        voxel_material=a["voxel_material"].astype(np.int64),
+        voxel_object=a["voxel_object"].astype(np.int64), up=up)
+
+
+def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray):
+    """Per conform voxel and face (0..5 cell faces, 6 surface): vector area and centroid."""
+    c = len(offsets) - 1
+    area = np.zeros((c, CONFORM_FACES, 3))
+    moment = np.zeros((c, CONFORM_FACES, 3))
+    weight = np.zeros((c, CONFORM_FACES))
+    if c == 0:
+        return area, moment
+    owner = np.repeat(np.arange(c), np.diff(offsets))
+    vec = 0.5 * np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    mag = np.linalg.norm(vec, axis=1)
+    np.add.at(area, (owner, tags.astype(np.int64)), vec)
+    np.add.at(moment, (owner, tags.astype(np.int64)), mag[:, None] * triangles.mean(axis=1))
+    np.add.at(weight, (owner, tags.astype(np.int64)), mag)
+    centroid = moment / np.where(weight > 0, weight, 1.0)[..., None]
+    return area, centroid
+
+
+def hex_face_vectors(vertices: np.ndarray, voxel_vertices: np.ndarray) -> np.ndarray:
+    """Outward vector areas (N, 6, 3) of the hexahedral faces, m^2 (for tests and tools)."""
+    quads = voxel_vertices[:, FACE_CORNERS]
+    tris = vertices[face_triangles(quads)]  # (N, 6, 2, 3, 3)
+    return 0.5 * np.cross(tris[..., 1, :] - tris[..., 0, :],
+                          tris[..., 2, :] - tris[..., 0, :]).sum(axis=2)
