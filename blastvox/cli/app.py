@@ -6,7 +6,7 @@ import sys
 
 import typer
 
-from blastvox.cli import blast_cmd, info_cmd, materials_cmd, voxelize_cmd
+from blastvox.cli import blast_cmd, info_cmd, materials_cmd, simulate_cmd, voxelize_cmd
 
 app = typer.Typer(
     name="blastvox",
@@ -20,7 +20,10 @@ app = typer.Typer(
 )
 app.command("voxelize", help="Turn meshes into connected voxels with per-voxel materials "
             "(writes a VoxelModel .npz).")(voxelize_cmd.voxelize)
-app.command("info", help="Summarise a blastvox file (VoxelModel); --json for scripts.")(
+app.command("simulate", help="Blow up a VoxelModel: blast wave, fracture, fragments and "
+            "motion at a fixed step (writes a SimCache .npz).")(simulate_cmd.simulate)
+app.command("info", help="Summarise a blastvox file (VoxelModel or SimCache); --json for "
+            "scripts.")(
     info_cmd.info)
 app.command("materials", help="List the material library (built-in plus a TOML file).")(
     materials_cmd.materials)

@@ -55,15 +55,16 @@ def aggregate(members: np.ndarray, voxel_mass: np.ndarray, voxel_centroid: np.nd
 
 
 @nb.njit(cache=True)
-def world_inverse_inertia(inertia: np.ndarray, quat: np.ndarray) -> np.ndarray:
-    """I_world^-1 = R I_rest^-1 R^T (3, 3); zero for a body with no rotational inertia."""
-    rot = to_matrix(quat)
-    if np.abs(np.linalg.det(inertia)) <= 1e-300:
+def inverse_inertia(inertia: np.ndarray) -> np.ndarray:
+    """I^-1 (3, 3) of a rest-frame inertia tensor; zeros if it is singular (no rotation)."""
+    scale = max(abs(inertia[0, 0]), abs(inertia[1, 1]), abs(inertia[2, 2]))
+    if scale <= 0.0 or abs(np.linalg.det(inertia)) <= 1e-12 * scale ** 3:
         return np.zeros((3, 3))
-    return rot @ np.linalg.inv(inertia) @ rot.T
+    return np.linalg.inv(inertia)
 
 
 @nb.njit(cache=True)
-def angular_velocity(inertia: np.ndarray, quat: np.ndarray, ang: np.ndarray) -> np.ndarray:
-    """omega (rad/s, world) from angular momentum about the centre of mass."""
-    return world_inverse_inertia(inertia, quat) @ ang
+def angular_velocity(inv_inertia: np.ndarray, quat: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """omega (rad/s, world) = R I_rest^-1 R^T L from angular momentum about the centre of mass."""
+    rot = to_matrix(quat)
+    return rot @ (inv_inertia @ (rot.T @ ang))

@@ -21,6 +21,7 @@ import math
 
 import numba as nb
 import numpy as np
+
 from blastvox.simulate.wave import point_impulse
 
 _FACE_CORNERS = np.array(
@@ -61,6 +62,20 @@ def _apply(point, weight_area, vec_area, ck, c, t0, t1, charge_pos, charge_time,
     out_l[b, 2] += dx * fy - dy * fx
 
 
+@nb.njit(cache=True, inline="always")
+def _to_world(rot, pos, com, rest, out) -> None:
+    """out = pos + rot (rest - com), no allocation."""
+    x, y, z = rest[0] - com[0], rest[1] - com[1], rest[2] - com[2]
+    for a in range(3):
+        out[a] = pos[a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
+
+
+@nb.njit(cache=True, inline="always")
+def _rotate(rot, vec, out) -> None:
+    for a in range(3):
+        out[a] = rot[a, 0] * vec[0] + rot[a, 1] * vec[1] + rot[a, 2] * vec[2]
+
+
 @nb.njit(cache=True)
 def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, reach_in, table,
                    vertices, voxel_vertices, voxel_centroid, voxel_body, voxel_alive,
@@ -76,6 +91,8 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
     n_charges = charge_pos.shape[0]
     point = np.empty(3)
     area = np.empty(3)
+    rest_area = np.empty(3)
+    centre = np.empty(3)
     for v in range(voxel_body.shape[0]):
         if not voxel_alive[v]:
             continue
@@ -87,7 +104,7 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
         if exposed == 0 and slot < 0:
             continue
         rot = body_rot[b]
-        centre = body_pos[b] + rot @ (voxel_centroid[v] - body_com[b])
+        _to_world(rot, body_pos[b], body_com[b], voxel_centroid[v], centre)
         for c in range(n_charges):
             if reach_out[c] <= 0.0:
                 continue
@@ -99,8 +116,8 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                 for f in range(7):
                     if f < 6 and not (exposed >> f) & 1:
                         continue
-                    area[:] = rot @ conform_area[slot, f]
-                    point[:] = body_pos[b] + rot @ (conform_centroid[slot, f] - body_com[b])
+                    _rotate(rot, conform_area[slot, f], area)
+                    _to_world(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
                     _apply(point, 1.0, area, 0, c, t0, t1, charge_pos, charge_time,
                            charge_scale, table, body_pos[b], out_p, out_l, b)
                 continue
@@ -112,14 +129,18 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                 q2 = voxel_vertices[v, _FACE_CORNERS[f, 2]]
                 q3 = voxel_vertices[v, _FACE_CORNERS[f, 3]]
                 # vector area of the quad = half the cross product of its diagonals
-                d1 = vertices[q2] - vertices[q0]
-                d2 = vertices[q3] - vertices[q1]
-                area[0] = 0.5 * (d1[1] * d2[2] - d1[2] * d2[1])
-                area[1] = 0.5 * (d1[2] * d2[0] - d1[0] * d2[2])
-                area[2] = 0.5 * (d1[0] * d2[1] - d1[1] * d2[0])
-                area[:] = rot @ area
+                d1x = vertices[q2, 0] - vertices[q0, 0]
+                d1y = vertices[q2, 1] - vertices[q0, 1]
+                d1z = vertices[q2, 2] - vertices[q0, 2]
+                d2x = vertices[q3, 0] - vertices[q1, 0]
+                d2y = vertices[q3, 1] - vertices[q1, 1]
+                d2z = vertices[q3, 2] - vertices[q1, 2]
+                rest_area[0] = 0.5 * (d1y * d2z - d1z * d2y)
+                rest_area[1] = 0.5 * (d1z * d2x - d1x * d2z)
+                rest_area[2] = 0.5 * (d1x * d2y - d1y * d2x)
+                _rotate(rot, rest_area, area)
                 for k in range(4):
                     corner = voxel_vertices[v, _FACE_CORNERS[f, k]]
-                    point[:] = body_pos[b] + rot @ (vertices[corner] - body_com[b])
+                    _to_world(rot, body_pos[b], body_com[b], vertices[corner], point)
                     _apply(point, 0.25, area, k, c, t0, t1, charge_pos, charge_time,
                            charge_scale, table, body_pos[b], out_p, out_l, b)

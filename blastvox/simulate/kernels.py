@@ -5,7 +5,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.quaternion import to_matrix
+from blastvox.simulate.quaternion import matrix_into
 
 
 @nb.njit(cache=True)
@@ -13,7 +13,7 @@ def body_rotations(body_quat, body_live, n_bodies, out) -> None:
     """Rotation matrices (B, 3, 3) of the live bodies' quaternions."""
     for b in range(n_bodies):
         if body_live[b]:
-            out[b] = to_matrix(body_quat[b])
+            matrix_into(body_quat[b], out[b])
 
 
 @nb.njit(cache=True)

@@ -18,19 +18,19 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from blastvox.simulate.wave import Charges, build_charges
 
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.model import VoxelModel
 from blastvox.simulate import fracture, topology
-from blastvox.simulate.bodies import aggregate
+from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.forces import blast_impulses
 from blastvox.simulate.integrate import integrate_bodies
 from blastvox.simulate.kernels import body_rotations, link_alive_counts, link_masks
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
 from blastvox.simulate.state import SimModel, State, build_model
+from blastvox.simulate.wave import Charges, build_charges
 
 
 class Progress:
@@ -55,7 +55,8 @@ def initial_state(model: VoxelModel, sm: SimModel) -> State:
         voxel_damage=np.zeros(n), link_alive=np.ones(n_links, dtype=bool),
         link_yield=a["link_yield"].astype(np.float64).copy(),
         body_mass=np.zeros(capacity), body_com=np.zeros((capacity, 3)),
-        body_inertia=np.zeros((capacity, 3, 3)), body_pos=np.zeros((capacity, 3)),
+        body_inertia=np.zeros((capacity, 3, 3)), body_inv_inertia=np.zeros((capacity, 3, 3)),
+        body_pos=np.zeros((capacity, 3)),
         body_quat=np.zeros((capacity, 4)), body_lin=np.zeros((capacity, 3)),
         body_ang=np.zeros((capacity, 3)), body_fixed=np.zeros(capacity, dtype=bool),
         body_live=np.zeros(capacity, dtype=bool), body_dust=np.zeros(capacity, dtype=bool),
@@ -70,6 +71,7 @@ def initial_state(model: VoxelModel, sm: SimModel) -> State:
         mass, com, inertia = aggregate(members, sm.voxel_mass, sm.voxel_centroid,
                                        sm.voxel_inertia)
         state.body_mass[b], state.body_com[b], state.body_inertia[b] = mass, com, inertia
+        state.body_inv_inertia[b] = inverse_inertia(inertia)
         state.body_pos[b] = com
         state.body_quat[b] = (1.0, 0.0, 0.0, 0.0)
         state.body_live[b] = True
@@ -187,7 +189,8 @@ def _step(step, t0, t1, frame_next, sm: SimModel, state: State, charges: Charges
                 s.dirty, step, state.voxel_body, state.voxel_alive, state.voxel_foundation,
                 state.link_alive, sm.link_voxels, sm.voxel_link_offsets, sm.voxel_link_ids,
                 sm.voxel_mass, sm.voxel_centroid, sm.voxel_inertia, state.body_mass,
-                state.body_com, state.body_inertia, state.body_pos, state.body_quat,
+                state.body_com, state.body_inertia, state.body_inv_inertia, state.body_pos,
+                state.body_quat,
                 state.body_lin, state.body_ang, state.body_fixed, state.body_live,
                 state.body_dust, state.body_parent, state.body_born, state.body_died,
                 state.n_bodies, s.component, s.order)
@@ -209,7 +212,7 @@ def _step(step, t0, t1, frame_next, sm: SimModel, state: State, charges: Charges
                        state.body_com, state.body_pos, s.rot, state.body_fixed, state.body_live,
                        state.body_dust, s.impulse, s.angular)
     integrate_bodies(t1 - t0, gravity, settings.linear_drag, settings.angular_drag, s.impulse,
-                     s.angular, state.body_mass, state.body_inertia, state.body_pos,
+                     s.angular, state.body_mass, state.body_inv_inertia, s.rot, state.body_pos,
                      state.body_quat, state.body_lin, state.body_ang, state.body_fixed,
                      state.body_live, state.body_dust, n_bodies)
     return int(broken)

@@ -83,6 +83,7 @@ class State:
     body_mass: np.ndarray
     body_com: np.ndarray
     body_inertia: np.ndarray
+    body_inv_inertia: np.ndarray
     body_pos: np.ndarray
     body_quat: np.ndarray
     body_lin: np.ndarray

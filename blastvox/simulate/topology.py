@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.bodies import aggregate, angular_velocity
+from blastvox.simulate.bodies import aggregate, angular_velocity, inverse_inertia
 from blastvox.simulate.quaternion import to_matrix
 
 
@@ -60,7 +60,8 @@ def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.n
 @nb.njit(cache=True)
 def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_alive,
                  link_voxels, offsets, link_ids, voxel_mass, voxel_centroid, voxel_inertia,
-                 body_mass, body_com, body_inertia, body_pos, body_quat, body_lin, body_ang,
+                 body_mass, body_com, body_inertia, body_inv_inertia, body_pos, body_quat,
+                 body_lin, body_ang,
                  body_fixed, body_live, body_dust, body_parent, body_born, body_died,
                  n_bodies, component, order) -> int:
     """Split every dirty body that fell apart. Returns the number of new bodies."""
@@ -99,6 +100,7 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
         body_mass[b] = mass
         body_com[b] = com
         body_inertia[b] = inertia
+        body_inv_inertia[b] = inverse_inertia(inertia)
         body_pos[b] = pos
         body_quat[b] = body_quat[parent]
         body_fixed[b] = fixed
@@ -113,7 +115,8 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
         else:
             pm = body_mass[parent]
             v_parent = body_lin[parent] / pm
-            omega = angular_velocity(body_inertia[parent], body_quat[parent], body_ang[parent])
+            omega = angular_velocity(body_inv_inertia[parent], body_quat[parent],
+                                     body_ang[parent])
             v_new = v_parent + np.cross(omega, pos - body_pos[parent])
             body_lin[b] = mass * v_new
             body_ang[b] = rot @ inertia @ rot.T @ omega
