@@ -280,8 +280,8 @@ class Simulation(_Model):
     angular_drag: NonNegative = 0.0
     weakening: Annotated[float, Field(strict=True, ge=0, le=1)] = 0.5
     orientation_factor: Annotated[float, Field(strict=True, ge=0, lt=1)] = 0.5
-    damage_b: NonNegative = 0.05
-    damage_c: NonNegative = 0.02
+    damage_b: NonNegative = 0.1
+    damage_c: NonNegative = 0.05
 
 
 class Effects(_Model):

@@ -35,8 +35,8 @@ class SimSettings:
     angular_drag: float = 0.0
     weakening: float = 0.5
     orientation_factor: float = 0.5
-    damage_b: float = 0.05
-    damage_c: float = 0.02
+    damage_b: float = 0.1
+    damage_c: float = 0.05
     seed: int = 0
     ground: bool = True
     charges: tuple[ChargeSpec, ...] = field(default_factory=tuple)
