@@ -1,32 +1,38 @@
-"""``blastvox info``: summarise a blastvox file."""
+"""``blastvox info``: summarise a blastvox file (VoxelModel or SimCache)."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import typer
 
 
 def info(
-    path: Path = typer.Argument(..., help="A VoxelModel .npz file."),
+    file: Path = typer.Argument(..., metavar="FILE", help="A VoxelModel .npz (from `blastvox "
+                                "voxelize`) or a SimCache .npz (from `blastvox simulate`)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object for scripts."),
 ) -> None:
-    """Print counts, bounds, mass, materials and foundations of a VoxelModel.
+    """Print a summary of a VoxelModel or a SimCache; the file's own schema says which.
 
-    With --json the object has at least: voxel_count, link_count, object_count,
-    foundation_voxel_count, total_volume_m3, total_mass_kg, bounds_m.
+    VoxelModel: counts, bounds, mass, materials and foundations; with --json the
+    object has "kind": "VoxelModel" and at least voxel_count, link_count,
+    object_count, foundation_voxel_count, total_volume_m3, total_mass_kg, bounds_m.
+
+    SimCache: frames, step, pieces, broken links, voxels turned to dust and
+    charges; with --json the object has "kind": "SimCache" and at least
+    frame_count, fps, dt_s, duration_s, piece_count, moving_piece_count,
+    voxel_count, broken_link_count, destroyed_voxel_count, charge_count.
     """
-    from blastvox.model import VoxelModel
-
-    summary = VoxelModel.load(path).summary()
+    summary = load_summary(file)
     if as_json:
         typer.echo(json.dumps(summary, indent=2, sort_keys=True))
         return
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=str(path), show_header=False, title_justify="left")
+    table = Table(title=str(file), show_header=False, title_justify="left")
     for key, value in summary.items():
         if isinstance(value, float):
             value = f"{value:.6g}"
@@ -37,3 +43,41 @@ def info(
             value = ", ".join(str(v) for v in value[:12]) + (" ..." if len(value) > 12 else "")
         table.add_row(key, str(value))
     Console().print(table)
+
+
+def load_summary(path: Path) -> dict[str, Any]:
+    """Load ``path`` as whichever contract its meta names and return its summary.
+
+    Raises :class:`~blastvox.errors.ContractError` (one line, naming ``path``) for a
+    missing, truncated, foreign, pickled or newer-version file.
+    """
+    from blastvox import cache, model
+    from blastvox.errors import ContractError
+
+    if not path.is_file():
+        raise ContractError(f"{path}: no such file")
+    schema = _peek_schema(path)
+    if schema == cache.SCHEMA:
+        return cache.SimCache.load(path).summary()
+    if isinstance(schema, str) and schema != model.SCHEMA:
+        raise ContractError(f"{path}: expected a {model.SCHEMA} or {cache.SCHEMA} file, "
+                            f"found {schema!r}")
+    # a VoxelModel, or unreadable: the VoxelModel loader gives the precise one-line error
+    return model.VoxelModel.load(path).summary()
+
+
+def _peek_schema(path: Path) -> str | None:
+    """The ``schema`` in the file's meta member, reading nothing else; None if unreadable."""
+    import numpy as np
+
+    from blastvox.io.npz import META_KEY
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if META_KEY not in data.files:
+                return None
+            meta = json.loads(data[META_KEY].tobytes().decode("utf-8"))
+    except Exception:  # truncated, foreign, pickled...: the full loader reports it
+        return None
+    schema = meta.get("schema") if isinstance(meta, dict) else None
+    return schema if isinstance(schema, str) else None

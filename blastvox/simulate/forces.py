@@ -80,13 +80,14 @@ def _rotate(rot, vec, out) -> None:
 def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, reach_in, table,
                    vertices, voxel_vertices, voxel_centroid, voxel_body, voxel_alive,
                    voxel_link_mask, voxel_radius, conform_slot, conform_area, conform_centroid,
-                   body_com, body_pos, body_rot, body_fixed, body_live, body_dust,
+                   active, body_com, body_pos, body_rot, body_fixed, body_live, body_dust,
                    out_p, out_l) -> None:
     """Accumulate the blast impulse (N s) and angular impulse (N m s) of [t0, t1] per body.
 
     reach_out (C,): shock radius at t1 (m); reach_in (C,): radius behind which the
     whole wave (positive and negative phase) has passed by t0. Points outside
-    that shell are skipped without evaluating the blast model.
+    that shell, and bodies not flagged in ``active`` (B,), are skipped without
+    evaluating the blast model.
     """
     n_charges = charge_pos.shape[0]
     point = np.empty(3)
@@ -97,7 +98,7 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
         if not voxel_alive[v]:
             continue
         b = voxel_body[v]
-        if body_fixed[b] or body_dust[b] or not body_live[b]:
+        if not active[b] or body_fixed[b] or body_dust[b] or not body_live[b]:
             continue
         exposed = (~voxel_link_mask[v]) & 0x3F
         slot = conform_slot[v]

@@ -27,6 +27,7 @@ import math
 
 import numba as nb
 import numpy as np
+
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
 
@@ -54,10 +55,12 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
 @nb.njit(cache=True)
 def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orientation,
                    weakening, link_voxels, link_midpoint, link_direction, link_alive,
-                   link_yield, voxel_body, body_pos, body_rot, body_com, broken, dirty) -> int:
+                   link_yield, voxel_body, active, body_pos, body_rot, body_com, broken,
+                   dirty) -> int:
     """Break or weaken links crossed by a front this step; returns the number broken.
 
-    broken (L,) is set True for links broken now; dirty (B,) for their bodies.
+    active (B,): bodies a front's shell can touch (others are skipped); broken
+    (L,) is set True for links broken now; dirty (B,) for their bodies.
     """
     count = 0
     mid = np.empty(3)
@@ -65,6 +68,8 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
         if not link_alive[link]:
             continue
         b = voxel_body[link_voxels[link, 0]]
+        if not active[b]:
+            continue
         _world(link_midpoint[link], b, body_pos, body_rot, body_com, mid)
         for c in range(charge_pos.shape[0]):
             r = crossing(mid, charge_pos, front_in, front_out, c)
@@ -92,7 +97,7 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
 @nb.njit(cache=True)
 def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weakening,
                     voxel_centroid, voxel_alive, voxel_yield, voxel_foundation,
-                    voxel_foundation_yield, voxel_body, body_pos, body_rot, body_com,
+                    voxel_foundation_yield, voxel_body, active, body_pos, body_rot, body_com,
                     destroyed, dirty) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
@@ -105,6 +110,8 @@ def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weaken
         if not voxel_alive[v]:
             continue
         b = voxel_body[v]
+        if not active[b]:
+            continue
         _world(voxel_centroid[v], b, body_pos, body_rot, body_com, centre)
         for c in range(charge_pos.shape[0]):
             r = crossing(centre, charge_pos, front_in, front_out, c)
@@ -136,10 +143,11 @@ def kill_links_of(destroyed, voxel_link_offsets, voxel_link_ids, link_alive) -> 
 
 
 @nb.njit(cache=True)
-def fracture_damage(charge_pos, charge_scale, charge_time, front_in, front_out, table,
+def fracture_damage(charge_pos, charge_scale, front_in, front_out, table,
                     damage_b, damage_c, orientation, voxel_centroid, voxel_alive, voxel_damage,
                     voxel_link_offsets, voxel_link_ids, link_voxels, link_direction, link_alive,
-                    link_yield, voxel_body, body_pos, body_rot, body_com, broken, dirty) -> int:
+                    link_yield, voxel_body, active, body_pos, body_rot, body_com, broken,
+                    dirty) -> int:
     """Davison-Stevens compound damage accumulation (Mazarak 1999 eqs. 2.2, 3.2).
 
     When a wave reaches a voxel, its damage grows by
@@ -155,6 +163,8 @@ def fracture_damage(charge_pos, charge_scale, charge_time, front_in, front_out, 
         if not voxel_alive[v]:
             continue
         b = voxel_body[v]
+        if not active[b]:
+            continue
         _world(voxel_centroid[v], b, body_pos, body_rot, body_com, centre)
         for c in range(charge_pos.shape[0]):
             r = crossing(centre, charge_pos, front_in, front_out, c)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 
@@ -37,3 +39,44 @@ def link_alive_counts(offsets, link_ids, link_alive) -> np.ndarray:
             if link_alive[link_ids[k]]:
                 out[v] += 1
     return out
+
+
+@nb.njit(cache=True)
+def bodies_in_shell(body_pos, body_radius, body_live, n_bodies, charge_pos, inner, outer,
+                    out) -> bool:
+    """Flag (B,) the live bodies whose bounding sphere meets a charge's shell (inner, outer].
+
+    Returns whether any body does. Kernels then skip every voxel and link of
+    unflagged bodies, so a step costs nothing once the waves have passed.
+    """
+    found = False
+    for b in range(n_bodies):
+        out[b] = False
+        if not body_live[b]:
+            continue
+        for c in range(charge_pos.shape[0]):
+            if outer[c] <= 0.0:
+                continue
+            d = math.sqrt((body_pos[b, 0] - charge_pos[c, 0]) ** 2
+                          + (body_pos[b, 1] - charge_pos[c, 1]) ** 2
+                          + (body_pos[b, 2] - charge_pos[c, 2]) ** 2)
+            if d - body_radius[b] <= outer[c] and d + body_radius[b] > inner[c]:
+                out[b] = True
+                found = True
+                break
+    return found
+
+
+@nb.njit(cache=True)
+def body_radii(voxel_body, voxel_alive, voxel_centroid, voxel_radius, body_com, body_radius,
+               n_bodies) -> None:
+    """Radius (m) of a sphere about each body's centre of mass holding all its voxels."""
+    for b in range(n_bodies):
+        body_radius[b] = 0.0
+    for v in range(voxel_body.shape[0]):
+        b = voxel_body[v]
+        d = math.sqrt((voxel_centroid[v, 0] - body_com[b, 0]) ** 2
+                      + (voxel_centroid[v, 1] - body_com[b, 1]) ** 2
+                      + (voxel_centroid[v, 2] - body_com[b, 2]) ** 2) + voxel_radius[v]
+        if d > body_radius[b]:
+            body_radius[b] = d

@@ -26,7 +26,13 @@ from blastvox.simulate import fracture, topology
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.forces import blast_impulses
 from blastvox.simulate.integrate import integrate_bodies
-from blastvox.simulate.kernels import body_rotations, link_alive_counts, link_masks
+from blastvox.simulate.kernels import (
+    bodies_in_shell,
+    body_radii,
+    body_rotations,
+    link_alive_counts,
+    link_masks,
+)
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
 from blastvox.simulate.state import SimModel, State, build_model
@@ -56,6 +62,7 @@ def initial_state(model: VoxelModel, sm: SimModel) -> State:
         link_yield=a["link_yield"].astype(np.float64).copy(),
         body_mass=np.zeros(capacity), body_com=np.zeros((capacity, 3)),
         body_inertia=np.zeros((capacity, 3, 3)), body_inv_inertia=np.zeros((capacity, 3, 3)),
+        body_radius=np.zeros(capacity),
         body_pos=np.zeros((capacity, 3)),
         body_quat=np.zeros((capacity, 4)), body_lin=np.zeros((capacity, 3)),
         body_ang=np.zeros((capacity, 3)), body_fixed=np.zeros(capacity, dtype=bool),
@@ -100,6 +107,8 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     total_steps = (frames - 1) * per_frame
     gravity = gravity_vector(sm.up, settings.gravity)
     radius = _voxel_radius(sm)
+    body_radii(state.voxel_body, state.voxel_alive, sm.voxel_centroid, radius, state.body_com,
+               state.body_radius, int(state.n_bodies[0]))
     rec = Recorder(sm.n_voxels, sm.voxel_link_offsets, state.voxel_yield.copy())
     scratch = _Scratch(sm, len(state.body_mass))
     counts = link_alive_counts(sm.voxel_link_offsets, sm.voxel_link_ids, state.link_alive)
@@ -137,6 +146,7 @@ class _Scratch:
         self.impulse = np.zeros((capacity, 3))
         self.angular = np.zeros((capacity, 3))
         self.rot = np.zeros((capacity, 3, 3))
+        self.active = np.zeros(capacity, dtype=bool)
         self.component = np.zeros(sm.n_voxels, dtype=np.int64)
         self.order = np.zeros(sm.n_voxels, dtype=np.int64)
 
@@ -154,29 +164,31 @@ def _step(step, t0, t1, frame_next, sm: SimModel, state: State, charges: Charges
     front_in, front_out = charges.front_radius(t0, before=-1.0), charges.front_radius(t1)
     body_rotations(state.body_quat, state.body_live, n_bodies, s.rot)
     broken = 0
-    if np.any(front_out > front_in):
+    if bodies_in_shell(state.body_pos, state.body_radius, state.body_live, n_bodies,
+                       charges.position, front_in, front_out, s.active):
         s.broken[:] = False
         s.destroyed[:] = False
         s.dirty[:n_bodies] = False
         table = charges.table
         if settings.fracture == "damage":
             broken = fracture.fracture_damage(
-                charges.position, charges.scale, charges.time, front_in, front_out, table,
+                charges.position, charges.scale, front_in, front_out, table,
                 settings.damage_b, settings.damage_c, settings.orientation_factor,
                 sm.voxel_centroid, state.voxel_alive, state.voxel_damage, sm.voxel_link_offsets,
                 sm.voxel_link_ids, sm.link_voxels, sm.link_direction, state.link_alive,
-                state.link_yield, state.voxel_body, state.body_pos, s.rot, state.body_com,
-                s.broken, s.dirty)
+                state.link_yield, state.voxel_body, s.active, state.body_pos, s.rot,
+                state.body_com, s.broken, s.dirty)
         else:
             broken = fracture.fracture_links(
                 charges.position, charges.scale, front_in, front_out, table,
                 settings.orientation_factor, settings.weakening, sm.link_voxels,
                 sm.link_midpoint, sm.link_direction, state.link_alive, state.link_yield,
-                state.voxel_body, state.body_pos, s.rot, state.body_com, s.broken, s.dirty)
+                state.voxel_body, s.active, state.body_pos, s.rot, state.body_com, s.broken,
+                s.dirty)
         released = fracture.fracture_voxels(
             charges.position, charges.scale, front_in, front_out, table, settings.weakening,
             sm.voxel_centroid, state.voxel_alive, state.voxel_yield, state.voxel_foundation,
-            state.voxel_foundation_yield, state.voxel_body, state.body_pos, s.rot,
+            state.voxel_foundation_yield, state.voxel_body, s.active, state.body_pos, s.rot,
             state.body_com, s.destroyed, s.dirty)
         destroyed = np.flatnonzero(s.destroyed)
         if destroyed.size:
@@ -194,6 +206,8 @@ def _step(step, t0, t1, frame_next, sm: SimModel, state: State, charges: Charges
                 state.body_lin, state.body_ang, state.body_fixed, state.body_live,
                 state.body_dust, state.body_parent, state.body_born, state.body_died,
                 state.n_bodies, s.component, s.order)
+            body_radii(state.voxel_body, state.voxel_alive, sm.voxel_centroid, radius,
+                       state.body_com, state.body_radius, int(state.n_bodies[0]))
             rec.voxels_destroyed(destroyed, t1, frame_next, state, sm.voxel_mass)
         if released:
             topology.refresh_fixed(state.voxel_body, state.voxel_alive, state.voxel_foundation,
@@ -204,13 +218,14 @@ def _step(step, t0, t1, frame_next, sm: SimModel, state: State, charges: Charges
     reach_in, reach_out = charges.tail_radius(t0), front_out
     s.impulse[:n_bodies] = 0.0
     s.angular[:n_bodies] = 0.0
-    if np.any(reach_out > reach_in):
+    if bodies_in_shell(state.body_pos, state.body_radius, state.body_live, n_bodies,
+                       charges.position, reach_in, reach_out, s.active):
         blast_impulses(t0, t1, charges.position, charges.time, charges.scale, reach_out,
                        reach_in, charges.table, sm.vertices, sm.voxel_vertices, sm.voxel_centroid,
                        state.voxel_body, state.voxel_alive, state.voxel_link_mask, radius,
                        sm.conform_slot, sm.conform_face_area, sm.conform_face_centroid,
-                       state.body_com, state.body_pos, s.rot, state.body_fixed, state.body_live,
-                       state.body_dust, s.impulse, s.angular)
+                       s.active, state.body_com, state.body_pos, s.rot, state.body_fixed,
+                       state.body_live, state.body_dust, s.impulse, s.angular)
     integrate_bodies(t1 - t0, gravity, settings.linear_drag, settings.angular_drag, s.impulse,
                      s.angular, state.body_mass, state.body_inv_inertia, s.rot, state.body_pos,
                      state.body_quat, state.body_lin, state.body_ang, state.body_fixed,

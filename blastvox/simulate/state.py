@@ -84,6 +84,7 @@ class State:
     body_com: np.ndarray
     body_inertia: np.ndarray
     body_inv_inertia: np.ndarray
+    body_radius: np.ndarray
     body_pos: np.ndarray
     body_quat: np.ndarray
     body_lin: np.ndarray

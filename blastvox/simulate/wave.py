@@ -16,6 +16,7 @@ of points a step must look at.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -31,13 +32,16 @@ _LOG_HI = math.log10(Z_MAX)
 _STEP = (_LOG_HI - _LOG_LO) / (_GRID - 1)
 
 
+@functools.lru_cache(maxsize=1)
 def reference_table() -> np.ndarray:
-    """(GRID, 4) columns Ps (Pa), ta (s), Td (s), b for 1 kg TNT on the log-Z grid."""
+    """(GRID, 4) columns Ps (Pa), ta (s), Td (s), b for 1 kg TNT on the log-Z grid (read-only)."""
     z = 10.0 ** np.linspace(_LOG_LO, _LOG_HI, _GRID)
     z[0], z[-1] = Z_MIN, Z_MAX
     ps, ta, td, imp = blast.reference_parameters(z)
     b = blast.decay_coefficient(ps, td, imp)
-    return np.ascontiguousarray(np.stack([ps, ta, td, b], axis=1), dtype=np.float64)
+    table = np.ascontiguousarray(np.stack([ps, ta, td, b], axis=1), dtype=np.float64)
+    table.flags.writeable = False
+    return table
 
 
 @nb.njit(cache=True)
