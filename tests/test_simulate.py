@@ -183,3 +183,45 @@ def test_damage_model_breaks_links_and_accumulates(tmp_path):
     twice = simulate(model, free(fracture="damage",
                                  charges=(charge, replace(charge, time_s=0.1))))
     assert len(twice.link_break_link) > len(cache.link_break_link)
+
+
+def test_gravity_free_fall_matches_the_integrator_closed_form(tmp_path):
+    model = box_model(tmp_path, (1.0, 1.0, 1.0), 0.5)
+    far = (ChargeSpec((1e4, 0.0, 0.0), 1e-3),)  # never arrives within the shot
+    cache = simulate(model, SimSettings(gravity=9.81, ground=False, fps=20.0, duration=1.0,
+                                        charges=far))
+    z = cache.piece_position[:, 0, 2].astype(np.float64) - cache.piece_position[0, 0, 2]
+    t = cache.frame_time
+    # semi-implicit Euler: z_n = -g dt^2 n (n + 1) / 2
+    dt = cache.meta["dt"]
+    n = np.round(t / dt)
+    np.testing.assert_allclose(z, -9.81 * dt * dt * n * (n + 1) / 2, rtol=1e-6, atol=1e-9)
+
+
+def test_fast_spin_keeps_unit_quaternions_and_exact_phase():
+    from blastvox.simulate import quaternion
+
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    omega = np.array([1e3, -2e2, 5e2])
+    rate = np.linalg.norm(omega)
+    dt = 1 / 240
+    for _ in range(2400):  # 10 s at 1e3 rad/s
+        quaternion.integrate(q, omega[0], omega[1], omega[2], dt)
+    assert abs(np.linalg.norm(q) - 1.0) < 1e-12
+    # exact exponential map: after 10 s the rotation is exactly rate x 10 s about omega
+    half = 0.5 * rate * 10.0
+    expected = np.concatenate([[np.cos(half)], np.sin(half) * omega / rate])
+    np.testing.assert_allclose(q, expected, atol=1e-9)
+
+
+def test_linear_drag_decays_speed_exponentially(tmp_path):
+    model = box_model(tmp_path, (1.0, 1.0, 1.0), 1.0)
+    kick = (ChargeSpec((-20.0, 0.0, 0.0), 2400.0),)
+    plain = simulate(model, free(duration=1.0, fps=20.0, charges=kick))
+    dragged = simulate(model, free(duration=1.0, fps=20.0, charges=kick, linear_drag=2.0))
+    v0 = np.diff(plain.piece_position[:, 0, 0].astype(np.float64))[-1]
+    v1 = np.diff(dragged.piece_position[:, 0, 0].astype(np.float64))[-1]
+    # the kick is over within ~0.1 s; from then on v decays as exp(-2 t)
+    t = dragged.frame_time[-1]
+    assert v1 / v0 == pytest.approx(np.exp(-2.0 * t), rel=0.15)
+    assert v1 < v0
