@@ -1,0 +1,170 @@
+"""Static piece meshes and their animation, in the frame an export asks for.
+
+Pieces never merge, so each final piece is one static mesh in piece-local
+space (origin at its pivot, the rest centre of mass) plus one rigid transform
+per frame: ``x_world = position[f] + R(orientation[f]) x_local``.
+
+A piece's mesh is the faces of its voxels that do not touch another voxel of
+the same piece: hexahedron faces (jittered as voxelized, split along the same
+diagonal) or, for conform voxels, the exact cell-and-mesh triangles. A face
+on the intact object's surface is a *surface* face and takes the voxel's
+material colour; a face that was inside the object (it had a link) is a
+*damage* face, shown with the damage material once fracture exposes it
+(Martins 2001 §6).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from blastvox.cache import SimCache
+from blastvox.voxelize.lattice import FACE_CORNERS, face_triangles
+
+SURFACE_TAG = 6
+
+
+@dataclass(frozen=True)
+class PieceMeshes:
+    """Triangles of all pieces, grouped by piece (T triangles, P pieces).
+
+    offsets (P+1,): piece p owns triangles offsets[p]:offsets[p+1].
+    vertices (T, 3, 3): piece-local positions (m), in the export frame.
+    normals (T, 3): unit face normals, export frame.
+    voxel (T,): voxel each triangle belongs to; damage (T,): inside face.
+    material (T,): material index (cache.model.meta["materials"]).
+    """
+
+    offsets: np.ndarray
+    vertices: np.ndarray
+    normals: np.ndarray
+    voxel: np.ndarray
+    damage: np.ndarray
+    material: np.ndarray
+
+
+@dataclass(frozen=True)
+class Animation:
+    """Piece transforms in the export frame: position (F, P, 3) m, orientation (F, P, 4)
+    unit quaternions (w, x, y, z), end_frame (P,) first frame a piece is gone, times (F,) s."""
+
+    position: np.ndarray
+    orientation: np.ndarray
+    end_frame: np.ndarray
+    times: np.ndarray
+
+
+def frame_change(model_up: str, export_up: str) -> np.ndarray:
+    """Rotation (3, 3) from the model's frame to a frame whose up axis is ``export_up``.
+
+    Z-up -> Y-up maps (x, y, z) to (x, z, -y) (a -90 degree turn about x), the
+    convention of Blender's glTF/USD exporters; the inverse for Y-up -> Z-up.
+    """
+    if model_up == export_up:
+        return np.eye(3)
+    if model_up == "Z" and export_up == "Y":
+        return np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
+    if model_up == "Y" and export_up == "Z":
+        return np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+    raise ValueError(f"unsupported up axes {model_up!r} -> {export_up!r}")
+
+
+def _matrix_quaternion(m: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a proper rotation matrix (Shepperd's method)."""
+    trace = np.trace(m)
+    if trace > 0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    else:
+        i = int(np.argmax(np.diag(m)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
+        q = np.zeros(4)
+        q[0] = (m[k, j] - m[j, k]) / s
+        q[1 + i] = 0.25 * s
+        q[1 + j] = (m[j, i] + m[i, j]) / s
+        q[1 + k] = (m[k, i] + m[i, k]) / s
+    q = np.asarray(q, dtype=np.float64)
+    return q / np.linalg.norm(q)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
+
+
+def animation(cache: SimCache, export_up: str) -> Animation:
+    """Piece transforms of ``cache`` re-expressed in the export frame.
+
+    With C the frame change, x' = C x: position' = C position and
+    orientation' = q_C q q_C^-1 (the piece-local frame is changed by C too).
+    """
+    c = frame_change(cache.model.meta.get("up_axis", "Y"), export_up)
+    qc = _matrix_quaternion(c)
+    qc_inv = qc * np.array([1.0, -1.0, -1.0, -1.0])
+    pos = cache.piece_position.astype(np.float64) @ c.T
+    ori = _quat_mul(_quat_mul(np.broadcast_to(qc, cache.piece_orientation.shape),
+                              cache.piece_orientation.astype(np.float64)),
+                    np.broadcast_to(qc_inv, cache.piece_orientation.shape))
+    ori /= np.linalg.norm(ori, axis=-1, keepdims=True)
+    return Animation(position=pos, orientation=ori, end_frame=cache.piece_end_frame.copy(),
+                     times=cache.frame_time.copy())
+
+
+def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:
+    """Boundary triangles of every final piece, piece-local, in the export frame."""
+    a = cache.model.arrays
+    n = len(a["voxel_mass"])
+    piece = cache.voxel_piece.astype(np.int64)
+    neighbour = np.full((n, 6), -1, dtype=np.int64)
+    links = a["link_voxels"].astype(np.int64)
+    face = a["link_face"].astype(np.int64)
+    neighbour[links[:, 0], face] = links[:, 1]
+    neighbour[links[:, 1], face - 1] = links[:, 0]
+    has_neighbour = neighbour >= 0
+    same_piece = has_neighbour & (piece[np.maximum(neighbour, 0)] == piece[:, None])
+    exposed = ~same_piece  # (N, 6)
+
+    conform = np.zeros(n, dtype=bool)
+    conform[a["conform_voxels"]] = True
+    verts = a["vertices"]
+
+    # hexahedral faces of non-conform voxels
+    v_idx, f_idx = np.nonzero(exposed & ~conform[:, None])
+    quads = a["voxel_vertices"][v_idx][np.arange(len(v_idx))[:, None], FACE_CORNERS[f_idx]]
+    hex_tris = verts[face_triangles(quads)].reshape(-1, 3, 3)
+    hex_voxel = np.repeat(v_idx, 2)
+    hex_damage = np.repeat(has_neighbour[v_idx, f_idx], 2)
+
+    # conform voxels: their surface triangles always, cell-face triangles where exposed
+    tri = a["conform_triangles"]
+    tags = a["conform_tag"].astype(np.int64)
+    owner = np.repeat(a["conform_voxels"].astype(np.int64), np.diff(a["conform_offsets"]))
+    on_surface = tags == SURFACE_TAG
+    cell_face = np.where(on_surface, 0, tags)
+    keep = on_surface | exposed[owner, cell_face]
+    con_damage = ~on_surface & has_neighbour[owner, cell_face]
+
+    all_tris = np.concatenate([hex_tris, tri[keep]])
+    all_voxel = np.concatenate([hex_voxel, owner[keep]])
+    all_damage = np.concatenate([hex_damage, con_damage[keep]])
+
+    tri_piece = piece[all_voxel]
+    order = np.lexsort((np.arange(len(tri_piece)), tri_piece))  # stable by piece
+    all_tris, all_voxel, all_damage, tri_piece = (all_tris[order], all_voxel[order],
+                                                  all_damage[order], tri_piece[order])
+    pivot = cache.piece_pivot[tri_piece]
+    change = frame_change(cache.model.meta.get("up_axis", "Y"), export_up)
+    local = (all_tris - pivot[:, None, :]) @ change.T
+    normal = np.cross(local[:, 1] - local[:, 0], local[:, 2] - local[:, 0])
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    offsets = np.searchsorted(tri_piece, np.arange(cache.piece_count + 1))
+    return PieceMeshes(offsets=offsets.astype(np.int64), vertices=local, normals=normal,
+                       voxel=all_voxel, damage=all_damage,
+                       material=a["voxel_material"][all_voxel].astype(np.int64))
