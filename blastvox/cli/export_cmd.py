@@ -1,0 +1,44 @@
+"""``blastvox export``: SimCache -> USD or glTF cache."""
+
+from __future__ import annotations
+
+import time
+from enum import StrEnum
+from pathlib import Path
+
+import typer
+
+
+class Layout(StrEnum):
+    xforms = "xforms"
+    instancer = "instancer"
+
+
+class UpAxis(StrEnum):
+    Y = "Y"
+    Z = "Z"
+
+
+def export(
+    cache_path: Path = typer.Argument(..., metavar="SIM", help="SimCache .npz from "
+                                      "`blastvox simulate`."),
+    output: Path = typer.Option(..., "-o", "--output", help="Output: .usda, .usdc, .usd, "
+                                ".gltf or .glb (the suffix picks the format)."),
+    up_axis: UpAxis = typer.Option(UpAxis.Y, "--up-axis", help="Up axis of the written file."),
+    layout: Layout = typer.Option(Layout.xforms, "--layout", help="xforms: an Xform and Mesh "
+                                  "per piece; instancer: a USD PointInstancer (many pieces)."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),
+) -> None:
+    """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
+    from blastvox.cache import SimCache
+    from blastvox.cli.console import err_console
+    from blastvox.export.api import ExportOptions
+    from blastvox.export.api import export as run
+
+    started = time.perf_counter()
+    cache = SimCache.load(cache_path)
+    run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value))
+    if not quiet:
+        err_console().print(f"{output}: {cache.piece_count:,} pieces, {cache.frame_count} "
+                            f"frames, {output.stat().st_size / 1e6:.2f} MB "
+                            f"({time.perf_counter() - started:.2f} s)", markup=False)

@@ -1,0 +1,51 @@
+"""``export(cache, path, options)``: the export stage's one entry point.
+
+The format follows the output suffix: .usda/.usdc/.usd (OpenUSD) or
+.gltf/.glb (glTF 2.0). Writers produce byte-identical files for the same
+cache and options (stable names and order, no timestamps) and write
+atomically.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from blastvox.cache import SimCache
+from blastvox.errors import BlastvoxError
+
+USD_SUFFIXES = (".usda", ".usdc", ".usd")
+GLTF_SUFFIXES = (".gltf", ".glb")
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """up_axis: "Y" (default, glTF's and Blender-USD's convention) or "Z".
+    layout: "xforms" (one Xform + Mesh per piece) or "instancer" (USD
+    PointInstancer for shots with many thousands of pieces; USD only)."""
+
+    up_axis: str = "Y"
+    layout: str = "xforms"
+
+
+def export(cache: SimCache, path: str | Path, options: ExportOptions | None = None) -> None:
+    """Write ``cache`` to ``path`` in the format its suffix names."""
+    options = options or ExportOptions()
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if options.up_axis not in ("Y", "Z"):
+        raise BlastvoxError(f"{path}: --up-axis must be Y or Z (got {options.up_axis!r})")
+    if suffix in USD_SUFFIXES:
+        from blastvox.export.usd import write_usd
+
+        write_usd(cache, path, options)
+    elif suffix in GLTF_SUFFIXES:
+        if options.layout != "xforms":
+            raise BlastvoxError(f"{path}: --layout {options.layout} is USD only; glTF uses one "
+                                f"node per piece")
+        from blastvox.export.gltf import write_gltf
+
+        write_gltf(cache, path, options)
+    else:
+        raise BlastvoxError(f"{path}: unknown export format {suffix or '(no suffix)'!r}; use "
+                            f"{', '.join(USD_SUFFIXES + GLTF_SUFFIXES)}")
