@@ -80,3 +80,13 @@ def body_radii(voxel_body, voxel_alive, voxel_centroid, voxel_radius, body_com, 
                       + (voxel_centroid[v, 2] - body_com[b, 2]) ** 2) + voxel_radius[v]
         if d > body_radius[b]:
             body_radius[b] = d
+
+
+@nb.njit(cache=True)
+def wake_on_impulse(impulse, angular, body_asleep, n_bodies) -> None:
+    """A sleeping body that the blast pushes wakes up."""
+    for b in range(n_bodies):
+        if body_asleep[b] and (impulse[b, 0] != 0.0 or impulse[b, 1] != 0.0
+                               or impulse[b, 2] != 0.0 or angular[b, 0] != 0.0
+                               or angular[b, 1] != 0.0 or angular[b, 2] != 0.0):
+            body_asleep[b] = False

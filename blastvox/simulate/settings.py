@@ -23,7 +23,11 @@ class SimSettings:
     """Integrator and physics settings (see :class:`blastvox.scene.Simulation`).
 
     ground: False means no ground at all: foundation voxels are ignored, so
-    founded structures float free.
+    founded structures float free, and no ground plane. collisions: fragments
+    collide with each other. friction: Coulomb mu at the ground; rest_damping:
+    1/s decay of momenta in resting ground contact; sleep_speed: m/s below which
+    a balanced resting body is clamped to rest; impact_time: s, the contact
+    duration that turns a collision impulse into an impact pressure on voxels.
     """
 
     dt: float = 1.0 / 240.0
@@ -39,6 +43,11 @@ class SimSettings:
     damage_c: float = 0.05
     seed: int = 0
     ground: bool = True
+    collisions: bool = True
+    friction: float = 0.6
+    rest_damping: float = 5.0
+    sleep_speed: float = 0.05
+    impact_time: float = 1e-3
     charges: tuple[ChargeSpec, ...] = field(default_factory=tuple)
 
     def steps_per_frame(self) -> int:
@@ -57,7 +66,8 @@ class SimSettings:
         d = {k: getattr(self, k) for k in ("dt", "fps", "duration", "fracture", "gravity",
                                            "linear_drag", "angular_drag", "weakening",
                                            "orientation_factor", "damage_b", "damage_c", "seed",
-                                           "ground")}
+                                           "ground", "collisions", "friction", "rest_damping",
+                                           "sleep_speed", "impact_time")}
         d["charges"] = [{"position": list(c.position), "mass_kg": c.mass_kg,
                          "explosive": c.explosive, "time_s": c.time_s} for c in self.charges]
         return d
@@ -72,7 +82,8 @@ def settings_from_scene(scene) -> SimSettings:
                        gravity=s.gravity, linear_drag=s.linear_drag, angular_drag=s.angular_drag,
                        weakening=s.weakening, orientation_factor=s.orientation_factor,
                        damage_b=s.damage_b, damage_c=s.damage_c, seed=scene.seed,
-                       ground=scene.effects.ground and scene.ground != "none", charges=charges)
+                       ground=scene.effects.ground and scene.ground != "none",
+                       collisions=scene.effects.collisions, charges=charges)
 
 
 def gravity_vector(up: np.ndarray, gravity: float) -> np.ndarray:

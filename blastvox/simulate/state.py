@@ -28,7 +28,10 @@ class SimModel:
     voxel_link_offsets (N+1,), voxel_link_ids (2L,): links of each voxel (CSR).
     conform_slot (N,): row in the conform tables or -1; conform_face_area (C, 7, 3)
     vector areas (m^2, outward) and conform_face_centroid (C, 7, 3) of each face.
-    up (3,): unit up vector; gravity: m/s^2 along -up.
+    voxel_restitution (N,): from the material; voxel_radius (N,): farthest corner
+    from the centroid, m; voxel_contact_radius (N,): collision sphere,
+    (volume)^(1/3) / 2, m. up (3,): unit up vector (axis index up_axis);
+    ground_height: m along up, or None for no ground.
     """
 
     vertices: np.ndarray
@@ -47,7 +50,12 @@ class SimModel:
     conform_face_centroid: np.ndarray
     voxel_material: np.ndarray
     voxel_object: np.ndarray
+    voxel_restitution: np.ndarray
+    voxel_radius: np.ndarray
+    voxel_contact_radius: np.ndarray
     up: np.ndarray
+    up_axis: int
+    ground_height: float | None
 
     @property
     def n_voxels(self) -> int:
@@ -92,6 +100,7 @@ class State:
     body_fixed: np.ndarray
     body_live: np.ndarray
     body_dust: np.ndarray
+    body_asleep: np.ndarray
     body_parent: np.ndarray
     body_born: np.ndarray
     body_died: np.ndarray
@@ -116,8 +125,12 @@ def build_model(model: VoxelModel) -> SimModel:
                                     a["conform_offsets"])
     up = np.zeros(3)
     up[model.up_index] = 1.0
+    vertices = np.ascontiguousarray(a["vertices"], dtype=np.float64)
+    corners = vertices[a["voxel_vertices"]]
+    radius = np.sqrt(((corners - a["voxel_centroid"][:, None, :]) ** 2).sum(-1)).max(axis=1)
+    ground = model.meta.get("ground_height")
     return SimModel(
-        vertices=np.ascontiguousarray(a["vertices"], dtype=np.float64),
+        vertices=vertices,
         voxel_vertices=a["voxel_vertices"].astype(np.int64),
         voxel_mass=a["voxel_mass"].astype(np.float64),
         voxel_centroid=np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64),
@@ -128,7 +141,11 @@ def build_model(model: VoxelModel) -> SimModel:
         voxel_link_offsets=offsets, voxel_link_ids=ids[order].astype(np.int64),
         conform_slot=slot, conform_face_area=area, conform_face_centroid=centroid,
         voxel_material=a["voxel_material"].astype(np.int64),
-        voxel_object=a["voxel_object"].astype(np.int64), up=up)
+        voxel_object=a["voxel_object"].astype(np.int64),
+        voxel_restitution=a["material_restitution"][a["voxel_material"]].astype(np.float64),
+        voxel_radius=radius,
+        voxel_contact_radius=0.5 * np.cbrt(np.maximum(a["voxel_volume"], 0.0)),
+        up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground))
 
 
 def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray):

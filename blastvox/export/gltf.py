@@ -1,0 +1,500 @@
+"""glTF 2.0 export (.glb and .gltf): one node and one mesh per piece, TRS animation.
+
+Layout (written straight from numpy: one JSON document and one binary buffer):
+
+* the scene holds one root node ``blastvox`` whose children are the piece
+  nodes ``piece_00000``... (node index = piece index) and one node per charge,
+  ``shock_00``...;
+* piece p's mesh has one primitive per (material, surface) and per (material,
+  damage) present, indexed triangles with POSITION (min/max) and NORMAL (flat
+  face normals; vertices shared only where position and normal agree);
+* materials ``<name>`` (``material_color``) and ``<name>_damage``
+  (``material_damage_color``), pbrMetallicRoughness, metallic 0, roughness 0.8;
+  ``shock_front`` (translucent, single-sided) for the shock spheres;
+* one animation ``blastvox``: per piece LINEAR translation and rotation
+  samplers at the frame times (rotation keys sign-continuous, (x, y, z, w));
+  a piece that vanishes (``piece_end_frame < frame_count``) gets a STEP scale
+  sampler that drops to 0 at its end frame; a shock sphere (a unit UV sphere at
+  the charge) is scaled LINEARly to the shock radius (0 before detonation).
+
+glTF is Y-up and in metres, so geometry and animation always come from
+:func:`blastvox.export.pieces.piece_meshes` / :func:`~blastvox.export.pieces.animation`
+with up "Y", whatever ``ExportOptions.up_axis`` says. Dust is not exported (glTF
+cannot animate point positions per point without morph targets); destroyed
+voxels are pieces of their own and vanish at their frame.
+
+A .gltf is written with a sibling ``<stem>.bin`` (its buffer), both atomically;
+a .glb holds everything. Output is byte-deterministic: the same cache gives
+the same bytes (stable order, no timestamps, ``asset.generator`` = "blastvox
+<version>").
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import time
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import numpy as np
+
+from blastvox import __version__
+from blastvox.cache import SimCache
+from blastvox.export.pieces import animation, frame_change, piece_meshes
+from blastvox.io.atomic import atomic_path
+
+FLOAT, UINT16, UINT32 = 5126, 5123, 5125
+ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
+TRIANGLES = 4
+ROUGHNESS = 0.8
+SHOCK_COLOR = (1.0, 0.55, 0.15, 0.15)
+SPHERE_SEGMENTS, SPHERE_RINGS = 32, 16
+_GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
+
+
+def write_gltf(cache: SimCache, path: str | Path, options: Any = None) -> None:
+    """Write ``cache`` as glTF 2.0: binary .glb, or .gltf JSON plus a sibling ``<stem>.bin``.
+
+    ``options`` (:class:`blastvox.export.api.ExportOptions`) is accepted for the
+    common writer signature; glTF is always Y-up, so its ``up_axis`` is ignored.
+    """
+    path = Path(path)
+    bin_name = path.stem + ".bin"
+    doc, blob = build_gltf(cache, buffer_uri=None if path.suffix.lower() == ".glb"
+                           else quote(bin_name))
+    if path.suffix.lower() == ".glb":
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(glb_bytes(doc, blob))
+        return
+    with ExitStack() as stack:  # both renamed only if both were written; .gltf last
+        gltf_tmp = stack.enter_context(atomic_path(path))
+        bin_tmp = stack.enter_context(atomic_path(path.with_name(bin_name)))
+        bin_tmp.write_bytes(blob)
+        gltf_tmp.write_bytes(_json_bytes(doc))
+
+
+def glb_bytes(doc: dict[str, Any], blob: bytes) -> bytes:
+    """A GLB container: 12-byte header, JSON chunk (space padded), BIN chunk (zero padded)."""
+    js = _json_bytes(doc)
+    js += b" " * (-len(js) % 4)
+    blob = blob + b"\0" * (-len(blob) % 4)
+    chunks = struct.pack("<II", len(js), _GLB_JSON) + js
+    if blob:
+        chunks += struct.pack("<II", len(blob), _GLB_BIN) + blob
+    return struct.pack("<III", _GLB_MAGIC, 2, 12 + len(chunks)) + chunks
+
+
+def _json_bytes(doc: dict[str, Any]) -> bytes:
+    return json.dumps(doc, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+class _Builder:
+    """Accumulates buffer views and accessors over one binary buffer."""
+
+    def __init__(self) -> None:
+        self.parts: list[bytes] = []
+        self.size = 0
+        self.views: list[dict[str, Any]] = []
+        self.accessors: list[dict[str, Any]] = []
+
+    def view(self, data: bytes, target: int | None = None, stride: int | None = None) -> int:
+        pad = -self.size % 4
+        if pad:
+            self.parts.append(b"\0" * pad)
+            self.size += pad
+        view: dict[str, Any] = {"buffer": 0, "byteOffset": self.size, "byteLength": len(data)}
+        if stride is not None:
+            view["byteStride"] = stride
+        if target is not None:
+            view["target"] = target
+        self.parts.append(data)
+        self.size += len(data)
+        self.views.append(view)
+        return len(self.views) - 1
+
+    def accessor(self, view: int, offset: int, component: int, count: int, kind: str,
+                 lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> int:
+        acc: dict[str, Any] = {"bufferView": view, "componentType": component, "count": count,
+                               "type": kind}
+        if offset:
+            acc["byteOffset"] = offset
+        if lo is not None:
+            acc["min"] = [_num(x) for x in np.atleast_1d(lo)]
+            acc["max"] = [_num(x) for x in np.atleast_1d(hi)]
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
+
+    def blob(self) -> bytes:
+        return b"".join(self.parts)
+
+
+def _num(x: Any) -> float | int:
+    """A JSON number that reads back as exactly the same float32 (or int) value."""
+    if isinstance(x, np.integer | int):
+        return int(x)
+    return float(np.float32(x))
+
+
+def _f32(a: np.ndarray) -> bytes:
+    return np.ascontiguousarray(a, dtype="<f4").tobytes()
+
+
+def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str, Any], bytes]:
+    """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
+
+    ``buffer_uri``: the buffer's uri (.gltf), or None for a GLB's embedded buffer.
+    """
+    b = _Builder()
+    mats, mat_index = _materials(cache)
+    meshes, piece_mesh = _piece_meshes(cache, b, mat_index)
+    anim = animation(cache, "Y")
+    n_pieces, n_frames = cache.piece_count, cache.frame_count
+
+    nodes: list[dict[str, Any]] = []
+    samplers: list[dict[str, Any]] = []
+    channels: list[dict[str, Any]] = []
+
+    def channel(node: int, path: str, input_acc: int, output: int,
+                interpolation: str = "LINEAR") -> None:
+        samplers.append({"input": input_acc, "interpolation": interpolation, "output": output})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": node, "path": path}})
+
+    times = anim.times.astype(np.float32)
+    position = anim.position.astype(np.float32)  # (F, P, 3)
+    rotation = _gltf_quaternions(anim.orientation)  # (F, P, 4), (x, y, z, w), sign continuous
+    end = np.asarray(anim.end_frame, dtype=np.int64)
+    for p in range(n_pieces):
+        node: dict[str, Any] = {"name": f"piece_{p:05d}"}
+        if piece_mesh[p] >= 0:
+            node["mesh"] = int(piece_mesh[p])
+        if n_frames:
+            node["translation"] = [_num(x) for x in position[0, p]]
+            node["rotation"] = [_num(x) for x in rotation[0, p]]
+            if end[p] <= 0:
+                node["scale"] = [0.0, 0.0, 0.0]
+        nodes.append(node)
+
+    if n_frames:
+        t_acc = b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR", times.min(),
+                           times.max())
+        tr_view = b.view(_f32(position.transpose(1, 0, 2)))
+        rot_view = b.view(_f32(rotation.transpose(1, 0, 2)))
+        steps = _step_accessors(b, times, end)
+        for p in range(n_pieces):
+            channel(p, "translation", t_acc,
+                    b.accessor(tr_view, p * n_frames * 12, FLOAT, n_frames, "VEC3"))
+            channel(p, "rotation", t_acc,
+                    b.accessor(rot_view, p * n_frames * 16, FLOAT, n_frames, "VEC4"))
+            if end[p] < n_frames:
+                step_in, step_out = steps[int(end[p])]
+                channel(p, "scale", step_in, step_out, "STEP")
+
+    # shock fronts: one shared unit UV sphere, one node per charge, scaled to the radius
+    n_charges = len(cache.charge_tnt_kg)
+    if n_charges:
+        mats.append({"name": "shock_front", "pbrMetallicRoughness": {
+            "baseColorFactor": list(SHOCK_COLOR), "metallicFactor": 0.0,
+            "roughnessFactor": 1.0}, "alphaMode": "BLEND"})
+        meshes.append(_sphere_mesh(b, len(mats) - 1))
+        change = frame_change(cache.model.meta.get("up_axis", "Y"), "Y")
+        centres = np.asarray(cache.charge_position, dtype=np.float64) @ change.T
+        radius = np.asarray(cache.shock_radius, dtype=np.float32).reshape(n_frames, n_charges)
+        scale = np.repeat(radius.T[:, :, None], 3, axis=2)  # (C, F, 3)
+        sc_view = b.view(_f32(scale)) if n_frames else -1
+        for c in range(n_charges):
+            node = {"name": f"shock_{c:02d}", "mesh": len(meshes) - 1,
+                    "translation": [_num(x) for x in centres[c]],
+                    "scale": [_num(x) for x in scale[c, 0]] if n_frames else [0.0] * 3}
+            nodes.append(node)
+            if n_frames:
+                channel(len(nodes) - 1, "scale", t_acc,
+                        b.accessor(sc_view, c * n_frames * 12, FLOAT, n_frames, "VEC3"))
+
+    nodes.append({"name": "blastvox", "children": list(range(len(nodes)))})
+    fps = cache.meta.get("fps")
+    doc: dict[str, Any] = {
+        "asset": {"version": "2.0", "generator": f"blastvox {__version__}"},
+        "scene": 0,
+        "scenes": [{"name": "blastvox", "nodes": [len(nodes) - 1],
+                    "extras": {"up_axis": "Y", "units": "m", "frame_count": n_frames,
+                               "fps": fps if isinstance(fps, int | float) else None,
+                               "piece_count": n_pieces}}],
+        "nodes": nodes,
+    }
+    if meshes:
+        doc["meshes"] = meshes
+    if mats:
+        doc["materials"] = mats
+    if channels:
+        doc["animations"] = [{"name": "blastvox", "channels": channels, "samplers": samplers}]
+    blob = b.blob()
+    if b.accessors:
+        doc["accessors"] = b.accessors
+        doc["bufferViews"] = b.views
+        buffer: dict[str, Any] = {"byteLength": len(blob)}
+        if buffer_uri is not None:
+            buffer["uri"] = buffer_uri
+        doc["buffers"] = [buffer]
+    return doc, blob
+
+
+def _gltf_quaternions(wxyz: np.ndarray) -> np.ndarray:
+    """(F, P, 4) (w, x, y, z) -> float32 (x, y, z, w), each key flipped to the hemisphere
+    of the previous one so LINEAR (nlerp/slerp) interpolation takes the short way."""
+    q = np.asarray(wxyz, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    if len(q) > 1:
+        dots = np.einsum("fpk,fpk->fp", q[1:], q[:-1])
+        sign = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
+        q[1:] *= sign[:, :, None]
+    return np.ascontiguousarray(q[..., [1, 2, 3, 0]], dtype=np.float32)
+
+
+def _step_accessors(b: _Builder, times: np.ndarray,
+                    end: np.ndarray) -> dict[int, tuple[int, int]]:
+    """STEP scale keys per distinct end frame e < F: (input, output) accessors.
+
+    e > 0: keys at times[0] (scale 1) and times[e] (scale 0); e <= 0: one key (scale 0).
+    Pieces with the same end frame share the accessors.
+    """
+    n_frames = len(times)
+    ends = sorted({int(e) for e in end if e < n_frames})
+    out: dict[int, tuple[int, int]] = {}
+    if not ends:
+        return out
+    key_times = np.array([[times[0], times[max(e, 0)]] for e in ends], dtype=np.float32)
+    key_view = b.view(_f32(key_times))
+    values = b.view(_f32([1, 1, 1, 0, 0, 0]))  # scale 1 then 0
+    outputs: dict[int, int] = {}  # key count -> output accessor (only those used)
+    for i, e in enumerate(ends):
+        n = 1 if e <= 0 else 2
+        if n not in outputs:
+            outputs[n] = b.accessor(values, 12 if n == 1 else 0, FLOAT, n, "VEC3")
+        acc = b.accessor(key_view, i * 8, FLOAT, n, "SCALAR", key_times[i, 0],
+                         key_times[i, n - 1])
+        out[e] = (acc, outputs[n])
+    return out
+
+
+def _materials(cache: SimCache) -> tuple[list[dict[str, Any]], dict[tuple[int, bool], int]]:
+    """glTF materials for the (model material, damage) pairs the pieces use, in order."""
+    a = cache.model.arrays
+    names = list(cache.model.meta.get("materials", []))
+    used = np.unique(np.asarray(a["voxel_material"], dtype=np.int64))
+    colors = np.asarray(a["material_color"], dtype=np.float64)
+    damage_colors = np.asarray(a["material_damage_color"], dtype=np.float64)
+    mats: list[dict[str, Any]] = []
+    index: dict[tuple[int, bool], int] = {}
+    for m in used.tolist():
+        name = names[m] if m < len(names) else f"material_{m}"
+        for damage, rgb, suffix in ((False, colors[m], ""), (True, damage_colors[m], "_damage")):
+            rgba = [float(np.clip(x, 0.0, 1.0)) for x in rgb] + [1.0]
+            index[(m, damage)] = len(mats)
+            mats.append({"name": name + suffix, "pbrMetallicRoughness": {
+                "baseColorFactor": rgba, "metallicFactor": 0.0, "roughnessFactor": ROUGHNESS}})
+    return mats, index
+
+
+def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool], int]
+                  ) -> tuple[list[dict[str, Any]], np.ndarray]:
+    """One mesh per piece with triangles (mesh dicts, mesh index per piece or -1).
+
+    Primitives are groups of (piece, material, damage); within a group, corners
+    with the same float32 position and normal share a vertex (first-use order).
+    """
+    pm = piece_meshes(cache, "Y")
+    n_tri = len(pm.damage)
+    n_pieces = cache.piece_count
+    piece_mesh = np.full(n_pieces, -1, dtype=np.int64)
+    if n_tri == 0:
+        return [], piece_mesh
+    tri_piece = np.repeat(np.arange(n_pieces), np.diff(pm.offsets))
+    damage = np.asarray(pm.damage, dtype=bool)
+    material = np.asarray(pm.material, dtype=np.int64)
+    order = np.lexsort((np.arange(n_tri), damage, material, tri_piece))
+    tri_piece, damage, material = tri_piece[order], damage[order], material[order]
+    key = np.stack([tri_piece, material, damage.astype(np.int64)], axis=1)
+    starts = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)])
+    group = np.cumsum(np.r_[True, np.any(key[1:] != key[:-1], axis=1)]) - 1  # per triangle
+
+    corners = np.ascontiguousarray(pm.vertices[order], dtype=np.float32).reshape(-1, 3)
+    normals = np.repeat(np.asarray(pm.normals[order], dtype=np.float32), 3, axis=0)
+    corner_group = np.repeat(group, 3)
+    # shared vertices: equal (group, position bits, normal bits); stable sort keeps first use
+    cols = np.concatenate([corner_group[:, None], corners.view(np.int32),
+                           normals.view(np.int32)], axis=1)
+    srt = np.lexsort(cols.T[::-1])
+    s = cols[srt]
+    new = np.r_[True, np.any(s[1:] != s[:-1], axis=1)]
+    uid = np.cumsum(new) - 1
+    first = srt[new]  # first corner of each distinct vertex (lexsort is stable)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    inverse = np.empty(len(cols), dtype=np.int64)
+    inverse[srt] = rank[uid]
+    keep = np.sort(first)
+    vpos, vnrm, vgroup = corners[keep], normals[keep], corner_group[keep]
+
+    n_groups = len(starts)
+    vstart = np.searchsorted(vgroup, np.arange(n_groups + 1))
+    local_index = inverse - vstart[corner_group]
+    lo = np.minimum.reduceat(vpos, vstart[:-1], axis=0)
+    hi = np.maximum.reduceat(vpos, vstart[:-1], axis=0)
+
+    pos_view = b.view(_f32(vpos), ARRAY_BUFFER, 12)
+    nrm_view = b.view(_f32(vnrm), ARRAY_BUFFER, 12)
+    counts = np.diff(vstart)
+    idx_parts: list[bytes] = []
+    idx_offsets = np.zeros(n_groups, dtype=np.int64)
+    cstart = np.r_[starts, n_tri] * 3
+    offset = 0
+    for g in range(n_groups):
+        dtype = "<u2" if counts[g] < 65535 else "<u4"
+        part = local_index[cstart[g]:cstart[g + 1]].astype(dtype).tobytes()
+        part += b"\0" * (-len(part) % 4)
+        idx_offsets[g] = offset
+        offset += len(part)
+        idx_parts.append(part)
+    idx_view = b.view(b"".join(idx_parts), ELEMENT_ARRAY_BUFFER)
+
+    meshes: list[dict[str, Any]] = []
+    g_piece = tri_piece[starts]
+    for g in range(n_groups):
+        p = int(g_piece[g])
+        if piece_mesh[p] < 0:
+            piece_mesh[p] = len(meshes)
+            meshes.append({"name": f"piece_{p:05d}", "primitives": []})
+        n_v = int(counts[g])
+        prim = {
+            "attributes": {
+                "POSITION": b.accessor(pos_view, int(vstart[g]) * 12, FLOAT, n_v, "VEC3",
+                                       lo[g], hi[g]),
+                "NORMAL": b.accessor(nrm_view, int(vstart[g]) * 12, FLOAT, n_v, "VEC3"),
+            },
+            "indices": b.accessor(idx_view, int(idx_offsets[g]),
+                                  UINT16 if n_v < 65535 else UINT32,
+                                  int(cstart[g + 1] - cstart[g]), "SCALAR"),
+            "material": mat_index[(int(material[starts[g]]), bool(damage[starts[g]]))],
+            "mode": TRIANGLES,
+        }
+        meshes[-1]["primitives"].append(prim)
+    return meshes, piece_mesh
+
+
+def _sphere_mesh(b: _Builder, material: int) -> dict[str, Any]:
+    """A unit UV sphere (outward normals = positions), indexed triangles."""
+    rings, segs = SPHERE_RINGS, SPHERE_SEGMENTS
+    theta = np.linspace(0.0, np.pi, rings + 1)
+    phi = np.linspace(0.0, 2.0 * np.pi, segs + 1)
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    pos = np.stack([st * np.cos(phi), np.broadcast_to(ct, (rings + 1, segs + 1)),
+                    -st * np.sin(phi)], axis=-1).reshape(-1, 3)
+    pos = pos / np.linalg.norm(pos, axis=1, keepdims=True)
+    pos = pos.astype(np.float32)
+    i, j = np.meshgrid(np.arange(rings), np.arange(segs), indexing="ij")
+    a = i * (segs + 1) + j
+    bb, c, d = a + segs + 1, a + 1, a + segs + 2
+    tris = np.concatenate([np.stack([a, bb, c], -1)[1:].reshape(-1, 3),  # none at the pole
+                           np.stack([c, bb, d], -1)[:-1].reshape(-1, 3)])
+    idx = tris.astype("<u2").tobytes()
+    pv = b.view(_f32(pos), ARRAY_BUFFER)
+    nv = b.view(_f32(pos), ARRAY_BUFFER)
+    iv = b.view(idx, ELEMENT_ARRAY_BUFFER)
+    return {"name": "shock_sphere", "primitives": [{
+        "attributes": {"POSITION": b.accessor(pv, 0, FLOAT, len(pos), "VEC3", pos.min(0),
+                                              pos.max(0)),
+                       "NORMAL": b.accessor(nv, 0, FLOAT, len(pos), "VEC3")},
+        "indices": b.accessor(iv, 0, UINT16, tris.size, "SCALAR"),
+        "material": material, "mode": TRIANGLES}]}
+
+
+# --- benchmark -------------------------------------------------------------------------------
+
+def bench_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0,
+                seed: int = 0) -> SimCache:
+    """A synthetic SimCache for export benchmarks: a cube of 0.25 m voxels cut into
+    ``pieces`` blocks of 2x2x2 voxels (pieces whose count is not a cube merge
+    neighbouring blocks), each flying off ballistically and tumbling for
+    ``frames`` frames; a tenth of them vanish part-way, one charge's shock grows.
+    """
+    import tempfile
+
+    import trimesh
+
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    voxel = 0.25
+    k = max(1, int(np.ceil(round(pieces ** (1.0 / 3.0), 9))))
+    side = 2 * k * voxel
+    with tempfile.TemporaryDirectory() as tmp:
+        mesh = Path(tmp) / "block.stl"
+        trimesh.creation.box(extents=(side,) * 3).export(mesh)
+        model = voxelize([ObjectRequest(mesh=mesh, voxel_size=(voxel,) * 3, material="brick")],
+                         VoxelizeSettings(up_axis="Z", ground=None))
+    ijk = model.arrays["voxel_ijk"].astype(np.int64)
+    block = (ijk // 2) @ np.array([k * k, k, 1])
+    piece = (block * pieces // k ** 3).astype(np.int32)
+    mass = np.bincount(piece, weights=model.arrays["voxel_mass"], minlength=pieces)
+    pivot = np.stack([np.bincount(piece, weights=model.arrays["voxel_mass"]
+                                  * model.arrays["voxel_centroid"][:, i], minlength=pieces)
+                      for i in range(3)], axis=1) / np.maximum(mass, 1e-12)[:, None]
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames) / fps
+    velocity = rng.normal(0.0, 5.0, (pieces, 3))
+    gravity = np.array([0.0, 0.0, -9.81])
+    position = (pivot[None] + t[:, None, None] * velocity[None]
+                + 0.5 * t[:, None, None] ** 2 * gravity)
+    axis = rng.normal(size=(pieces, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    half = 0.5 * rng.uniform(0.0, 20.0, pieces)[None] * t[:, None]  # (F, P) half angles
+    orientation = np.concatenate([np.cos(half)[..., None],
+                                  np.sin(half)[..., None] * axis[None]], axis=-1)
+    end = np.full(pieces, frames, dtype=np.int32)
+    gone = rng.random(pieces) < 0.1
+    end[gone] = rng.integers(1, max(frames, 2), gone.sum())
+    n = model.voxel_count
+    i4, f8 = np.zeros(0, np.int32), np.zeros(0)
+    arrays = {
+        "frame_time": t, "voxel_piece": piece, "piece_pivot": pivot, "piece_mass": mass,
+        "piece_position": position.astype(np.float32),
+        "piece_orientation": orientation.astype(np.float32), "piece_end_frame": end,
+        "voxel_destroyed_frame": np.full(n, -1, np.int32),
+        "damage_frame": i4, "damage_voxel": i4, "damage_value": np.zeros(0, np.uint8),
+        "link_break_link": i4, "link_break_time": f8, "dust_voxel": i4, "dust_time": f8,
+        "dust_mass": f8, "dust_position": np.zeros((0, 3)), "dust_velocity": np.zeros((0, 3)),
+        "charge_position": np.array([[0.0, -2.0 * side, 0.5 * side]]),
+        "charge_tnt_kg": np.array([10.0]), "charge_time": np.array([0.0]),
+        "shock_radius": (340.0 * t)[:, None],
+    }
+    return SimCache(arrays=arrays, model=model, meta={"fps": fps, "duration": float(t[-1])})
+
+
+def bench_gltf(pieces: int = 1000, frames: int = 120, repeat: int = 3,
+               cache: SimCache | None = None, suffix: str = ".glb") -> dict[str, Any]:
+    """Time :func:`write_gltf` (best of ``repeat``) on ``cache`` or :func:`bench_cache`.
+
+    Returns pieces, frames, triangles, seconds (best), bytes of the output.
+    """
+    import tempfile
+
+    cache = cache if cache is not None else bench_cache(pieces, frames)
+    best = float("inf")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / f"bench{suffix}"
+        for _ in range(max(1, repeat)):
+            started = time.perf_counter()
+            write_gltf(cache, out)
+            best = min(best, time.perf_counter() - started)
+        size = out.stat().st_size + (out.with_suffix(".bin").stat().st_size
+                                     if suffix == ".gltf" else 0)
+    return {"format": suffix.lstrip("."), "pieces": cache.piece_count,
+            "frames": cache.frame_count, "voxels": cache.model.voxel_count,
+            "seconds": best, "bytes": size}
+
+
+if __name__ == "__main__":  # python -m blastvox.export.gltf: the benchmark
+    print(json.dumps(bench_gltf(), indent=1))

@@ -1,0 +1,442 @@
+"""Contacts: the ground plane (Martins 2001 §5.2) and fragment collisions (§5.1).
+
+Both act at velocity level between the velocity and position halves of the
+step, and never add energy: an impulse only removes approach velocity, or
+reflects it with a restitution coefficient e <= 1.
+
+Ground: an infinite-mass plane at the scene's ground height. Contact points are
+the corners of a body's boundary voxels that are at or below the plane, or
+would reach it this step (speculative contacts, so fast debris cannot tunnel
+and resting bodies do not sink, without pushing positions around). Normal and
+tangential impulses are solved together by a few projected Gauss-Seidel
+sweeps; the tangential part is Coulomb friction, the "pseudo-friction" of the
+paper: it opposes the tangential velocity and grows with the body's mass and
+speed up to mu times the normal impulse. A body in resting contact loses a
+part of its momenta (damping); with three or more contact points, small
+velocities and its centre of mass over the *exact convex hull* of its contact
+points (the paper used their bounding rectangle to save time), it is clamped
+to rest and sleeps until something wakes it.
+
+Fragments: bounding spheres of bodies (broad phase), then a spatial hash of
+the boundary voxels of bodies whose spheres overlap, then voxel spheres of
+radius (volume)^(1/3) / 2. Each touching, approaching voxel pair is resolved
+once per step with an impulse along the centre line at its midpoint, with the
+smaller restitution of the two voxels. Impacts weaken voxels; a voxel whose
+strength runs out turns to dust.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from blastvox.simulate.integrate import angular_velocity
+
+_FACE_CORNERS = np.array(
+    [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]],
+    dtype=np.int64)
+
+
+@nb.njit(cache=True)
+def boundary_lists(voxel_body, voxel_alive, voxel_link_mask, conform_slot, n_bodies):
+    """CSR (offsets (B+1,), voxels) of each body's alive boundary voxels, in voxel order."""
+    count = np.zeros(n_bodies + 1, dtype=np.int64)
+    for v in range(voxel_body.shape[0]):
+        if voxel_alive[v] and (voxel_link_mask[v] != 0x3F or conform_slot[v] >= 0):
+            count[voxel_body[v] + 1] += 1
+    for b in range(n_bodies):
+        count[b + 1] += count[b]
+    fill = count[:-1].copy()
+    out = np.empty(count[n_bodies], dtype=np.int64)
+    for v in range(voxel_body.shape[0]):
+        if voxel_alive[v] and (voxel_link_mask[v] != 0x3F or conform_slot[v] >= 0):
+            b = voxel_body[v]
+            out[fill[b]] = v
+            fill[b] += 1
+    return count, out
+
+
+@nb.njit(cache=True, inline="always")
+def _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega):
+    rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
+    m = body_mass[b]
+    return (body_lin[b, 0] / m + omega[1] * rz - omega[2] * ry,
+            body_lin[b, 1] / m + omega[2] * rx - omega[0] * rz,
+            body_lin[b, 2] / m + omega[0] * ry - omega[1] * rx)
+
+
+@nb.njit(cache=True, inline="always")
+def _inv_inertia_times(rot, inv, x, y, z):
+    """I_world^-1 (x, y, z) = R I^-1 R^T v."""
+    r0 = rot[0, 0] * x + rot[1, 0] * y + rot[2, 0] * z
+    r1 = rot[0, 1] * x + rot[1, 1] * y + rot[2, 1] * z
+    r2 = rot[0, 2] * x + rot[1, 2] * y + rot[2, 2] * z
+    s0 = inv[0, 0] * r0 + inv[0, 1] * r1 + inv[0, 2] * r2
+    s1 = inv[1, 0] * r0 + inv[1, 1] * r1 + inv[1, 2] * r2
+    s2 = inv[2, 0] * r0 + inv[2, 1] * r1 + inv[2, 2] * r2
+    return (rot[0, 0] * s0 + rot[0, 1] * s1 + rot[0, 2] * s2,
+            rot[1, 0] * s0 + rot[1, 1] * s1 + rot[1, 2] * s2,
+            rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2)
+
+
+@nb.njit(cache=True, inline="always")
+def _effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
+    """1/m + n . ((I^-1 (r x n)) x r): inverse mass seen by an impulse along n at r."""
+    cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
+    ix, iy, iz = _inv_inertia_times(rot, inv, cx, cy, cz)
+    tx, ty, tz = iy * rz - iz * ry, iz * rx - ix * rz, ix * ry - iy * rx
+    return inv_mass + nx * tx + ny * ty + nz * tz
+
+
+@nb.njit(cache=True, inline="always")
+def _apply(b, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang):
+    body_lin[b, 0] += jx
+    body_lin[b, 1] += jy
+    body_lin[b, 2] += jz
+    rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
+    body_ang[b, 0] += ry * jz - rz * jy
+    body_ang[b, 1] += rz * jx - rx * jz
+    body_ang[b, 2] += rx * jy - ry * jx
+
+
+@nb.njit(cache=True)
+def _hull_contains(px, py, count, qx, qy, tol) -> bool:
+    """Is (qx, qy) inside the convex hull of the 2-D points (monotone chain)?"""
+    if count < 3:
+        return False
+    order = np.argsort(px[:count] + 1e-9 * py[:count])
+    xs = px[:count][order]
+    ys = py[:count][order]
+    hull = np.empty(2 * count, dtype=np.int64)
+    k = 0
+    for i in range(count):  # lower hull
+        while k >= 2 and ((xs[hull[k - 1]] - xs[hull[k - 2]]) * (ys[i] - ys[hull[k - 2]])
+                          - (ys[hull[k - 1]] - ys[hull[k - 2]]) * (xs[i] - xs[hull[k - 2]])) <= 0:
+            k -= 1
+        hull[k] = i
+        k += 1
+    lower = k + 1
+    for i in range(count - 2, -1, -1):  # upper hull
+        while k >= lower and ((xs[hull[k - 1]] - xs[hull[k - 2]]) * (ys[i] - ys[hull[k - 2]])
+                              - (ys[hull[k - 1]] - ys[hull[k - 2]])
+                              * (xs[i] - xs[hull[k - 2]])) <= 0:
+            k -= 1
+        hull[k] = i
+        k += 1
+    n = k - 1
+    if n < 3:
+        return False
+    for e in range(n):  # counter-clockwise: inside is left of every edge
+        a, b = hull[e], hull[e + 1]
+        ex, ey = xs[b] - xs[a], ys[b] - ys[a]
+        length = math.sqrt(ex * ex + ey * ey)
+        if ex * (qy - ys[a]) - ey * (qx - xs[a]) < -tol * length:
+            return False
+    return True
+
+
+def balanced(points: np.ndarray, centre: np.ndarray, tol: float = 0.0) -> bool:
+    """Is ``centre`` (2,) over the convex hull of ground contact ``points`` (K, 2)?"""
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    return bool(_hull_contains(p[:, 0].copy(), p[:, 1].copy(), len(p), float(centre[0]),
+                               float(centre[1]), tol))
+
+
+@nb.njit(cache=True)
+def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, vertices,
+                    voxel_vertices, voxel_restitution, offsets, members, vertex_stamp,
+                    body_mass, body_inv_inertia, body_radius, body_com, body_pos, body_rot,
+                    body_lin, body_ang, body_fixed, body_live, body_dust, body_asleep, n_bodies,
+                    contacts_out) -> int:
+    """Resolve ground contacts of every moving body; returns the number of contact points.
+
+    ground: plane height (m) along axis ``up_axis`` (0, 1, 2); friction: Coulomb
+    mu; rest_damping: 1/s decay of momenta in resting contact; sleep_speed: m/s
+    below which a balanced body with >= 3 contacts is clamped to rest.
+    contacts_out (K, 3): scratch for contact points (grows with the largest body).
+    """
+    e1 = (up_axis + 1) % 3
+    e2 = (up_axis + 2) % 3
+    max_contacts = contacts_out.shape[0]
+    acc_n = np.zeros(max_contacts)
+    acc_t = np.zeros((max_contacts, 2))
+    rest = np.zeros(max_contacts)
+    total = 0
+    for b in range(n_bodies):
+        if not body_live[b] or body_fixed[b] or body_dust[b] or body_asleep[b]:
+            continue
+        m = body_mass[b]
+        inv_m = 1.0 / m
+        speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
+        rot = body_rot[b]
+        inv = body_inv_inertia[b]
+        omega = angular_velocity(rot, inv, body_ang[b])
+        spin = math.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2)
+        reach = (speed + spin * body_radius[b]) * dt + 1e-6
+        if body_pos[b, up_axis] - body_radius[b] > ground + reach:
+            continue
+        # contact candidates: boundary-voxel corners at or near the plane
+        count = 0
+        for k in range(offsets[b], offsets[b + 1]):
+            v = members[k]
+            for c in range(8):
+                vid = voxel_vertices[v, c]
+                if vertex_stamp[vid] == b:
+                    continue
+                vertex_stamp[vid] = b
+                x = vertices[vid, 0] - body_com[b, 0]
+                y = vertices[vid, 1] - body_com[b, 1]
+                z = vertices[vid, 2] - body_com[b, 2]
+                h = body_pos[b, up_axis] + rot[up_axis, 0] * x + rot[up_axis, 1] * y \
+                    + rot[up_axis, 2] * z - ground
+                if h > reach or count >= max_contacts:
+                    continue
+                for a in range(3):
+                    contacts_out[count, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y \
+                        + rot[a, 2] * z
+                rest[count] = voxel_restitution[v]
+                acc_n[count] = 0.0
+                acc_t[count, 0] = 0.0
+                acc_t[count, 1] = 0.0
+                count += 1
+        # forget the stamps of this body so later steps see its vertices again
+        for k in range(offsets[b], offsets[b + 1]):
+            for c in range(8):
+                vertex_stamp[voxel_vertices[members[k], c]] = -1
+        if count == 0:
+            continue
+        total += count
+        # approach speeds before the solve decide bounce vs rest
+        target = np.zeros(count)
+        for i in range(count):
+            vel = _point_velocity(b, contacts_out[i, 0], contacts_out[i, 1], contacts_out[i, 2],
+                                  body_pos, body_lin, body_mass, omega)
+            vn = vel[up_axis]
+            gap = contacts_out[i, up_axis] - ground
+            if gap > 1e-9:
+                target[i] = -gap / dt  # speculative: arrive, do not pass
+            elif -vn > sleep_speed + 2.0 * 9.81 * dt:
+                target[i] = -rest[i] * vn  # impact: bounce
+            else:
+                target[i] = 0.0
+        for _ in range(8):
+            for i in range(count):
+                px, py, pz = contacts_out[i, 0], contacts_out[i, 1], contacts_out[i, 2]
+                omega = angular_velocity(rot, inv, body_ang[b])
+                vel = _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
+                rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
+                n = np.zeros(3)
+                n[up_axis] = 1.0
+                k_n = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, n[0], n[1], n[2])
+                dj = (target[i] - vel[up_axis]) / k_n
+                old = acc_n[i]
+                acc_n[i] = max(old + dj, 0.0)
+                dj = acc_n[i] - old
+                n *= dj
+                _apply(b, n[0], n[1], n[2], px, py, pz, body_pos, body_lin, body_ang)
+                # Coulomb friction on the two tangent axes, within mu * normal impulse
+                omega = angular_velocity(rot, inv, body_ang[b])
+                vel = _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
+                limit = friction * acc_n[i]
+                for t, axis in ((0, e1), (1, e2)):
+                    tvec = np.zeros(3)
+                    tvec[axis] = 1.0
+                    k_t = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, tvec[0], tvec[1],
+                                                  tvec[2])
+                    old_t = acc_t[i, t]
+                    acc_t[i, t] = min(max(old_t - vel[axis] / k_t, -limit), limit)
+                    tvec *= acc_t[i, t] - old_t
+                    _apply(b, tvec[0], tvec[1], tvec[2], px, py, pz, body_pos, body_lin,
+                           body_ang)
+        # resting contact: damp, and clamp to rest when balanced on >= 3 points
+        omega = angular_velocity(rot, inv, body_ang[b])
+        speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
+        spin = math.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * body_radius[b]
+        touching = 0
+        for i in range(count):
+            if contacts_out[i, up_axis] - ground <= 1e-6 * max(1.0, body_radius[b]):
+                touching += 1
+        if touching == 0 or speed > 4.0 * sleep_speed or spin > 4.0 * sleep_speed:
+            continue
+        decay = math.exp(-rest_damping * dt)
+        for a in range(3):
+            body_lin[b, a] *= decay
+            body_ang[b, a] *= decay
+        if touching >= 3 and speed < sleep_speed and spin < sleep_speed:
+            px = np.empty(touching)
+            py = np.empty(touching)
+            j = 0
+            for i in range(count):
+                if contacts_out[i, up_axis] - ground <= 1e-6 * max(1.0, body_radius[b]):
+                    px[j] = contacts_out[i, e1]
+                    py[j] = contacts_out[i, e2]
+                    j += 1
+            tol = 1e-9 * max(1.0, body_radius[b])
+            if _hull_contains(px, py, touching, body_pos[b, e1], body_pos[b, e2], tol):
+                for a in range(3):
+                    body_lin[b, a] = 0.0
+                    body_ang[b, a] = 0.0
+                body_asleep[b] = True
+    return total
+
+
+@nb.njit(cache=True)
+def _cell_key(x, y, z, cell):
+    i = int(math.floor(x / cell)) + 1048576
+    j = int(math.floor(y / cell)) + 1048576
+    k = int(math.floor(z / cell)) + 1048576
+    return (i * 2097152 + j) * 2097152 + k
+
+
+@nb.njit(cache=True)
+def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield, voxel_alive,
+                   voxel_body, offsets, members, body_mass, body_inv_inertia, body_radius,
+                   body_com, body_pos, body_rot, body_lin, body_ang, body_fixed, body_live,
+                   body_dust, body_asleep, n_bodies, wake_speed, impact_time, weakening,
+                   destroyed, dirty, hits_out) -> int:
+    """Find and resolve voxel-sphere contacts between different bodies, once each.
+
+    voxel_radius (N,): collision radius (m). Impacts weaken the voxels they hit
+    by ``weakening`` x the impact pressure j / (pi r^2 impact_time) (Pa); a voxel
+    whose yield that pressure exceeds is marked in ``destroyed`` (its body in
+    ``dirty``). hits_out (H, 4) receives contact points and impulses (for dust);
+    returns the number of contacts resolved.
+    """
+    # broad phase: sort-and-sweep of body spheres along x; at least one body moving
+    order = np.argsort(body_pos[:n_bodies, 0] - body_radius[:n_bodies], kind="mergesort")
+    involved = np.zeros(n_bodies, dtype=np.bool_)
+    any_pair = False
+    for ii in range(n_bodies):
+        a = order[ii]
+        if not body_live[a] or body_dust[a]:
+            continue
+        a_moves = not body_fixed[a] and not body_asleep[a]
+        for jj in range(ii + 1, n_bodies):
+            b = order[jj]
+            if body_pos[b, 0] - body_radius[b] > body_pos[a, 0] + body_radius[a]:
+                break
+            if not body_live[b] or body_dust[b]:
+                continue
+            if not a_moves and (body_fixed[b] or body_asleep[b]):
+                continue
+            d2 = 0.0
+            for c in range(3):
+                d2 += (body_pos[a, c] - body_pos[b, c]) ** 2
+            if d2 < (body_radius[a] + body_radius[b]) ** 2:
+                involved[a] = True
+                involved[b] = True
+                any_pair = True
+    if not any_pair:
+        return 0
+    # mid phase: spatial hash of the boundary voxels of involved bodies
+    count = 0
+    rmax = 0.0
+    for b in range(n_bodies):
+        if involved[b]:
+            count += offsets[b + 1] - offsets[b]
+            for k in range(offsets[b], offsets[b + 1]):
+                rmax = max(rmax, voxel_radius[members[k]])
+    cell = 2.0 * rmax
+    vox = np.empty(count, dtype=np.int64)
+    pos = np.empty((count, 3))
+    keys = np.empty(count, dtype=np.int64)
+    n = 0
+    for b in range(n_bodies):
+        if not involved[b]:
+            continue
+        rot = body_rot[b]
+        for k in range(offsets[b], offsets[b + 1]):
+            v = members[k]
+            x = voxel_centroid[v, 0] - body_com[b, 0]
+            y = voxel_centroid[v, 1] - body_com[b, 1]
+            z = voxel_centroid[v, 2] - body_com[b, 2]
+            for a in range(3):
+                pos[n, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
+            vox[n] = v
+            keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
+            n += 1
+    sort = np.argsort(keys, kind="mergesort")
+    skeys = keys[sort]
+    resolved = 0
+    for ii in range(n):
+        i = sort[ii]
+        vi = vox[i]
+        bi = voxel_body[vi]
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                for dz in (-1, 0, 1):
+                    key = _cell_key(pos[i, 0] + dx * cell, pos[i, 1] + dy * cell,
+                                    pos[i, 2] + dz * cell, cell)
+                    lo = np.searchsorted(skeys, key)
+                    hi = np.searchsorted(skeys, key, side="right")
+                    for jj in range(lo, hi):
+                        j = sort[jj]
+                        vj = vox[j]
+                        bj = voxel_body[vj]
+                        if vj <= vi or bj == bi:
+                            continue
+                        if not voxel_alive[vi] or not voxel_alive[vj]:
+                            continue
+                        resolved += _resolve_pair(
+                            vi, vj, bi, bj, pos[i], pos[j], voxel_radius, voxel_restitution,
+                            voxel_yield, voxel_alive, body_mass, body_inv_inertia, body_pos,
+                            body_rot, body_lin, body_ang, body_fixed, body_asleep, wake_speed,
+                            impact_time, weakening, destroyed, dirty, hits_out, resolved)
+    return resolved
+
+
+@nb.njit(cache=True)
+def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel_yield,
+                  voxel_alive, body_mass, body_inv_inertia, body_pos, body_rot, body_lin,
+                  body_ang, body_fixed, body_asleep, wake_speed, impact_time, weakening,
+                  destroyed, dirty, hits_out, index) -> int:
+    dx, dy, dz = cj[0] - ci[0], cj[1] - ci[1], cj[2] - ci[2]
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    reach = voxel_radius[vi] + voxel_radius[vj]
+    if dist >= reach or dist <= 0.0:
+        return 0
+    nx, ny, nz = dx / dist, dy / dist, dz / dist
+    px, py, pz = 0.5 * (ci[0] + cj[0]), 0.5 * (ci[1] + cj[1]), 0.5 * (ci[2] + cj[2])
+    wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
+    wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
+    va = _point_velocity(bi, px, py, pz, body_pos, body_lin, body_mass, wi)
+    vb = _point_velocity(bj, px, py, pz, body_pos, body_lin, body_mass, wj)
+    vn = (vb[0] - va[0]) * nx + (vb[1] - va[1]) * ny + (vb[2] - va[2]) * nz
+    if vn >= 0.0:
+        return 0
+    # an asleep body hit hard enough wakes; otherwise it counts as immovable
+    for b in (bi, bj):
+        if body_asleep[b] and -vn > wake_speed:
+            body_asleep[b] = False
+    k = 0.0
+    for b, sx, sy, sz in ((bi, px - body_pos[bi, 0], py - body_pos[bi, 1], pz - body_pos[bi, 2]),
+                          (bj, px - body_pos[bj, 0], py - body_pos[bj, 1], pz - body_pos[bj, 2])):
+        if body_fixed[b] or body_asleep[b]:
+            continue
+        k += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
+                                     sx, sy, sz, nx, ny, nz)
+    if k <= 0.0:
+        return 0
+    e = min(voxel_restitution[vi], voxel_restitution[vj])
+    j = -(1.0 + e) * vn / k
+    if not (body_fixed[bi] or body_asleep[bi]):
+        _apply(bi, -j * nx, -j * ny, -j * nz, px, py, pz, body_pos, body_lin, body_ang)
+    if not (body_fixed[bj] or body_asleep[bj]):
+        _apply(bj, j * nx, j * ny, j * nz, px, py, pz, body_pos, body_lin, body_ang)
+    r = min(voxel_radius[vi], voxel_radius[vj])
+    pressure = j / (math.pi * r * r * impact_time)
+    for v, b in ((vi, bi), (vj, bj)):
+        if pressure > voxel_yield[v]:
+            voxel_alive[v] = False
+            destroyed[v] = True
+            dirty[b] = True
+        else:
+            voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * pressure)
+    if index < hits_out.shape[0]:
+        hits_out[index, 0] = px
+        hits_out[index, 1] = py
+        hits_out[index, 2] = pz
+        hits_out[index, 3] = j
+    return 1
