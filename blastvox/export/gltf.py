@@ -52,6 +52,7 @@ TRIANGLES = 4
 ROUGHNESS = 0.8
 SHOCK_COLOR = (1.0, 0.55, 0.15, 0.15)
 SPHERE_SEGMENTS, SPHERE_RINGS = 32, 16
+U16_VERTEX_LIMIT = 65535  # a primitive with fewer vertices uses 16-bit indices (65535 = restart)
 _GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 
 
@@ -116,14 +117,14 @@ class _Builder:
         return len(self.views) - 1
 
     def accessor(self, view: int, offset: int, component: int, count: int, kind: str,
-                 lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> int:
+                 lo: list[float] | None = None, hi: list[float] | None = None) -> int:
+        """lo/hi: min/max (lists of float32 values as floats, see :func:`_floats`)."""
         acc: dict[str, Any] = {"bufferView": view, "componentType": component, "count": count,
                                "type": kind}
         if offset:
             acc["byteOffset"] = offset
         if lo is not None:
-            acc["min"] = [_num(x) for x in np.atleast_1d(lo)]
-            acc["max"] = [_num(x) for x in np.atleast_1d(hi)]
+            acc["min"], acc["max"] = lo, hi
         self.accessors.append(acc)
         return len(self.accessors) - 1
 
@@ -131,11 +132,10 @@ class _Builder:
         return b"".join(self.parts)
 
 
-def _num(x: Any) -> float | int:
-    """A JSON number that reads back as exactly the same float32 (or int) value."""
-    if isinstance(x, np.integer | int):
-        return int(x)
-    return float(np.float32(x))
+def _floats(a: Any) -> Any:
+    """Nested lists of floats that JSON writes and reads back as exactly the same float32
+    values (float32 -> float64 is exact, and ``repr`` of a float round-trips; no -0.0)."""
+    return (np.asarray(a, dtype=np.float32).astype(np.float64) + 0.0).tolist()
 
 
 def _f32(a: np.ndarray) -> bytes:
@@ -166,20 +166,22 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str
     position = anim.position.astype(np.float32)  # (F, P, 3)
     rotation = _gltf_quaternions(anim.orientation)  # (F, P, 4), (x, y, z, w), sign continuous
     end = np.asarray(anim.end_frame, dtype=np.int64)
+    first_t = _floats(position[0]) if n_frames else []
+    first_r = _floats(rotation[0]) if n_frames else []
     for p in range(n_pieces):
         node: dict[str, Any] = {"name": f"piece_{p:05d}"}
         if piece_mesh[p] >= 0:
             node["mesh"] = int(piece_mesh[p])
         if n_frames:
-            node["translation"] = [_num(x) for x in position[0, p]]
-            node["rotation"] = [_num(x) for x in rotation[0, p]]
+            node["translation"] = first_t[p]
+            node["rotation"] = first_r[p]
             if end[p] <= 0:
                 node["scale"] = [0.0, 0.0, 0.0]
         nodes.append(node)
 
     if n_frames:
-        t_acc = b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR", times.min(),
-                           times.max())
+        t_acc = b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR",
+                           _floats([times.min()]), _floats([times.max()]))
         tr_view = b.view(_f32(position.transpose(1, 0, 2)))
         rot_view = b.view(_f32(rotation.transpose(1, 0, 2)))
         steps = _step_accessors(b, times, end)
@@ -206,8 +208,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str
         sc_view = b.view(_f32(scale)) if n_frames else -1
         for c in range(n_charges):
             node = {"name": f"shock_{c:02d}", "mesh": len(meshes) - 1,
-                    "translation": [_num(x) for x in centres[c]],
-                    "scale": [_num(x) for x in scale[c, 0]] if n_frames else [0.0] * 3}
+                    "translation": _floats(centres[c]),
+                    "scale": _floats(scale[c, 0]) if n_frames else [0.0] * 3}
             nodes.append(node)
             if n_frames:
                 channel(len(nodes) - 1, "scale", t_acc,
@@ -250,7 +252,7 @@ def _gltf_quaternions(wxyz: np.ndarray) -> np.ndarray:
         dots = np.einsum("fpk,fpk->fp", q[1:], q[:-1])
         sign = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
         q[1:] *= sign[:, :, None]
-    return np.ascontiguousarray(q[..., [1, 2, 3, 0]], dtype=np.float32)
+    return np.ascontiguousarray(q[..., [1, 2, 3, 0]], dtype=np.float32) + np.float32(0.0)  # no -0
 
 
 def _step_accessors(b: _Builder, times: np.ndarray,
@@ -273,8 +275,8 @@ def _step_accessors(b: _Builder, times: np.ndarray,
         n = 1 if e <= 0 else 2
         if n not in outputs:
             outputs[n] = b.accessor(values, 12 if n == 1 else 0, FLOAT, n, "VEC3")
-        acc = b.accessor(key_view, i * 8, FLOAT, n, "SCALAR", key_times[i, 0],
-                         key_times[i, n - 1])
+        acc = b.accessor(key_view, i * 8, FLOAT, n, "SCALAR", _floats(key_times[i, :1]),
+                         _floats(key_times[i, n - 1:n]))
         out[e] = (acc, outputs[n])
     return out
 
@@ -304,21 +306,25 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
 
     Primitives are groups of (piece, material, damage); within a group, corners
     with the same float32 position and normal share a vertex (first-use order).
+    Zero-area triangles (no normal) are left out.
     """
     pm = piece_meshes(cache, "Y")
-    n_tri = len(pm.damage)
     n_pieces = cache.piece_count
     piece_mesh = np.full(n_pieces, -1, dtype=np.int64)
-    if n_tri == 0:
-        return [], piece_mesh
     tri_piece = np.repeat(np.arange(n_pieces), np.diff(pm.offsets))
     damage = np.asarray(pm.damage, dtype=bool)
     material = np.asarray(pm.material, dtype=np.int64)
-    order = np.lexsort((np.arange(n_tri), damage, material, tri_piece))
+    # zero-area triangles have no normal (a zero NORMAL is invalid glTF) and draw nothing
+    solid = np.flatnonzero(np.any(pm.normals != 0, axis=1))
+    n_tri = len(solid)
+    if n_tri == 0:
+        return [], piece_mesh
+    order = solid[np.lexsort((solid, damage[solid], material[solid], tri_piece[solid]))]
     tri_piece, damage, material = tri_piece[order], damage[order], material[order]
     key = np.stack([tri_piece, material, damage.astype(np.int64)], axis=1)
-    starts = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)])
-    group = np.cumsum(np.r_[True, np.any(key[1:] != key[:-1], axis=1)]) - 1  # per triangle
+    change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
+    starts = np.flatnonzero(change)  # first triangle of each primitive
+    group = np.cumsum(change) - 1  # primitive of each triangle
 
     corners = np.ascontiguousarray(pm.vertices[order], dtype=np.float32).reshape(-1, 3)
     normals = np.repeat(np.asarray(pm.normals[order], dtype=np.float32), 3, axis=0)
@@ -346,38 +352,45 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
 
     pos_view = b.view(_f32(vpos), ARRAY_BUFFER, 12)
     nrm_view = b.view(_f32(vnrm), ARRAY_BUFFER, 12)
+
+    # indices: u16 where the primitive has few enough vertices, else u32; each primitive's
+    # run starts on a 4-byte boundary
     counts = np.diff(vstart)
-    idx_parts: list[bytes] = []
-    idx_offsets = np.zeros(n_groups, dtype=np.int64)
     cstart = np.r_[starts, n_tri] * 3
-    offset = 0
-    for g in range(n_groups):
-        dtype = "<u2" if counts[g] < 65535 else "<u4"
-        part = local_index[cstart[g]:cstart[g + 1]].astype(dtype).tobytes()
-        part += b"\0" * (-len(part) % 4)
-        idx_offsets[g] = offset
-        offset += len(part)
-        idx_parts.append(part)
-    idx_view = b.view(b"".join(idx_parts), ELEMENT_ARRAY_BUFFER)
+    wide = counts >= U16_VERTEX_LIMIT
+    item = np.where(wide, 4, 2)
+    padded = (np.diff(cstart) * item + 3) // 4 * 4
+    idx_offsets = np.r_[0, np.cumsum(padded)[:-1]]
+    idx = np.zeros(int(padded.sum()), dtype=np.uint8)
+    within = np.arange(len(local_index)) - cstart[corner_group]
+    wide_c = wide[corner_group]
+    narrow_c = ~wide_c
+    idx.view("<u2")[(idx_offsets[corner_group] // 2 + within)[narrow_c]] = local_index[narrow_c]
+    idx.view("<u4")[(idx_offsets[corner_group] // 4 + within)[wide_c]] = local_index[wide_c]
+    idx_view = b.view(idx.tobytes(), ELEMENT_ARRAY_BUFFER)
 
     meshes: list[dict[str, Any]] = []
-    g_piece = tri_piece[starts]
+    g_piece = tri_piece[starts].tolist()
+    g_mat = [mat_index[(m, d)] for m, d in zip(material[starts].tolist(),
+                                                damage[starts].tolist(), strict=True)]
+    lo_l, hi_l = _floats(lo), _floats(hi)
+    vstart_l, counts_l, wide_l = vstart.tolist(), counts.tolist(), wide.tolist()
+    n_idx, idx_off = np.diff(cstart).tolist(), idx_offsets.tolist()
     for g in range(n_groups):
-        p = int(g_piece[g])
+        p = g_piece[g]
         if piece_mesh[p] < 0:
             piece_mesh[p] = len(meshes)
             meshes.append({"name": f"piece_{p:05d}", "primitives": []})
-        n_v = int(counts[g])
+        n_v = counts_l[g]
         prim = {
             "attributes": {
-                "POSITION": b.accessor(pos_view, int(vstart[g]) * 12, FLOAT, n_v, "VEC3",
-                                       lo[g], hi[g]),
-                "NORMAL": b.accessor(nrm_view, int(vstart[g]) * 12, FLOAT, n_v, "VEC3"),
+                "POSITION": b.accessor(pos_view, vstart_l[g] * 12, FLOAT, n_v, "VEC3",
+                                       lo_l[g], hi_l[g]),
+                "NORMAL": b.accessor(nrm_view, vstart_l[g] * 12, FLOAT, n_v, "VEC3"),
             },
-            "indices": b.accessor(idx_view, int(idx_offsets[g]),
-                                  UINT16 if n_v < 65535 else UINT32,
-                                  int(cstart[g + 1] - cstart[g]), "SCALAR"),
-            "material": mat_index[(int(material[starts[g]]), bool(damage[starts[g]]))],
+            "indices": b.accessor(idx_view, idx_off[g], UINT32 if wide_l[g] else UINT16,
+                                  n_idx[g], "SCALAR"),
+            "material": g_mat[g],
             "mode": TRIANGLES,
         }
         meshes[-1]["primitives"].append(prim)
@@ -404,8 +417,8 @@ def _sphere_mesh(b: _Builder, material: int) -> dict[str, Any]:
     nv = b.view(_f32(pos), ARRAY_BUFFER)
     iv = b.view(idx, ELEMENT_ARRAY_BUFFER)
     return {"name": "shock_sphere", "primitives": [{
-        "attributes": {"POSITION": b.accessor(pv, 0, FLOAT, len(pos), "VEC3", pos.min(0),
-                                              pos.max(0)),
+        "attributes": {"POSITION": b.accessor(pv, 0, FLOAT, len(pos), "VEC3",
+                                              _floats(pos.min(0)), _floats(pos.max(0))),
                        "NORMAL": b.accessor(nv, 0, FLOAT, len(pos), "VEC3")},
         "indices": b.accessor(iv, 0, UINT16, tris.size, "SCALAR"),
         "material": material, "mode": TRIANGLES}]}

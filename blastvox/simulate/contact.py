@@ -295,10 +295,10 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                    voxel_body, offsets, members, body_mass, body_inv_inertia, body_radius,
                    body_com, body_pos, body_rot, body_lin, body_ang, body_fixed, body_live,
                    body_dust, body_asleep, n_bodies, wake_speed, impact_time, weakening,
-                   destroyed, dirty, hits_out) -> int:
+                   destroyed, dirty, hits_out, max_radius) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.
 
-    voxel_radius (N,): collision radius (m). Impacts weaken the voxels they hit
+    voxel_radius (N,): collision radius (m), at most ``max_radius``. Impacts weaken the voxels they hit
     by ``weakening`` x the impact pressure j / (pi r^2 impact_time) (Pa); a voxel
     whose yield that pressure exceeds is marked in ``destroyed`` (its body in
     ``dirty``). hits_out (H, 4) receives contact points and impulses (for dust);
@@ -306,8 +306,8 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
     """
     # broad phase: sort-and-sweep of body spheres along x; at least one body moving
     order = np.argsort(body_pos[:n_bodies, 0] - body_radius[:n_bodies], kind="mergesort")
-    involved = np.zeros(n_bodies, dtype=np.bool_)
-    any_pair = False
+    pairs = np.empty((64, 2), dtype=np.int64)
+    n_pairs = 0
     for ii in range(n_bodies):
         a = order[ii]
         if not body_live[a] or body_dust[a]:
@@ -325,38 +325,59 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
             for c in range(3):
                 d2 += (body_pos[a, c] - body_pos[b, c]) ** 2
             if d2 < (body_radius[a] + body_radius[b]) ** 2:
-                involved[a] = True
-                involved[b] = True
-                any_pair = True
-    if not any_pair:
+                if n_pairs == pairs.shape[0]:
+                    grown = np.empty((2 * n_pairs, 2), dtype=np.int64)
+                    grown[:n_pairs] = pairs
+                    pairs = grown
+                pairs[n_pairs, 0] = a
+                pairs[n_pairs, 1] = b
+                n_pairs += 1
+    if n_pairs == 0:
         return 0
-    # mid phase: spatial hash of the boundary voxels of involved bodies
+    # mid phase: only boundary voxels inside the other body's sphere go in the hash
+    rmax = max_radius
+    near = np.zeros(voxel_body.shape[0], dtype=np.bool_)
     count = 0
-    rmax = 0.0
-    for b in range(n_bodies):
-        if involved[b]:
-            count += offsets[b + 1] - offsets[b]
+    for p in range(n_pairs):
+        for side in range(2):
+            b = pairs[p, side]
+            other = pairs[p, 1 - side]
+            rot = body_rot[b]
+            reach = body_radius[other] + 2.0 * rmax
             for k in range(offsets[b], offsets[b + 1]):
-                rmax = max(rmax, voxel_radius[members[k]])
+                v = members[k]
+                if near[v]:
+                    continue
+                x = voxel_centroid[v, 0] - body_com[b, 0]
+                y = voxel_centroid[v, 1] - body_com[b, 1]
+                z = voxel_centroid[v, 2] - body_com[b, 2]
+                d2 = 0.0
+                for a in range(3):
+                    w = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
+                    d2 += (w - body_pos[other, a]) ** 2
+                if d2 < reach * reach:
+                    near[v] = True
+                    count += 1
+    if count == 0:
+        return 0
     cell = 2.0 * rmax
     vox = np.empty(count, dtype=np.int64)
     pos = np.empty((count, 3))
     keys = np.empty(count, dtype=np.int64)
     n = 0
-    for b in range(n_bodies):
-        if not involved[b]:
+    for v in range(voxel_body.shape[0]):
+        if not near[v]:
             continue
+        b = voxel_body[v]
         rot = body_rot[b]
-        for k in range(offsets[b], offsets[b + 1]):
-            v = members[k]
-            x = voxel_centroid[v, 0] - body_com[b, 0]
-            y = voxel_centroid[v, 1] - body_com[b, 1]
-            z = voxel_centroid[v, 2] - body_com[b, 2]
-            for a in range(3):
-                pos[n, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
-            vox[n] = v
-            keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
-            n += 1
+        x = voxel_centroid[v, 0] - body_com[b, 0]
+        y = voxel_centroid[v, 1] - body_com[b, 1]
+        z = voxel_centroid[v, 2] - body_com[b, 2]
+        for a in range(3):
+            pos[n, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
+        vox[n] = v
+        keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
+        n += 1
     sort = np.argsort(keys, kind="mergesort")
     skeys = keys[sort]
     resolved = 0

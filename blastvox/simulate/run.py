@@ -155,6 +155,7 @@ class _Run:
         self.order = np.zeros(sm.n_voxels, dtype=np.int64)
         self.vertex_stamp = np.full(len(sm.vertices), -1, dtype=np.int64)
         self.hits = np.zeros((4096, 4))
+        self.max_contact_radius = float(sm.voxel_contact_radius.max(initial=0.0))
         self.contacts = np.zeros((64, 3))
         self.ground = sm.ground_height if settings.ground else None
         self.boundary = None  # (offsets, members), rebuilt after topology changes
@@ -281,7 +282,8 @@ class _Run:
             st.voxel_alive, st.voxel_body, offsets, members, st.body_mass, st.body_inv_inertia,
             st.body_radius, st.body_com, st.body_pos, self.rot, st.body_lin, st.body_ang,
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
-            s.sleep_speed, s.impact_time, s.weakening, self.destroyed, self.dirty, self.hits)
+            s.sleep_speed, s.impact_time, s.weakening, self.destroyed, self.dirty, self.hits,
+            self.max_contact_radius)
         if self.destroyed.any():
             self._topology(step, t1, frame_next)
 

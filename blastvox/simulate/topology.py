@@ -85,6 +85,9 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
         members = order[start[c]:start[c + 1]]
         parent = voxel_body[members[0]]
         if pieces[parent] < 2:
+            # still one piece; a lone voxel that was destroyed becomes dust in place
+            if members.shape[0] == 1 and not voxel_alive[members[0]]:
+                body_dust[parent] = True
             continue
         b = n_bodies[0]
         n_bodies[0] += 1
