@@ -43,6 +43,7 @@ import numpy as np
 
 from blastvox import __version__
 from blastvox.cache import SimCache
+from blastvox.errors import BlastvoxError
 from blastvox.export.pieces import animation, frame_change, piece_meshes
 from blastvox.io.atomic import atomic_path
 
@@ -85,6 +86,9 @@ def glb_bytes(doc: dict[str, Any], blob: bytes) -> bytes:
     chunks = struct.pack("<II", len(js), _GLB_JSON) + js
     if blob:
         chunks += struct.pack("<II", len(blob), _GLB_BIN) + blob
+    if 12 + len(chunks) > 0xFFFFFFFF:
+        raise BlastvoxError(f"the shot is too large for a .glb ({(12 + len(chunks)) / 2**30:.1f} "
+                            f"GiB; GLB holds at most 4 GiB): export to .gltf instead")
     return struct.pack("<III", _GLB_MAGIC, 2, 12 + len(chunks)) + chunks
 
 
@@ -330,7 +334,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     normals = np.repeat(np.asarray(pm.normals[order], dtype=np.float32), 3, axis=0)
     corner_group = np.repeat(group, 3)
     # shared vertices: equal (group, position bits, normal bits); stable sort keeps first use
-    cols = np.concatenate([corner_group[:, None], corners.view(np.int32),
+    cols = np.concatenate([corner_group[:, None].astype(np.int32), corners.view(np.int32),
                            normals.view(np.int32)], axis=1)
     srt = np.lexsort(cols.T[::-1])
     s = cols[srt]
