@@ -254,9 +254,11 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
         omega = angular_velocity(rot, inv, body_ang[b])
         speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
         spin = math.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * body_radius[b]
+        # touching: within the sag of one step of gravity, or a hair of the body's size
+        touch_tol = 1e-4 * max(1.0, body_radius[b]) + 9.81 * dt * dt
         touching = 0
         for i in range(count):
-            if contacts_out[i, up_axis] - ground <= 1e-6 * max(1.0, body_radius[b]):
+            if contacts_out[i, up_axis] - ground <= touch_tol:
                 touching += 1
         if touching == 0 or speed > 4.0 * sleep_speed or spin > 4.0 * sleep_speed:
             continue
@@ -269,7 +271,7 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
             py = np.empty(touching)
             j = 0
             for i in range(count):
-                if contacts_out[i, up_axis] - ground <= 1e-6 * max(1.0, body_radius[b]):
+                if contacts_out[i, up_axis] - ground <= touch_tol:
                     px[j] = contacts_out[i, e1]
                     py[j] = contacts_out[i, e2]
                     j += 1
@@ -298,11 +300,12 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                    destroyed, dirty, hits_out, max_radius) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.
 
-    voxel_radius (N,): collision radius (m), at most ``max_radius``. Impacts weaken the voxels they hit
-    by ``weakening`` x the impact pressure j / (pi r^2 impact_time) (Pa); a voxel
-    whose yield that pressure exceeds is marked in ``destroyed`` (its body in
-    ``dirty``). hits_out (H, 4) receives contact points and impulses (for dust);
-    returns the number of contacts resolved.
+    voxel_radius (N,): collision radius (m), at most ``max_radius``. Impacts
+    weaken the voxels they hit by ``weakening`` x the impact pressure
+    j / (pi r^2 impact_time) (Pa); a voxel whose yield that pressure exceeds is
+    marked in ``destroyed`` (its body in ``dirty``). hits_out (H, 4) receives
+    contact points and impulses (for dust); returns the number of contacts
+    resolved.
     """
     # broad phase: sort-and-sweep of body spheres along x; at least one body moving
     order = np.argsort(body_pos[:n_bodies, 0] - body_radius[:n_bodies], kind="mergesort")

@@ -1,0 +1,158 @@
+"""Collisions and ground contact: closed forms, conservation, rest and balance."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from blastvox.materials import MaterialLibrary
+from blastvox.simulate import run as simrun
+from blastvox.simulate.contact import balanced
+from blastvox.simulate.settings import ChargeSpec, SimSettings
+from blastvox.simulate.state import build_model
+from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+UNBREAKABLE = {"link_yield_mean": float("inf"), "link_yield_var": 0.0,
+               "voxel_yield_mean": float("inf"), "voxel_yield_var": 0.0,
+               "foundation_yield": float("inf")}
+LIBRARY = MaterialLibrary.builtin().extended({
+    "elastic": {"base": "steel", "restitution": 1.0, **UNBREAKABLE},
+    "plastic": {"base": "steel", "restitution": 0.0, **UNBREAKABLE},
+    "solid": {"base": "steel", **UNBREAKABLE},
+}, "test")
+FAR = (ChargeSpec((1e5, 0.0, 0.0), 1e-3),)  # a charge whose wave never arrives
+
+
+def model_of(tmp_path: Path, meshes, size, material, ground=None, up="Z"):
+    path = tmp_path / "m.stl"
+    trimesh.util.concatenate(meshes).export(path)
+    return voxelize([ObjectRequest(mesh=path, voxel_size=(size,) * 3, material=material)],
+                    VoxelizeSettings(up_axis=up, ground=ground, library=LIBRARY))
+
+
+def runner(model, **settings):
+    base = dict(gravity=0.0, ground=False, fps=24.0, duration=1.0, charges=FAR)
+    base.update(settings)
+    s = SimSettings(**base)
+    sm = build_model(model)
+    state = simrun.initial_state(model, sm)
+    if not s.ground:
+        state.voxel_foundation[:] = False
+        state.body_fixed[:] = False
+    return simrun._Run(sm, state, simrun.build_charges(s.charges), s, s.step_seconds()), state
+
+
+def box(extents, centre):
+    return trimesh.creation.box(extents=extents).apply_translation(centre)
+
+
+@pytest.mark.parametrize("material, e", [("elastic", 1.0), ("plastic", 0.0)])
+def test_head_on_collision_of_equal_voxels(tmp_path, material, e):
+    model = model_of(tmp_path, [box((1, 1, 1), (-1.0, 0, 0)), box((1, 1, 1), (1.0, 0, 0))],
+                     1.0, material)
+    run, st = runner(model)
+    assert int(st.n_bodies[0]) == 2
+    m = st.body_mass[0]
+    st.body_lin[0] = (m * 3.0, 0, 0)
+    st.body_lin[1] = (-m * 1.0, 0, 0)
+    before = st.body_lin[:2].sum(axis=0).copy()
+    for step in range(1, 240):
+        run.step(step, 0)
+    v = st.body_lin[:2, 0] / m
+    np.testing.assert_allclose(st.body_lin[:2].sum(axis=0), before, rtol=1e-12, atol=1e-9)
+    if e == 1.0:
+        np.testing.assert_allclose(v, [-1.0, 3.0], rtol=1e-9)
+    else:
+        np.testing.assert_allclose(v, [1.0, 1.0], rtol=1e-9)
+    assert run.collisions >= 1
+
+
+def test_energy_never_grows_after_the_blast(tmp_path):
+    lib = LIBRARY.extended({"crumbly": {"base": "brick", "voxel_yield_mean": float("inf"),
+                                        "voxel_yield_var": 0.0}}, "test")
+    path = tmp_path / "pile.stl"
+    box((2.0, 2.0, 2.0), (0, 0, 1.5)).export(path)
+    model = voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material="crumbly")],
+                     VoxelizeSettings(up_axis="Z", ground=0.0, library=lib))
+    charge = (ChargeSpec((0.0, 0.0, 3.2), 3.0),)  # above: drives the pieces into a pile
+    run, st = runner(model, gravity=9.81, ground=True, duration=5.0, charges=charge)
+    dt = run.dt
+    energies = []
+    for step in range(1, int(5.0 / dt) + 1):
+        run.step(step, 0)
+        if run.charges.tail_radius(step * dt)[0] > 6.0:  # the whole wave has passed the pile
+            energies.append(_energy(st, 9.81))
+    assert int(st.n_bodies[0]) > 200  # a real pile-up of a few hundred pieces
+    e = np.array(energies)
+    assert np.all(np.diff(e) <= 1e-9 * e[0]), np.diff(e).max()
+
+
+def _energy(st, g):
+    n = int(st.n_bodies[0])
+    b = np.flatnonzero(st.body_live[:n] & ~st.body_dust[:n])
+    m = st.body_mass[b]
+    kinetic = 0.5 * np.sum(np.sum(st.body_lin[b] ** 2, axis=1) / m)
+    for i in b:
+        rot = simrun.body_rotations  # noqa: F841  (rotation from the quaternion below)
+        q = st.body_quat[i]
+        w, x, y, z = q
+        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        omega = r @ st.body_inv_inertia[i] @ r.T @ st.body_ang[i]
+        kinetic += 0.5 * omega @ st.body_ang[i]
+    return kinetic + g * np.sum(m * st.body_pos[b, 2])
+
+
+def test_dropped_block_comes_to_rest_and_stays(tmp_path):
+    model = model_of(tmp_path, [box((1.0, 0.6, 0.4), (0, 0, 2.0))], 0.2, "solid", ground=0.0)
+    run, st = runner(model, gravity=9.81, ground=True, duration=12.0)
+    dt = run.dt
+    heights = []
+    for step in range(1, int(12.0 / dt) + 1):
+        run.step(step, 0)
+        heights.append(st.body_pos[0].copy())
+    heights = np.array(heights)
+    rest_step = int(2.0 / dt)  # stated: at rest within 2 s of release
+    assert st.body_asleep[0]
+    drift = np.abs(heights[rest_step:] - heights[rest_step]).max()
+    assert drift < 1e-3
+    assert heights[-1, 2] == pytest.approx(0.2, abs=1e-3)  # resting on its face
+
+
+def _slab_on_pillar(tmp_path, pillar_x):
+    pillar = box((0.5, 0.5, 1.0), (pillar_x, 0, 0.5))
+    slab = box((3.0, 0.5, 0.5), (0, 0, 1.25))
+    # ground a hair below the pillar: a plane to stand on, but no foundation voxels
+    return model_of(tmp_path, [pillar, slab], 0.25, "solid", ground=-1e-3)
+
+
+@pytest.mark.parametrize("pillar_x, topples", [(0.0, False), (1.25, True)])
+def test_block_with_centre_of_mass_outside_support_topples(tmp_path, pillar_x, topples):
+    model = _slab_on_pillar(tmp_path, pillar_x)
+    assert not model.voxel_foundation.any()
+    run, st = runner(model, gravity=9.81, ground=True, duration=3.0)
+    for step in range(1, int(3.0 / run.dt) + 1):
+        run.step(step, 0)
+    q = st.body_quat[0]
+    tilt = 2.0 * np.degrees(np.arccos(min(1.0, abs(q[0]))))
+    if topples:
+        assert tilt > 15.0  # over onto the slab end: atan(1 / 2.75) = 20 degrees
+    else:
+        assert tilt < 0.1 and st.body_asleep[0]
+
+
+def test_convex_hull_balance_differs_from_bounding_rectangle():
+    # a block standing on one corner edge: its contacts form a diamond. The
+    # centre of mass projected near the rectangle's corner lies inside the
+    # papers' bounding rectangle but outside the true support polygon.
+    diamond = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    centre = np.array([0.7, 0.7])
+    lo, hi = diamond.min(axis=0), diamond.max(axis=0)
+    in_rectangle = bool(np.all((centre >= lo) & (centre <= hi)))
+    assert in_rectangle
+    assert not balanced(diamond, centre)
+    assert balanced(diamond, np.array([0.3, 0.3]))
