@@ -6,6 +6,9 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo test lint bench clean
 
+# The Khronos glTF Validator (npm) that the export tests run; needs node and npm.
+VALIDATOR := tools/gltf-validator/node_modules/.installed
+
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
@@ -17,8 +20,12 @@ demo: $(STAMP)
 	$(BIN)/blastvox voxelize --scene examples/building/scene.toml
 	$(BIN)/blastvox info out/building/model.npz
 
+$(VALIDATOR): tools/gltf-validator/package-lock.json
+	npm ci --prefix tools/gltf-validator --no-audit --no-fund --loglevel=error
+	touch $(VALIDATOR)
+
 ## test: install, then lint and run the whole test suite
-test: $(STAMP)
+test: $(STAMP) $(VALIDATOR)
 	$(BIN)/ruff check blastvox tests benchmarks
 	$(BIN)/python -m pytest -q
 
