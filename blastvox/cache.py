@@ -25,7 +25,19 @@ dust_position/velocity     (Q, 3) f8       m and m/s at destruction
 charge_position            (C, 3) f8       m
 charge_tnt_kg/time         (C,) f8         TNT-equivalent kg, detonation s
 shock_radius               (F, C) f8       m, shock front radius (0 before detonation)
+shock_opacity              (F, C) f8       0..1, shock sphere opacity (0: hidden/off)
+camera_offset              (F, 3) f8       m, camera shake added to meta["camera"]
+voxel_ignite_frame         (N,) i4         frame the voxel caught fire, -1 never
+particle_system            (Q,) u1         index into meta["particle_systems"]
+particle_birth             (Q,) f8         s
+particle_position/velocity (Q, 3) f8       m, m/s at birth (model frame)
+particle_size              (Q,) f4         m
 =========================  ==============  ======================================
+
+Particles are ballistic with drag; their positions at any time follow from
+the birth state in closed form (blastvox.simulate.particles.positions_at) with
+the system parameters in ``meta["particle_systems"]`` and the model-frame
+gravity vector ``meta["gravity_vector"]``.
 """
 
 from __future__ import annotations
@@ -50,7 +62,9 @@ _REQUIRED = ("frame_time", "voxel_piece", "piece_pivot", "piece_mass", "piece_po
              "piece_orientation", "piece_end_frame", "voxel_destroyed_frame", "damage_frame",
              "damage_voxel", "damage_value", "link_break_link", "link_break_time", "dust_voxel",
              "dust_time", "dust_mass", "dust_position", "dust_velocity", "charge_position",
-             "charge_tnt_kg", "charge_time", "shock_radius")
+             "charge_tnt_kg", "charge_time", "shock_radius", "shock_opacity", "camera_offset",
+             "voxel_ignite_frame", "particle_system", "particle_birth", "particle_position",
+             "particle_velocity", "particle_size")
 
 
 @dataclass(frozen=True)

@@ -269,6 +269,10 @@ class Simulation(_Model):
     link or voxel it did not break. orientation_factor k: a link parallel to
     the wave's radius holds only (1 - k) of its yield. damage_b (-) and
     damage_c (1/(Pa s)): Davison-Stevens constants for ``fracture = "damage"``.
+    friction: Coulomb mu at the ground. Fire: fire_pressure_scale (-) times a
+    wave's peak erodes combustibility; fire_spread (Pa/s) erodes a burning
+    voxel's neighbours (full rate straight above); burn_rate (1/s) is the
+    fraction of its initial yield a burning voxel or link loses per second.
     """
 
     dt: Positive = 1.0 / 240.0
@@ -282,6 +286,10 @@ class Simulation(_Model):
     orientation_factor: Annotated[float, Field(strict=True, ge=0, lt=1)] = 0.5
     damage_b: NonNegative = 0.1
     damage_c: NonNegative = 0.05
+    friction: NonNegative = 0.6
+    fire_pressure_scale: NonNegative = 1.0
+    fire_spread: NonNegative = 20_000.0
+    burn_rate: NonNegative = 0.05
 
 
 class Effects(_Model):
@@ -294,6 +302,15 @@ class Effects(_Model):
     fireball: Annotated[bool, Field(strict=True)] = True
     shock_sphere: Annotated[bool, Field(strict=True)] = True
     camera_shake: Annotated[bool, Field(strict=True)] = True
+
+
+class Particles(_Model):
+    """Particle budgets per system (most particles kept over the whole shot)."""
+
+    dust: Annotated[int, Field(strict=True, ge=0)] = 20_000
+    fire: Annotated[int, Field(strict=True, ge=0)] = 10_000
+    smoke: Annotated[int, Field(strict=True, ge=0)] = 10_000
+    fireball: Annotated[int, Field(strict=True, ge=0)] = 2_000
 
 
 class Camera(_Model):
@@ -336,6 +353,7 @@ class Scene(_Model):
     charges: list[Charge] = []
     simulation: Simulation = Simulation()
     effects: Effects = Effects()
+    particles: Particles = Particles()
     camera: Camera | None = None
     output: Output = Output()
 

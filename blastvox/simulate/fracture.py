@@ -98,11 +98,12 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
 def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weakening,
                     voxel_centroid, voxel_alive, voxel_yield, voxel_foundation,
                     voxel_foundation_yield, voxel_body, active, body_pos, body_rot, body_com,
-                    destroyed, dirty) -> int:
+                    destroyed, dirty, crossed) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
     Returns the number of foundation voxels that let go (the caller then
-    re-checks which bodies are still fixed). destroyed (N,) marks dusted voxels.
+    re-checks which bodies are still fixed). destroyed (N,) marks dusted voxels;
+    crossed (N,) marks every voxel a front crossed this step (for dust cues).
     """
     released = 0
     centre = np.empty(3)
@@ -118,6 +119,7 @@ def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weaken
             if r < 0.0:
                 continue
             peak = peak_overpressure(table, r, charge_scale[c])
+            crossed[v] = True
             if peak > voxel_yield[v]:
                 voxel_alive[v] = False
                 destroyed[v] = True

@@ -25,7 +25,7 @@ import numpy as np
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.model import VoxelModel
-from blastvox.simulate import contact, fracture, topology
+from blastvox.simulate import contact, cues, fire, fracture, topology
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.forces import blast_impulses
 from blastvox.simulate.integrate import integrate_positions, integrate_velocities
@@ -37,6 +37,7 @@ from blastvox.simulate.kernels import (
     link_masks,
     wake_on_impulse,
 )
+from blastvox.simulate.particles import Emitter, particle_meta
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
 from blastvox.simulate.state import SimModel, State, build_model
@@ -62,7 +63,9 @@ def initial_state(model: VoxelModel, sm: SimModel) -> State:
         voxel_yield=a["voxel_yield"].astype(np.float64).copy(),
         voxel_foundation=a["voxel_foundation"].copy(),
         voxel_foundation_yield=a["voxel_foundation_yield"].astype(np.float64).copy(),
-        voxel_damage=np.zeros(n), link_alive=np.ones(n_links, dtype=bool),
+        voxel_damage=np.zeros(n),
+        voxel_combust=a["voxel_combustibility"].astype(np.float64).copy(),
+        voxel_burning=np.zeros(n, dtype=bool), link_alive=np.ones(n_links, dtype=bool),
         link_yield=a["link_yield"].astype(np.float64).copy(),
         body_mass=np.zeros(capacity), body_com=np.zeros((capacity, 3)),
         body_inertia=np.zeros((capacity, 3, 3)), body_inv_inertia=np.zeros((capacity, 3, 3)),
@@ -124,13 +127,23 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     frame_time = np.arange(frames) * (per_frame * dt)
     arrays = run.rec.pack(state, sm.voxel_mass, frame_time)
     arrays.update(charge_position=charges.position.copy(), charge_tnt_kg=charges.tnt_kg.copy(),
-                  charge_time=charges.time.copy())
+                  charge_time=charges.time.copy(), voxel_ignite_frame=run.ignite_frame)
+    arrays.update(run.emitter.arrays())
+    radius = arrays["shock_radius"]
+    arrays["shock_opacity"] = (cues.shock_opacity(radius, charges.tnt_kg)
+                               if settings.shock_sphere else np.zeros_like(radius))
+    camera = settings.camera if settings.camera_shake else None
+    arrays["camera_offset"] = (np.zeros((frames, 3)) if camera is None else cues.camera_shake(
+        np.asarray(camera[0]), frame_time, charges.position, charges.tnt_kg, charges.time))
     meta = {"tool_version": __version__, "fps": settings.fps, "dt": dt,
             "duration": settings.duration, "fracture": settings.fracture, "seed": settings.seed,
             "settings": settings.to_dict(), "up_axis": model.meta.get("up_axis"),
             "ground_height": sm.ground_height if settings.ground else None,
             "steps": total_steps, "broken_links": run.broken_total,
-            "ground_contacts": run.ground_contacts, "collisions": run.collisions}
+            "ground_contacts": run.ground_contacts, "collisions": run.collisions,
+            "effects": run.effects, "gravity_vector": run.gravity.tolist(),
+            "particle_systems": particle_meta(),
+            "camera": settings.to_dict()["camera"]}
     # wall time is reported by the CLI, never stored: caches must be byte-identical
     return SimCache(arrays=arrays, model=model, meta=meta)
 
@@ -160,6 +173,20 @@ class _Run:
         self.ground = sm.ground_height if settings.ground else None
         self.boundary = None  # (offsets, members), rebuilt after topology changes
         self.broken_total = self.ground_contacts = self.collisions = 0
+        self.crossed = np.zeros(sm.n_voxels, dtype=bool)
+        combustible = bool(np.isfinite(state.voxel_combust).any())
+        # model only what the scene needs: no combustible material, no fire
+        self.fire_on = settings.fire and combustible
+        self.effects = {"collisions": settings.collisions, "ground": self.ground is not None,
+                        "fire": self.fire_on, "dust": settings.dust,
+                        "fireball": settings.fireball, "shock_sphere": settings.shock_sphere,
+                        "camera_shake": settings.camera_shake and settings.camera is not None}
+        self.emitter = Emitter(dict(settings.budgets), settings.seed)
+        self.ignite_frame = np.full(sm.n_voxels, -1, dtype=np.int32)
+        self.initial_voxel_yield = state.voxel_yield.copy()
+        self.initial_link_yield = state.link_yield.copy()
+        self.ignite_scratch = np.zeros(sm.n_voxels, dtype=bool)
+        self.burning_count = 0
 
     @property
     def n_bodies(self) -> int:
@@ -173,7 +200,17 @@ class _Run:
         if bodies_in_shell(st.body_pos, st.body_radius, st.body_live, self.n_bodies,
                            ch.position, front_in, front_out, self.active):
             self._fracture(front_in, front_out)
+            if self.fire_on:
+                self._ignite(front_in, front_out, frame_next)
             self._topology(step, t1, frame_next)
+            if self.settings.dust:
+                self._shock_dust(t1, front_out)
+        if self.fire_on and self.burning_count:
+            self._burn(step, t1, frame_next)
+        if self.settings.fireball:
+            self._fireball(t0, t1)
+        if self.settings.dust and self.ground is not None:
+            self._ground_ring(t1, front_out)
         self._blast(t0, t1, front_out)
         integrate_velocities(self.dt, self.gravity, self.settings.linear_drag,
                              self.settings.angular_drag, self.impulse, self.angular,
@@ -191,6 +228,7 @@ class _Run:
         st, sm, ch, s = self.state, self.sm, self.charges, self.settings
         self.broken[:] = False
         self.destroyed[:] = False
+        self.crossed[:] = False
         self.dirty[:self.n_bodies] = False
         if s.fracture == "damage":
             n = fracture.fracture_damage(
@@ -210,7 +248,7 @@ class _Run:
             ch.position, ch.scale, front_in, front_out, ch.table, s.weakening,
             sm.voxel_centroid, st.voxel_alive, st.voxel_yield, st.voxel_foundation,
             st.voxel_foundation_yield, st.voxel_body, self.active, st.body_pos, self.rot,
-            st.body_com, self.destroyed, self.dirty)
+            st.body_com, self.destroyed, self.dirty, self.crossed)
         if released:
             topology.refresh_fixed(st.voxel_body, st.voxel_alive, st.voxel_foundation,
                                    st.body_fixed, st.body_live, st.body_lin, st.body_ang)
@@ -238,6 +276,8 @@ class _Run:
         body_radii(st.voxel_body, st.voxel_alive, sm.voxel_centroid, sm.voxel_radius,
                    st.body_com, st.body_radius, self.n_bodies)
         self.rec.voxels_destroyed(destroyed, t1, frame_next, st, sm.voxel_mass)
+        if self.settings.dust and destroyed.size:
+            self._voxel_dust(destroyed, t1)
         body_rotations(st.body_quat, st.body_live, self.n_bodies, self.rot)
         self.boundary = None
         self.broken[:] = False
@@ -277,6 +317,7 @@ class _Run:
         offsets, members = self._boundary()
         self.destroyed[:] = False
         self.dirty[:self.n_bodies] = False
+        before = self.collisions
         self.collisions += contact.collide_bodies(
             sm.voxel_centroid, sm.voxel_contact_radius, sm.voxel_restitution, st.voxel_yield,
             st.voxel_alive, st.voxel_body, offsets, members, st.body_mass, st.body_inv_inertia,
@@ -284,6 +325,9 @@ class _Run:
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
             s.sleep_speed, s.impact_time, s.weakening, self.destroyed, self.dirty, self.hits,
             self.max_contact_radius)
+        resolved = min(self.collisions - before, len(self.hits))
+        if self.settings.dust and resolved:
+            self._collision_dust(resolved, t1)
         if self.destroyed.any():
             self._topology(step, t1, frame_next)
 
@@ -296,3 +340,134 @@ class _Run:
             self.vertex_stamp, st.body_mass, st.body_inv_inertia, st.body_radius, st.body_com,
             st.body_pos, self.rot, st.body_lin, st.body_ang, st.body_fixed, st.body_live,
             st.body_dust, st.body_asleep, self.n_bodies, self.contacts)
+
+    # -- fire -------------------------------------------------------------------------
+
+    def _ignite(self, front_in, front_out, frame_next: int) -> None:
+        st, sm, ch = self.state, self.sm, self.charges
+        was = st.voxel_burning.copy()
+        n = fire.ignite_by_blast(ch.position, front_in, front_out,
+                                 self.settings.fire_pressure_scale, sm.voxel_centroid,
+                                 st.voxel_alive, st.voxel_body, self.active, st.body_pos, self.rot,
+                                 st.body_com, st.voxel_combust, st.voxel_burning, ch.table,
+                                 ch.scale)
+        if n:
+            self.ignite_frame[st.voxel_burning & ~was] = frame_next
+            self.burning_count += int(n)
+
+    def _burn(self, step: int, t1: float, frame_next: int) -> None:
+        st, sm, s = self.state, self.sm, self.settings
+        was = st.voxel_burning.copy()
+        self.broken[:] = False
+        self.destroyed[:] = False
+        self.dirty[:self.n_bodies] = False
+        self.burning_count = fire.burn(
+            self.dt, s.burn_rate, s.fire_spread, s.fire_side_factor, sm.up, st.voxel_alive,
+            st.voxel_body, st.voxel_yield, self.initial_voxel_yield, st.voxel_combust,
+            st.voxel_burning, sm.voxel_link_offsets, sm.voxel_link_ids, sm.link_voxels,
+            sm.link_direction, st.link_alive, st.link_yield, self.initial_link_yield, self.rot,
+            self.broken, self.destroyed, self.dirty, self.ignite_scratch)
+        self.ignite_frame[st.voxel_burning & ~was] = frame_next
+        self.broken_total += int(self.broken.sum())
+        self._topology(step, t1, frame_next)
+        self._flames(t1)
+
+    # -- particles --------------------------------------------------------------------
+
+    def _world_centres(self, voxels: np.ndarray) -> np.ndarray:
+        st, sm = self.state, self.sm
+        b = st.voxel_body[voxels]
+        rot = self.rot[b]
+        rel = sm.voxel_centroid[voxels] - st.body_com[b]
+        return st.body_pos[b] + np.einsum("kij,kj->ki", rot, rel)
+
+    def _voxel_dust(self, voxels: np.ndarray, t: float) -> None:
+        """Destroyed voxels burst into dust that carries their momentum."""
+        st = self.state
+        per = 6
+        rng = self.emitter.rng("dust")
+        b = st.voxel_body[voxels]
+        velocity = st.body_lin[b] / st.body_mass[b][:, None]
+        centre = self._world_centres(voxels)
+        size = np.cbrt(self.sm.voxel_mass[voxels] / np.maximum(self.sm.voxel_mass.max(), 1e-30))
+        pos = np.repeat(centre, per, axis=0) + rng.normal(0.0, 0.2, (len(voxels) * per, 3)) \
+            * np.repeat(2 * self.sm.voxel_contact_radius[voxels], per)[:, None]
+        vel = np.repeat(velocity, per, axis=0) + rng.normal(0.0, 1.0, (len(voxels) * per, 3))
+        self.emitter.emit("dust", t, pos, vel, np.repeat(size, per))
+
+    def _collision_dust(self, resolved: int, t: float) -> None:
+        hits = self.hits[:resolved]
+        strong = hits[hits[:, 3] > 10.0]  # impulses above 10 N s raise dust
+        if len(strong):
+            rng = self.emitter.rng("dust")
+            vel = rng.normal(0.0, 1.0, (len(strong), 3)) + 2.0 * self.sm.up
+            self.emitter.emit("dust", t, strong[:, :3], vel)
+
+    def _shock_dust(self, t: float, front_out) -> None:
+        """Dust knocked off the exposed voxels the shock front crossed this step."""
+        st = self.state
+        voxels = np.flatnonzero(self.crossed & st.voxel_alive & (st.voxel_link_mask != 0x3F))
+        if not voxels.size or not self.emitter.room("dust"):
+            return
+        rng = self.emitter.rng("dust")
+        pick = voxels[rng.random(len(voxels)) < 0.25]
+        if not pick.size:
+            return
+        centre = self._world_centres(pick)
+        away = centre - self.charges.position[np.argmin(
+            np.linalg.norm(centre[:, None, :] - self.charges.position[None], axis=2), axis=1)]
+        away /= np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-9)
+        self.emitter.emit("dust", t, centre, 3.0 * away + rng.normal(0.0, 0.5, away.shape))
+
+    def _ground_ring(self, t: float, front_out) -> None:
+        """Dust kicked up where the shock sphere meets the ground (while it is strong)."""
+        up, axis = self.sm.up, self.sm.up_axis
+        others = [a for a in range(3) if a != axis]
+        rng = self.emitter.rng("dust")
+        for c in range(len(self.charges.tnt_kg)):
+            height = self.charges.position[c, axis] - self.ground
+            r = front_out[c]
+            if r <= abs(height) or not self.emitter.room("dust"):
+                continue
+            if self.charges.peak(c, r) < 2e3:  # below 2 kPa the wave raises no dust
+                continue
+            ring = np.sqrt(r * r - height * height)
+            count = int(min(64, 4 + ring))
+            angle = rng.uniform(0.0, 2 * np.pi, count)
+            pos = np.repeat(self.charges.position[c:c + 1], count, axis=0)
+            pos[:, axis] = self.ground
+            pos[:, others[0]] += ring * np.cos(angle)
+            pos[:, others[1]] += ring * np.sin(angle)
+            out = np.zeros((count, 3))
+            out[:, others[0]] = np.cos(angle)
+            out[:, others[1]] = np.sin(angle)
+            self.emitter.emit("dust", t, pos, 4.0 * out + 2.0 * up[None, :])
+
+    def _fireball(self, t0: float, t1: float) -> None:
+        """A burst of flame particles at each charge when it goes off."""
+        rng = self.emitter.rng("fireball")
+        for c in range(len(self.charges.tnt_kg)):
+            if not (t0 < self.charges.time[c] <= t1) and not (t0 == 0 == self.charges.time[c]):
+                continue
+            count = 200
+            radius = 1.5 * self.charges.scale[c]  # visible fireball ~ 1.5 W^(1/3) m
+            direction = rng.normal(size=(count, 3))
+            direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+            speed = radius * 4.0 * rng.uniform(0.6, 1.0, count)  # drag 4/s stops it at ~radius
+            pos = self.charges.position[c] + 0.1 * radius * direction
+            self.emitter.emit("fireball", self.charges.time[c], pos, direction * speed[:, None],
+                              self.charges.scale[c])
+
+    def _flames(self, t: float) -> None:
+        """Fire and smoke from burning voxels: on average 4 flames and 1 smoke puff a second."""
+        st = self.state
+        burning = np.flatnonzero(st.voxel_burning & st.voxel_alive)
+        if not burning.size:
+            return
+        for system, rate in (("fire", 4.0), ("smoke", 1.0)):
+            rng = self.emitter.rng(system)
+            pick = burning[rng.random(len(burning)) < rate * self.dt]
+            if pick.size and self.emitter.room(system):
+                centre = self._world_centres(pick)
+                vel = rng.normal(0.0, 0.3, (len(pick), 3)) + self.sm.up * 0.5
+                self.emitter.emit(system, t, centre, vel)

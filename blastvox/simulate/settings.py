@@ -28,6 +28,9 @@ class SimSettings:
     1/s decay of momenta in resting ground contact; sleep_speed: m/s below which
     a balanced resting body is clamped to rest; impact_time: s, the contact
     duration that turns a collision impulse into an impact pressure on voxels.
+    fire, dust, fireball, shock_sphere, camera_shake: effects on/off (an effect
+    that is off costs nothing); fire_*/burn_rate: see blastvox.simulate.fire;
+    budgets: particles per system; camera: (position, look_at, focal mm).
     """
 
     dt: float = 1.0 / 240.0
@@ -48,6 +51,18 @@ class SimSettings:
     rest_damping: float = 5.0
     sleep_speed: float = 0.05
     impact_time: float = 1e-3
+    fire: bool = True
+    dust: bool = True
+    fireball: bool = True
+    shock_sphere: bool = True
+    camera_shake: bool = True
+    fire_pressure_scale: float = 1.0
+    fire_spread: float = 20_000.0
+    burn_rate: float = 0.05
+    fire_side_factor: float = 0.2
+    budgets: tuple[tuple[str, int], ...] = (("dust", 20_000), ("fire", 10_000),
+                                            ("smoke", 10_000), ("fireball", 2_000))
+    camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None = None
     charges: tuple[ChargeSpec, ...] = field(default_factory=tuple)
 
     def steps_per_frame(self) -> int:
@@ -67,7 +82,14 @@ class SimSettings:
                                            "linear_drag", "angular_drag", "weakening",
                                            "orientation_factor", "damage_b", "damage_c", "seed",
                                            "ground", "collisions", "friction", "rest_damping",
-                                           "sleep_speed", "impact_time")}
+                                           "sleep_speed", "impact_time", "fire", "dust",
+                                           "fireball", "shock_sphere", "camera_shake",
+                                           "fire_pressure_scale", "fire_spread", "burn_rate",
+                                           "fire_side_factor")}
+        d["budgets"] = dict(self.budgets)
+        d["camera"] = None if self.camera is None else {
+            "position": list(self.camera[0]), "look_at": list(self.camera[1]),
+            "focal_length_mm": self.camera[2]}
         d["charges"] = [{"position": list(c.position), "mass_kg": c.mass_kg,
                          "explosive": c.explosive, "time_s": c.time_s} for c in self.charges]
         return d
@@ -83,7 +105,18 @@ def settings_from_scene(scene) -> SimSettings:
                        weakening=s.weakening, orientation_factor=s.orientation_factor,
                        damage_b=s.damage_b, damage_c=s.damage_c, seed=scene.seed,
                        ground=scene.effects.ground and scene.ground != "none",
-                       collisions=scene.effects.collisions, charges=charges)
+                       collisions=scene.effects.collisions, fire=scene.effects.fire,
+                       dust=scene.effects.dust, fireball=scene.effects.fireball,
+                       shock_sphere=scene.effects.shock_sphere,
+                       camera_shake=scene.effects.camera_shake, friction=s.friction,
+                       fire_pressure_scale=s.fire_pressure_scale, fire_spread=s.fire_spread,
+                       burn_rate=s.burn_rate,
+                       budgets=tuple((k, getattr(scene.particles, k))
+                                     for k in ("dust", "fire", "smoke", "fireball")),
+                       camera=None if scene.camera is None else (
+                           tuple(scene.camera.position), tuple(scene.camera.look_at),
+                           scene.camera.focal_length_mm),
+                       charges=charges)
 
 
 def gravity_vector(up: np.ndarray, gravity: float) -> np.ndarray:

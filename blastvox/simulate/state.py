@@ -86,6 +86,8 @@ class State:
     voxel_foundation: np.ndarray
     voxel_foundation_yield: np.ndarray
     voxel_damage: np.ndarray
+    voxel_combust: np.ndarray
+    voxel_burning: np.ndarray
     link_alive: np.ndarray
     link_yield: np.ndarray
     body_mass: np.ndarray

@@ -135,6 +135,10 @@ class Charges:
             out[c] = self.scale[c] * _invert(tau, self._z, self._arrive, leading=True)
         return out
 
+    def peak(self, c: int, r: float) -> float:
+        """Peak incident overpressure (Pa) of charge c at distance r (m)."""
+        return float(peak_overpressure(self.table, float(r), float(self.scale[c])))
+
     def tail_radius(self, t: float) -> np.ndarray:
         """Radius (C,) within which the whole wave (negative phase included) has passed by t.
 

@@ -1,0 +1,109 @@
+"""Fire (Martins 2001 §6): ignition by the blast, burning, and spread along links.
+
+Each voxel has a combustibility limit (Pa) from its material (inf: never
+burns). When a wave reaches a voxel, ``fire_pressure_scale`` x its peak
+overpressure is taken off the limit; below zero the voxel burns. A burning
+voxel loses ``burn_rate`` of its initial yield per second, and so do its
+links: a link worn to zero breaks, a voxel worn to zero falls to ash (dust).
+Heat spreads along alive links: an unburnt neighbour's limit drops by
+``fire_spread`` Pa/s times an orientation factor, 1 for a neighbour straight
+above and ``side_factor`` for one beside or below (linearly in between), so
+fire climbs a structure faster than it spreads sideways. Ignitions found in a
+step take effect at its end, so fire advances at most one link per step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from blastvox.simulate.wave import peak_overpressure
+
+
+@nb.njit(cache=True)
+def ignite_by_blast(charge_pos, front_in, front_out, scale, voxel_centroid,
+                    voxel_alive, voxel_body, active, body_pos, body_rot, body_com, combust,
+                    burning, table, charge_scale) -> int:
+    """Erode combustibility by the scaled peak of waves crossing voxel centres this step."""
+    ignited = 0
+    centre = np.empty(3)
+    for v in range(voxel_centroid.shape[0]):
+        if not voxel_alive[v] or burning[v] or not math.isfinite(combust[v]):
+            continue
+        b = voxel_body[v]
+        if not active[b]:
+            continue
+        rot = body_rot[b]
+        for a in range(3):
+            centre[a] = (body_pos[b, a] + rot[a, 0] * (voxel_centroid[v, 0] - body_com[b, 0])
+                         + rot[a, 1] * (voxel_centroid[v, 1] - body_com[b, 1])
+                         + rot[a, 2] * (voxel_centroid[v, 2] - body_com[b, 2]))
+        for c in range(charge_pos.shape[0]):
+            r = math.sqrt((centre[0] - charge_pos[c, 0]) ** 2 + (centre[1] - charge_pos[c, 1]) ** 2
+                          + (centre[2] - charge_pos[c, 2]) ** 2)
+            if r <= front_in[c] or r > front_out[c]:
+                continue
+            combust[v] -= scale * peak_overpressure(table, r, charge_scale[c])
+            if combust[v] < 0.0:
+                burning[v] = True
+                ignited += 1
+                break
+    return ignited
+
+
+@nb.njit(cache=True)
+def burn(dt, burn_rate, fire_spread, side_factor, up, voxel_alive, voxel_body, voxel_yield,
+         initial_voxel_yield, combust, burning, voxel_link_offsets, voxel_link_ids, link_voxels,
+         link_direction, link_alive, link_yield, initial_link_yield, body_rot, broken,
+         destroyed, dirty, ignite_scratch) -> int:
+    """One step of burning and spreading; returns the number of burning voxels."""
+    n_burning = 0
+    for v in range(voxel_alive.shape[0]):
+        ignite_scratch[v] = False
+    for v in range(voxel_alive.shape[0]):
+        if not burning[v] or not voxel_alive[v]:
+            continue
+        n_burning += 1
+        b = voxel_body[v]
+        if math.isfinite(initial_voxel_yield[v]):
+            voxel_yield[v] -= burn_rate * initial_voxel_yield[v] * dt
+            if voxel_yield[v] <= 0.0:
+                voxel_alive[v] = False
+                destroyed[v] = True
+                dirty[b] = True
+                continue
+        rot = body_rot[b]
+        for k in range(voxel_link_offsets[v], voxel_link_offsets[v + 1]):
+            link = voxel_link_ids[k]
+            if not link_alive[link]:
+                continue
+            if math.isfinite(initial_link_yield[link]):
+                link_yield[link] -= burn_rate * initial_link_yield[link] * dt
+                if link_yield[link] <= 0.0:
+                    link_alive[link] = False
+                    broken[link] = True
+                    dirty[b] = True
+                    continue
+            w = link_voxels[link, 1]
+            sign = 1.0
+            if w == v:
+                w = link_voxels[link, 0]
+                sign = -1.0
+            if burning[w] or not voxel_alive[w] or not math.isfinite(combust[w]):
+                continue
+            # world direction from v to w, against up
+            rise = 0.0
+            for a in range(3):
+                d = (rot[a, 0] * link_direction[link, 0] + rot[a, 1] * link_direction[link, 1]
+                     + rot[a, 2] * link_direction[link, 2])
+                rise += sign * d * up[a]
+            factor = side_factor + (1.0 - side_factor) * max(0.0, rise)
+            combust[w] -= fire_spread * factor * dt
+            if combust[w] < 0.0:
+                ignite_scratch[w] = True
+    for v in range(voxel_alive.shape[0]):
+        if ignite_scratch[v]:
+            burning[v] = True
+    return n_burning
