@@ -328,11 +328,16 @@ class Camera(_Model):
 
 
 class Output(_Model):
-    """Default output paths of the stages (absolute once loaded)."""
+    """Default output paths of the stages (absolute once loaded), and export options.
+
+    ``export`` may be one path or a list (e.g. a .usdc and a .glb of the same shot).
+    """
 
     model: FilePath | None = None
     cache: FilePath | None = None
-    export: FilePath | None = None
+    export: FilePath | list[FilePath] | None = None
+    up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = "Y"
+    layout: Literal["xforms", "instancer"] = "xforms"
 
 
 class Scene(_Model):

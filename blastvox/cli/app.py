@@ -6,7 +6,15 @@ import sys
 
 import typer
 
-from blastvox.cli import blast_cmd, info_cmd, materials_cmd, simulate_cmd, voxelize_cmd
+from blastvox.cli import (
+    blast_cmd,
+    export_cmd,
+    info_cmd,
+    materials_cmd,
+    run_cmd,
+    simulate_cmd,
+    voxelize_cmd,
+)
 
 app = typer.Typer(
     name="blastvox",
@@ -22,6 +30,10 @@ app.command("voxelize", help="Turn meshes into connected voxels with per-voxel m
             "(writes a VoxelModel .npz).")(voxelize_cmd.voxelize)
 app.command("simulate", help="Blow up a VoxelModel: blast wave, fracture, fragments and "
             "motion at a fixed step (writes a SimCache .npz).")(simulate_cmd.simulate)
+app.command("export", help="Bake a SimCache into a USD or glTF cache (pieces, damage faces, "
+            "dust, shock).")(export_cmd.export)
+app.command("run", help="Build a whole shot from a scene: voxelize, simulate, export, "
+            "skipping up-to-date stages (like make).")(run_cmd.run)
 app.command("info", help="Summarise a blastvox file (VoxelModel or SimCache); --json for "
             "scripts.")(
     info_cmd.info)

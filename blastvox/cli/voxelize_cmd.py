@@ -117,18 +117,20 @@ def voxelize(
             raise BlastvoxError(f"{scene}: {given[0]} applies to MESH arguments; with --scene "
                                 f"set it per object in the scene file")
         from blastvox.scene import load_scene
-        from blastvox.voxelize.requests import requests_from_scene
+        from blastvox.voxelize.requests import requests_from_scene, settings_from_scene
 
         spec = load_scene(scene)
         requests = requests_from_scene(spec)
-        library = spec.material_library()
+        settings = settings_from_scene(spec, max_voxels)
         if materials_file is not None:
-            library = library.extended(_read_toml(materials_file), str(materials_file))
-        settings = VoxelizeSettings(
-            up_axis=(up_axis.value if up_axis else spec.up_axis),
-            ground=_parse_ground(ground) if ground is not None else
-            (None if spec.ground == "none" else spec.ground),
-            seed=spec.seed if seed is None else seed, max_voxels=max_voxels, library=library)
+            settings.library = settings.library.extended(_read_toml(materials_file),
+                                                         str(materials_file))
+        if up_axis is not None:
+            settings.up_axis = up_axis.value
+        if ground is not None:
+            settings.ground = _parse_ground(ground)
+        if seed is not None:
+            settings.seed = seed
         if output is None:
             output = spec.output.model
         if output is None:

@@ -47,3 +47,13 @@ def requests_from_scene(scene: Any) -> list[ObjectRequest]:
             transform=None if np.allclose(matrix, np.eye(4)) else matrix,
             rules=[rule_from_scene(r) for r in obj.rules]))
     return out
+
+
+def settings_from_scene(scene: Any, max_voxels: int | None = None) -> Any:
+    """:class:`VoxelizeSettings` from a validated scene (its library, frame and seed)."""
+    from blastvox.voxelize.pipeline import DEFAULT_MAX_VOXELS, VoxelizeSettings
+
+    return VoxelizeSettings(up_axis=scene.up_axis,
+                            ground=None if scene.ground == "none" else scene.ground,
+                            seed=scene.seed, max_voxels=max_voxels or DEFAULT_MAX_VOXELS,
+                            library=scene.material_library())

@@ -1,0 +1,37 @@
+"""``blastvox run``: a whole shot from a scene file, make-style."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+
+def run(
+    scene: Path = typer.Argument(..., metavar="SCENE", help="Scene TOML with [[objects]], "
+                                 "[[charges]] and [output] model, cache and export paths."),
+    force: bool = typer.Option(False, "-B", "--force", help="Run every stage even if its "
+                               "output is up to date."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing but errors."),
+) -> None:
+    """Run voxelize -> simulate -> export as the scene says, skipping up-to-date stages.
+
+    A stage is up to date when its output is newer than all its inputs (like
+    make). Outputs are written atomically.
+    """
+    from blastvox.cli.console import err_console
+    from blastvox.shot import run_scene
+
+    console = err_console()
+    started = time.perf_counter()
+
+    def log(message: str) -> None:
+        if not quiet:
+            console.print(message, markup=False, highlight=False)
+
+    ran = run_scene(scene, force=force, log=log,
+                    warn=lambda m: console.print(f"warning: {m}", markup=False))
+    if ran and not quiet:
+        console.print(f"{scene}: {', '.join(ran)} in {time.perf_counter() - started:.2f} s",
+                      markup=False, highlight=False)
