@@ -243,3 +243,11 @@ def test_model_round_trip_and_version_check(tmp_path):
     write_npz(tmp_path / "new.npz", newer.arrays, meta)
     with pytest.raises(ContractError, match="new.npz.*newer"):
         VoxelModel.load(tmp_path / "new.npz")
+
+
+def test_rule_material_with_a_longer_name_than_the_default(tmp_path):
+    # regression: a fixed-width name array once truncated "reinforced_concrete"
+    path = box_file(tmp_path, (2.0, 1.0, 1.0))
+    rule = RegionRule("box", (0.0, -1.0, -1.0), (2.0, 1.0, 1.0), "reinforced_concrete")
+    model = run(path, voxel_size=(0.5,) * 3, material="glass", rules=[rule])
+    assert set(model.meta["materials"]) == {"glass", "reinforced_concrete"}

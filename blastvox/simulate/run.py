@@ -169,6 +169,9 @@ class _Run:
         self.vertex_stamp = np.full(len(sm.vertices), -1, dtype=np.int64)
         self.hits = np.zeros((4096, 4))
         self.max_contact_radius = float(sm.voxel_contact_radius.max(initial=0.0))
+        # kg/m^3 per voxel (its contact radius is (volume)^(1/3) / 2)
+        self.voxel_density = sm.voxel_mass / np.maximum((2.0 * sm.voxel_contact_radius) ** 3,
+                                                        1e-300)
         self.contacts = np.zeros((64, 3))
         self.ground = sm.ground_height if settings.ground else None
         self.boundary = None  # (offsets, members), rebuilt after topology changes
@@ -323,7 +326,7 @@ class _Run:
             st.voxel_alive, st.voxel_body, offsets, members, st.body_mass, st.body_inv_inertia,
             st.body_radius, st.body_com, st.body_pos, self.rot, st.body_lin, st.body_ang,
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
-            s.sleep_speed, s.impact_time, s.weakening, self.destroyed, self.dirty, self.hits,
+            s.sleep_speed, self.voxel_density, s.weakening, self.destroyed, self.dirty, self.hits,
             self.max_contact_radius)
         resolved = min(self.collisions - before, len(self.hits))
         if self.settings.dust and resolved:

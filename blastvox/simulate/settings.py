@@ -26,8 +26,7 @@ class SimSettings:
     founded structures float free, and no ground plane. collisions: fragments
     collide with each other. friction: Coulomb mu at the ground; rest_damping:
     1/s decay of momenta in resting ground contact; sleep_speed: m/s below which
-    a balanced resting body is clamped to rest; impact_time: s, the contact
-    duration that turns a collision impulse into an impact pressure on voxels.
+    a balanced resting body is clamped to rest.
     fire, dust, fireball, shock_sphere, camera_shake: effects on/off (an effect
     that is off costs nothing); fire_*/burn_rate: see blastvox.simulate.fire;
     budgets: particles per system; camera: (position, look_at, focal mm).
@@ -50,7 +49,6 @@ class SimSettings:
     friction: float = 0.6
     rest_damping: float = 5.0
     sleep_speed: float = 0.05
-    impact_time: float = 1e-3
     fire: bool = True
     dust: bool = True
     fireball: bool = True
@@ -82,7 +80,7 @@ class SimSettings:
                                            "linear_drag", "angular_drag", "weakening",
                                            "orientation_factor", "damage_b", "damage_c", "seed",
                                            "ground", "collisions", "friction", "rest_damping",
-                                           "sleep_speed", "impact_time", "fire", "dust",
+                                           "sleep_speed", "fire", "dust",
                                            "fireball", "shock_sphere", "camera_shake",
                                            "fire_pressure_scale", "fire_spread", "burn_rate",
                                            "fire_side_factor")}

@@ -405,7 +405,8 @@ def _voxel_materials(lat: _Lattice) -> np.ndarray:
         name = mapping.get(own, lat.request.material)
         per_part.append(name)
         library_names.add(name)
-    return np.array(per_part, dtype=object)[lat.part].astype(str)
+    # object dtype: a fixed-width str array would truncate longer names set by rules
+    return np.array(per_part, dtype=object)[lat.part]
 
 
 def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up) -> dict:
