@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench examples clean
 
 # The Khronos glTF Validator (npm) that the export tests run; needs node and npm.
 VALIDATOR := tools/gltf-validator/node_modules/.installed
@@ -15,10 +15,10 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-## demo: install, then voxelize the bundled building example into out/building/
+## demo: install, then build the bundled building shot (voxelize, simulate, export)
 demo: $(STAMP)
-	$(BIN)/blastvox voxelize --scene examples/building/scene.toml
-	$(BIN)/blastvox info out/building/model.npz
+	$(BIN)/blastvox run examples/building/scene.toml
+	$(BIN)/blastvox info out/building/sim.npz
 
 $(VALIDATOR): tools/gltf-validator/package-lock.json
 	npm ci --prefix tools/gltf-validator --no-audit --no-fund --loglevel=error
@@ -32,9 +32,14 @@ test: $(STAMP) $(VALIDATOR)
 lint: $(STAMP)
 	$(BIN)/ruff check blastvox tests benchmarks
 
+## examples: build all bundled example shots (house, building, logo) into out/
+examples: $(STAMP)
+	for scene in examples/*/scene.toml; do $(BIN)/blastvox run $$scene || exit 1; done
+
 ## bench: print the benchmark tables
 bench: $(STAMP)
 	$(BIN)/python benchmarks/voxelize.py
+	$(BIN)/python benchmarks/convergence.py
 
 clean:
 	rm -rf out .pytest_cache
