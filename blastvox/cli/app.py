@@ -8,6 +8,7 @@ import typer
 
 from blastvox.cli import (
     blast_cmd,
+    diff_cmd,
     export_cmd,
     info_cmd,
     materials_cmd,
@@ -41,6 +42,8 @@ app.command("materials", help="List the material library (built-in plus a TOML f
     materials_cmd.materials)
 app.command("blast", help="Blast-wave calculator: overpressure, arrival, duration and impulse "
             "at distances.")(blast_cmd.blast)
+app.command("diff", help="Compare two caches within tolerances (exit 0 same, 1 different, "
+            "2 error).")(diff_cmd.diff)
 
 
 def _print_version(value: bool) -> None:

@@ -1,25 +1,31 @@
 """OpenUSD export: ``write_usd(cache, path, options)``.
 
-Stage layout (``/Shot`` is the default prim, time code = frame index)::
+Stage layout (``/Shot`` is the default prim; time code = frame index)::
 
     /Shot
       Materials/<material>, <material>_damage     UsdPreviewSurface per used material
-      Pieces/piece_00000 (Xform)                  layout "xforms": animated translate + orient,
-        geom (Mesh)                               time-sampled visibility; static mesh with
-          surface_<material>, damage_<material>   GeomSubsets (materialBind partition) and a
+      Pieces/piece_00000 (Xform)                  layout "xforms": time-sampled translate
+        geom (Mesh)                               (double3) and orient (quatf), visibility
+          surface_<material>, damage_<material>   for pieces that vanish; a static mesh with
+                                                  GeomSubsets (materialBind, partition) and a
                                                   time-sampled per-face ``primvars:damage``
-      Pieces (PointInstancer)                     layout "instancer": one prototype per piece,
-        Prototypes/piece_00000 (Mesh)             time-sampled positions, orientations and
-                                                  invisibleIds
-      Particles/dust (Points)                     destroyed voxels, ballistic for DUST_LIFE_S
+      Pieces (PointInstancer)                     layout "instancer": one prototype Mesh per
+        Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
+                                                  (quath) and orientationsf (quatf, which
+                                                  readers prefer), extent and invisibleIds
+      Particles/dust (Points)                     dust emitters, ballistic for DUST_LIFE_S
       Effects/shock_<c> (Sphere)                  shock front of charge c
 
-Everything is authored with the Sdf layer API (the Usd stage API is ~10x slower
-for hundreds of thousands of time samples) into an anonymous layer that is then
-exported to a temporary file beside the output and moved into place. Time
-samples are kept only at the ends of runs of equal values, so USD's linear
-interpolation between samples reproduces the cache exactly at every frame.
-The output is byte-identical for the same cache and options.
+Speed: every call into the USD Python bindings costs microseconds, and creating
+a spec costs more than setting a value, so the scene's structure (all prims,
+attribute declarations, metadata, relationships) is written as usda text and
+parsed in one ``ImportFromString``; the bulk data then goes in through the Sdf
+layer API from numpy (``Vt.*Array.FromNumpy``) inside one ``Sdf.ChangeBlock``.
+Transform samples are kept only at the ends of runs of equal values, so USD's
+linear interpolation reproduces the cache at every frame. The layer is exported
+to a temporary file beside the output (whose name ends in the real suffix, so
+USD picks the format) and moved into place. The same cache and options give the
+same bytes.
 """
 
 from __future__ import annotations
@@ -34,27 +40,26 @@ from pxr import Gf, Sdf, Tf, Vt
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.export.api import ExportOptions
-from blastvox.export.pieces import PieceMeshes, animation, frame_change, piece_meshes
+from blastvox.export.pieces import animation, frame_change, piece_meshes
 from blastvox.io.atomic import atomic_path
 
 ROOT = "/Shot"
 DUST_LIFE_S = 2.0
 ROUGHNESS = 0.8
 SHOCK_COLOR = (0.9, 0.9, 0.95)
+NANO_LIMIT = 9.0e9  # m: |translation| * 1e9 must fit an int64
 _T = Sdf.ValueTypeNames
-_UNIFORM = Sdf.VariabilityUniform
 
 
-# ----------------------------------------------------------------------------- Sdf helpers
+# ----------------------------------------------------------------------------- helpers
 
 def _prim(parent: Sdf.PrimSpec, name: str, type_name: str = "") -> Sdf.PrimSpec:
     return Sdf.PrimSpec(parent, name, Sdf.SpecifierDef, type_name)
 
 
-def _attr(prim: Sdf.PrimSpec, name: str, type_name, value=None, uniform: bool = False,
+def _attr(prim: Sdf.PrimSpec, name: str, type_name, value=None,
           interpolation: str | None = None) -> Sdf.AttributeSpec:
-    spec = Sdf.AttributeSpec(prim, name, type_name, _UNIFORM if uniform else
-                             Sdf.VariabilityVarying)
+    spec = Sdf.AttributeSpec(prim, name, type_name)
     if value is not None:
         spec.default = value
     if interpolation is not None:
@@ -62,23 +67,9 @@ def _attr(prim: Sdf.PrimSpec, name: str, type_name, value=None, uniform: bool = 
     return spec
 
 
-def _rel(prim: Sdf.PrimSpec, name: str, targets: list[Sdf.Path]) -> Sdf.RelationshipSpec:
-    spec = Sdf.RelationshipSpec(prim, name, False)
-    spec.targetPathList.explicitItems = targets
-    return spec
-
-
-def _apply_binding_api(prim: Sdf.PrimSpec) -> None:
-    prim.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
-
-
-def _bind(prim: Sdf.PrimSpec, material: Sdf.Path) -> None:
-    _apply_binding_api(prim)
-    _rel(prim, "material:binding", [material])
-
-
 def _xform_order(prim: Sdf.PrimSpec, ops: list[str]) -> None:
-    _attr(prim, "xformOpOrder", _T.TokenArray, Vt.TokenArray(ops), uniform=True)
+    spec = Sdf.AttributeSpec(prim, "xformOpOrder", _T.TokenArray, Sdf.VariabilityUniform)
+    spec.default = Vt.TokenArray(ops)
 
 
 def _vec3f(a: np.ndarray) -> Vt.Vec3fArray:
@@ -92,20 +83,49 @@ def _extent(points: np.ndarray) -> Vt.Vec3fArray:
 
 
 def _run_ends(values: np.ndarray) -> np.ndarray:
-    """(F,) bool: frames that start or end a run of equal values along axis 0 (F, ...)."""
+    """(F,) bool: frames that start or end a run of equal values along axis 0 of (F, ...)."""
     f = len(values)
-    if f == 0:
-        return np.zeros(0, dtype=bool)
-    diff = (values[1:] != values[:-1]).reshape(f - 1, -1).any(axis=1) if f > 1 else \
-        np.zeros(0, dtype=bool)
     keep = np.zeros(f, dtype=bool)
+    if f == 0:
+        return keep
     keep[0] = True
-    keep[1:] |= diff     # first frame of a new value
-    keep[:-1] |= diff    # last frame of the old value (so interpolation holds it)
+    if f > 1:
+        diff = (values[1:] != values[:-1]).reshape(f - 1, -1).any(axis=1)
+        keep[1:] |= diff     # first frame of a new value
+        keep[:-1] |= diff    # last frame of the old one (so interpolation holds it)
     return keep
 
 
-# ----------------------------------------------------------------------------- data prep
+def _run_ends_pf(values: np.ndarray, live: np.ndarray) -> np.ndarray:
+    """(P, F) bool: per piece, :func:`_run_ends` of ``values`` (P, F, k) over its live
+    frames (``live`` (P, F), a prefix of the frames for each piece)."""
+    p, f = live.shape
+    keep = np.zeros((p, f), dtype=bool)
+    if f == 0:
+        return keep
+    keep[:, 0] = True
+    if f > 1:
+        diff = (values[:, 1:] != values[:, :-1]).any(axis=-1) & live[:, 1:]
+        keep[:, 1:] |= diff
+        keep[:, :-1] |= diff
+    return keep & live
+
+
+def _gravity(cache: SimCache) -> np.ndarray:
+    """Model-frame gravity (m/s^2): meta["gravity_vector"], else -settings.gravity * up."""
+    if cache.meta.get("gravity_vector") is not None:
+        return np.asarray(cache.meta["gravity_vector"], dtype=np.float64).reshape(3)
+    up = np.zeros(3)
+    up["XYZ".index(cache.model.meta.get("up_axis", "Y"))] = 1.0
+    return -float(cache.meta.get("settings", {}).get("gravity", 9.81)) * up
+
+
+def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) (w, x, y, z)."""
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
 
 def _fps(cache: SimCache) -> float:
     fps = cache.meta.get("fps")
@@ -118,15 +138,16 @@ def _fps(cache: SimCache) -> float:
 def _material_names(cache: SimCache) -> list[str]:
     """Valid, unique USD identifiers for the model's materials (by index)."""
     names = list(cache.model.meta.get("materials", []))
-    count = len(cache.model.arrays.get("material_color", np.zeros((0, 3))))
+    count = max(len(names), len(cache.model.arrays.get("material_color", ())),
+                int(cache.model.voxel_material.max(initial=-1)) + 1)
     used: set[str] = set()
     out = []
-    for i in range(max(count, len(names), int(cache.model.voxel_material.max(initial=-1)) + 1)):
+    for i in range(count):
         base = Tf.MakeValidIdentifier(str(names[i])) if i < len(names) else f"material_{i}"
         name, k = base, 1
-        while name in used or name.endswith("_damage") and name[:-7] in used:
+        while name in used or f"{name}_damage" in used:
             name, k = f"{base}_{k}", k + 1
-        used.add(name)
+        used.update((name, f"{name}_damage"))
         out.append(name)
     return out
 
@@ -155,49 +176,42 @@ def _sign_continuous(q: np.ndarray) -> np.ndarray:
 
 
 def _finite_hold(a: np.ndarray) -> np.ndarray:
-    """Replace non-finite frames (F, P, k) by the last finite one (or 0)."""
+    """Replace non-finite rows of (F, P, k) by the previous frame's (or 0)."""
     bad = ~np.all(np.isfinite(a), axis=-1)
     if not bad.any():
         return a
     out = a.copy()
     for f in range(len(out)):
-        rows = bad[f]
-        out[f, rows] = out[f - 1, rows] if f else 0.0
+        out[f, bad[f]] = out[f - 1, bad[f]] if f else 0.0
     return out
 
 
-def _face_damage_events(cache: SimCache, meshes: PieceMeshes):
-    """Per piece: sorted frames where any of its faces' damage changes."""
-    frames = cache.damage_frame.astype(np.int64)
-    voxels = cache.damage_voxel.astype(np.int64)
-    values = cache.damage_value.astype(np.float32) / 255.0
-    n = len(cache.voxel_piece)
-    has_face = np.zeros(n, dtype=bool)
-    has_face[meshes.voxel] = True
-    keep = has_face[voxels] & (frames >= 0) & (frames < max(cache.frame_count, 1))
-    frames, voxels, values = frames[keep], voxels[keep], values[keep]
-    piece = cache.voxel_piece.astype(np.int64)[voxels]
-    order = np.lexsort((np.arange(len(frames)), frames, piece))
-    return piece[order], frames[order], voxels[order], values[order]
+def _usda_float(x: float) -> str:
+    return repr(float(x))
 
 
-# ----------------------------------------------------------------------------- builders
+# ----------------------------------------------------------------------------- writer
 
 class _Writer:
     def __init__(self, cache: SimCache, options: ExportOptions) -> None:
         self.cache = cache
         self.options = options
         self.frames = cache.frame_count
-        self.layer = Sdf.Layer.CreateAnonymous("blastvox.usda")
+        self.pieces = cache.piece_count
+        self.instancer = options.layout == "instancer"
         self.meshes = piece_meshes(cache, options.up_axis)
         self.anim = animation(cache, options.up_axis)
         self.change = frame_change(cache.model.meta.get("up_axis", "Y"), options.up_axis)
         self.material_names = _material_names(cache)
         self.colors, self.damage_colors = _material_colors(cache, len(self.material_names))
+        self.end = np.minimum(self.anim.end_frame.astype(np.int64), self.frames)
+        self._prepare_meshes()
+        self.layer = Sdf.Layer.CreateAnonymous("blastvox.usda")
 
-    # -- stage
     def build(self) -> Sdf.Layer:
         layer = self.layer
+        if not layer.ImportFromString(self._skeleton()):
+            raise RuntimeError("USD export: the generated scene text did not parse")
         with Sdf.ChangeBlock():
             root = layer.pseudoRoot
             root.SetInfo("upAxis", self.options.up_axis)
@@ -210,222 +224,303 @@ class _Writer:
             layer.endTimeCode = float(max(self.frames - 1, 0))
             layer.customLayerData = {
                 "creator": f"blastvox {__version__}",
-                "blastvox": {"pieces": self.cache.piece_count, "frames": self.frames,
+                "blastvox": {"pieces": self.pieces, "frames": self.frames,
                              "layout": self.options.layout},
             }
-            shot = _prim(root, ROOT[1:], "Xform")
-            self._materials(shot)
-            if self.options.layout == "instancer":
-                self._instancer(shot)
-            else:
-                self._xforms(shot)
+            self._mesh_values()
+            self._damage_samples()
+            if self.instancer:
+                self._instancer_samples()
+            shot = layer.GetPrimAtPath(ROOT)
             self._dust(shot)
             self._shock(shot)
         return layer
 
-    # -- materials
-    def _materials(self, shot: Sdf.PrimSpec) -> None:
-        scope = _prim(shot, "Materials", "Scope")
-        self.used = np.unique(self.meshes.material) if len(self.meshes.material) else \
-            np.unique(self.cache.model.voxel_material)
-        for m in self.used:
-            name = self.material_names[m]
-            self._preview_surface(scope, name, self.colors[m])
-            self._preview_surface(scope, f"{name}_damage", self.damage_colors[m])
-
-    def _material_path(self, m: int, damage: bool) -> Sdf.Path:
-        name = self.material_names[m] + ("_damage" if damage else "")
-        return Sdf.Path(f"{ROOT}/Materials/{name}")
-
-    @staticmethod
-    def _preview_surface(scope: Sdf.PrimSpec, name: str, color: np.ndarray) -> None:
-        material = _prim(scope, name, "Material")
-        shader = _prim(material, "PreviewSurface", "Shader")
-        _attr(shader, "info:id", _T.Token, "UsdPreviewSurface", uniform=True)
-        _attr(shader, "inputs:diffuseColor", _T.Color3f, Gf.Vec3f(*map(float, color)))
-        _attr(shader, "inputs:roughness", _T.Float, ROUGHNESS)
-        _attr(shader, "inputs:metallic", _T.Float, 0.0)
-        _attr(shader, "outputs:surface", _T.Token)
-        out = _attr(material, "outputs:surface", _T.Token)
-        out.connectionPathList.explicitItems = [shader.path.AppendProperty("outputs:surface")]
-
-    # -- meshes
+    # -- numpy preparation
     def _prepare_meshes(self) -> None:
-        """Shared points per piece (corners deduplicated), face data, damage timelines."""
+        """Everything per piece that numpy can do at once: shared points (corners
+        deduplicated per piece), indices, normals, face colours and subset groups."""
         m = self.meshes
+        p_count = self.pieces
         t = len(m.vertices)
-        tri_piece = np.repeat(np.arange(self.cache.piece_count), np.diff(m.offsets))
-        corners = m.vertices.reshape(-1, 3).astype(np.float32)
+        tri_piece = np.repeat(np.arange(p_count), np.diff(m.offsets))
+        corners = m.vertices.reshape(-1, 3).astype(np.float32) + np.float32(0.0)  # no -0
         corner_piece = np.repeat(tri_piece, 3)
         order = np.lexsort((corners[:, 2], corners[:, 1], corners[:, 0], corner_piece))
         sc, sp = corners[order], corner_piece[order]
         new = np.ones(len(order), dtype=bool)
         new[1:] = (sp[1:] != sp[:-1]) | np.any(sc[1:] != sc[:-1], axis=1)
-        unique_id = np.cumsum(new) - 1
         inverse = np.empty(len(order), dtype=np.int64)
-        inverse[order] = unique_id
+        inverse[order] = np.cumsum(new) - 1
         self.points = sc[new]
-        point_piece = sp[new]
-        self.point_offsets = np.searchsorted(point_piece, np.arange(self.cache.piece_count + 1))
+        self.point_offsets = np.searchsorted(sp[new], np.arange(p_count + 1))
         self.indices = (inverse - self.point_offsets[corner_piece]).astype(np.int32)
         self.normals = np.repeat(m.normals.astype(np.float32), 3, axis=0)
-        face_color = np.where(m.damage[:, None], self.damage_colors[m.material],
-                              self.colors[m.material]) if t else np.zeros((0, 3))
-        self.face_color = face_color.astype(np.float32)
-        # damage: per voxel level after each piece's events
-        self.dmg_piece, self.dmg_frame, self.dmg_voxel, self.dmg_value = \
-            _face_damage_events(self.cache, m)
-        self.dmg_offsets = np.searchsorted(self.dmg_piece, np.arange(self.cache.piece_count + 1))
+        self.face_color = (np.where(m.damage[:, None], self.damage_colors[m.material],
+                                    self.colors[m.material]) if t else
+                           np.zeros((0, 3))).astype(np.float32)
+        self.local_face = (np.arange(t) - m.offsets[tri_piece]).astype(np.int32)
+        # materialBind subsets: runs of (piece, material, damage) after a stable sort
+        key = m.material.astype(np.int64) * 2 + m.damage.astype(np.int64)
+        self.subset_order = np.lexsort((np.arange(t), key, tri_piece))
+        sk, spc = key[self.subset_order], tri_piece[self.subset_order]
+        run = np.ones(t, dtype=bool)
+        run[1:] = (sk[1:] != sk[:-1]) | (spc[1:] != spc[:-1])
+        starts = np.flatnonzero(run)
+        self.subset_key = sk[starts]
+        self.subset_piece_offsets = np.searchsorted(spc[starts], np.arange(p_count + 1))
+        self.subset_start = np.append(starts, t)
+        self.main_material = np.zeros(p_count, dtype=np.int64)
+        if t:
+            counts = np.zeros((p_count, len(self.material_names)), dtype=np.int64)
+            np.add.at(counts, (tri_piece, m.material), 1)
+            self.main_material = counts.argmax(axis=1)
+        self.used_materials = (np.unique(m.material) if t else
+                               np.unique(self.cache.model.voxel_material)).tolist()
 
-    def _mesh(self, parent: Sdf.PrimSpec, name: str, p: int) -> Sdf.PrimSpec:
+    # -- structure as usda text
+    def _material_path(self, m: int, damage: bool) -> str:
+        return f"{ROOT}/Materials/{self.material_names[m]}{'_damage' if damage else ''}"
+
+    def _skeleton(self) -> str:
+        out = ["#usda 1.0\n\n", f'def Xform "{ROOT[1:]}"\n{{\n',
+               '    def Scope "Materials"\n    {\n']
+        for m in self.used_materials:
+            for damage, color in ((False, self.colors[m]), (True, self.damage_colors[m])):
+                out.append(self._material_text(self._material_path(m, damage), color))
+        out.append("    }\n\n")
+        out.append(self._instancer_text() if self.instancer else self._xforms_text())
+        out.append("}\n")
+        return "".join(out)
+
+    @staticmethod
+    def _material_text(path: str, color: np.ndarray) -> str:
+        name = path.rsplit("/", 1)[1]
+        rgb = ", ".join(_usda_float(c) for c in color)
+        return (f'        def Material "{name}"\n        {{\n'
+                f"            token outputs:surface.connect = "
+                f"<{path}/PreviewSurface.outputs:surface>\n\n"
+                f'            def Shader "PreviewSurface"\n            {{\n'
+                f'                uniform token info:id = "UsdPreviewSurface"\n'
+                f"                color3f inputs:diffuseColor = ({rgb})\n"
+                f"                float inputs:metallic = 0\n"
+                f"                float inputs:roughness = {ROUGHNESS}\n"
+                f"                token outputs:surface\n            }}\n        }}\n")
+
+    def _mesh_text(self, name: str, p: int, indent: str) -> str:
+        """A piece's Mesh: declarations only (values are set through the Sdf API)."""
+        t0, t1 = int(self.meshes.offsets[p]), int(self.meshes.offsets[p + 1])
+        i = indent
+        lines = [f'{i}def Mesh "{name}"']
+        if t1 > t0:
+            lines.append(f'{i}(\n{i}    prepend apiSchemas = ["MaterialBindingAPI"]\n{i})')
+        lines.append(f"{i}{{")
+        lines.append(
+            f"{i}    float3[] extent\n{i}    int[] faceVertexCounts\n"
+            f"{i}    int[] faceVertexIndices\n"
+            f'{i}    normal3f[] normals (\n{i}        interpolation = "faceVarying"\n{i}    )\n'
+            f"{i}    point3f[] points\n"
+            f'{i}    float[] primvars:damage (\n{i}        interpolation = "uniform"\n{i}    )\n'
+            f'{i}    color3f[] primvars:displayColor (\n{i}        interpolation = "uniform"\n'
+            f"{i}    )\n"
+            f'{i}    uniform token subdivisionScheme = "none"')
+        if t1 > t0:
+            lines.append(f"{i}    rel material:binding = "
+                         f"<{self._material_path(int(self.main_material[p]), False)}>")
+            lines.append(f'{i}    uniform token subsetFamily:materialBind:familyType = '
+                         f'"partition"')
+            for g in range(int(self.subset_piece_offsets[p]),
+                           int(self.subset_piece_offsets[p + 1])):
+                material, damage = divmod(int(self.subset_key[g]), 2)
+                lines.append(self._subset_text(material, bool(damage), i + "    "))
+        lines.append(f"{i}}}\n")
+        return "\n".join(lines)
+
+    def _subset_name(self, material: int, damage: bool) -> str:
+        return ("damage_" if damage else "surface_") + self.material_names[material]
+
+    def _subset_text(self, material: int, damage: bool, i: str) -> str:
+        return (f'\n{i}def GeomSubset "{self._subset_name(material, damage)}" (\n'
+                f'{i}    prepend apiSchemas = ["MaterialBindingAPI"]\n{i})\n{i}{{\n'
+                f'{i}    uniform token elementType = "face"\n'
+                f'{i}    uniform token familyName = "materialBind"\n'
+                f"{i}    int[] indices\n"
+                f"{i}    rel material:binding = <{self._material_path(material, damage)}>\n"
+                f"{i}}}")
+
+    def _xforms_text(self) -> str:
+        """The piece Xforms with their transform and visibility samples, as text.
+
+        Text because the USD parser reads ~10^6 numbers faster than Python can make
+        ~10^5 ``SetTimeSample`` calls. Numbers go in as integers of nanometres
+        (translations) and 1e-9 (quaternion components), e.g. ``1234567891e-9``:
+        formatting integers is twice as fast as formatting floats, and 1e-9 is far
+        below the cache's float32 resolution (positions beyond +-NANO_LIMIT m are
+        clamped)."""
+        f_count = self.frames
+        pos, ori = self._animation_arrays()
+        frame = np.broadcast_to(np.arange(f_count, dtype=np.int64)[:, None, None],
+                                (f_count, self.pieces, 1))
+        pos_n = np.rint(np.clip(pos, -NANO_LIMIT, NANO_LIMIT) * 1e9).astype(np.int64)
+        ori_n = np.rint(ori.astype(np.float32) * 1e9).astype(np.int64)
+        translate = np.concatenate([frame, pos_n], axis=-1).transpose(1, 0, 2)      # (P, F, 4)
+        orient = np.concatenate([frame, ori_n], axis=-1).transpose(1, 0, 2)         # (P, F, 5)
+        live = np.arange(f_count)[None, :] < np.maximum(self.end, 1)[:, None]       # (P, F)
+        keep_t = _run_ends_pf(translate[..., 1:], live)
+        keep_o = _run_ends_pf(orient[..., 1:], live)
+        row_t = "                %d: (%de-9, %de-9, %de-9),\n"
+        row_o = "                %d: (%de-9, %de-9, %de-9, %de-9),\n"
+        out = ['    def Xform "Pieces"\n    {\n']
+        for p in range(self.pieces):
+            out.append(f'        def Xform "piece_{p:05d}"\n        {{\n')
+            end = int(self.end[p])
+            if end < f_count:
+                first = '                0: "inherited",\n' if end > 0 else ""
+                out.append(f"            token visibility.timeSamples = {{\n{first}"
+                           f'                {end}: "invisible",\n            }}\n')
+            kt, ko = keep_t[p], keep_o[p]
+            out.append("            quatf xformOp:orient.timeSamples = {\n")
+            out.append((row_o * int(ko.sum())) % tuple(orient[p][ko].ravel().tolist()))
+            out.append("            }\n            double3 xformOp:translate.timeSamples = {\n")
+            out.append((row_t * int(kt.sum())) % tuple(translate[p][kt].ravel().tolist()))
+            out.append("            }\n"
+                       '            uniform token[] xformOpOrder = ["xformOp:translate", '
+                       '"xformOp:orient"]\n\n')
+            out.append(self._mesh_text("geom", p, "            "))
+            out.append("        }\n\n")
+        out.append("    }\n")
+        return "".join(out)
+
+    def _instancer_text(self) -> str:
+        targets = ",\n".join(f"            <{ROOT}/Pieces/Prototypes/piece_{p:05d}>"
+                             for p in range(self.pieces))
+        out = ['    def PointInstancer "Pieces"\n    {\n',
+               "        float3[] extent\n        int64[] invisibleIds\n"
+               "        quath[] orientations\n        quatf[] orientationsf\n"
+               "        point3f[] positions\n"
+               "        int[] protoIndices\n",
+               f"        rel prototypes = [\n{targets}\n        ]\n\n" if self.pieces else "",
+               '        def Scope "Prototypes"\n        {\n']
+        for p in range(self.pieces):
+            out.append(self._mesh_text(f"piece_{p:05d}", p, "            "))
+            out.append("\n")
+        out.append("        }\n    }\n")
+        return "".join(out)
+
+    # -- values
+    def _mesh_path(self, p: int) -> Sdf.Path:
+        if self.instancer:
+            return Sdf.Path(f"{ROOT}/Pieces/Prototypes/piece_{p:05d}")
+        return Sdf.Path(f"{ROOT}/Pieces/piece_{p:05d}/geom")
+
+    def _mesh_values(self) -> None:
         m = self.meshes
-        t0, t1 = int(m.offsets[p]), int(m.offsets[p + 1])
-        v0, v1 = int(self.point_offsets[p]), int(self.point_offsets[p + 1])
-        points = self.points[v0:v1]
-        mesh = _prim(parent, name, "Mesh")
-        _attr(mesh, "points", _T.Point3fArray, _vec3f(points))
-        _attr(mesh, "faceVertexCounts", _T.IntArray,
-              Vt.IntArray.FromNumpy(np.full(t1 - t0, 3, dtype=np.int32)))
-        _attr(mesh, "faceVertexIndices", _T.IntArray,
-              Vt.IntArray.FromNumpy(np.ascontiguousarray(self.indices[3 * t0:3 * t1])))
-        _attr(mesh, "normals", _T.Normal3fArray, _vec3f(self.normals[3 * t0:3 * t1]),
-              interpolation="faceVarying")
-        _attr(mesh, "extent", _T.Float3Array, _extent(points))
-        _attr(mesh, "subdivisionScheme", _T.Token, "none", uniform=True)
-        _attr(mesh, "primvars:displayColor", _T.Color3fArray, _vec3f(self.face_color[t0:t1]),
-              interpolation="uniform")
-        self._damage_primvar(mesh, p, t0, t1)
-        self._subsets(mesh, t0, t1)
-        return mesh
+        get = self.layer.GetAttributeAtPath
+        self.damage_paths = []
+        for p in range(self.pieces):
+            path = self._mesh_path(p)
+            prop = path.AppendProperty
+            t0, t1 = int(m.offsets[p]), int(m.offsets[p + 1])
+            v0, v1 = int(self.point_offsets[p]), int(self.point_offsets[p + 1])
+            points = self.points[v0:v1]
+            get(prop("points")).default = _vec3f(points)
+            get(prop("extent")).default = _extent(points)
+            get(prop("faceVertexCounts")).default = Vt.IntArray(t1 - t0, 3)
+            get(prop("faceVertexIndices")).default = Vt.IntArray.FromNumpy(
+                self.indices[3 * t0:3 * t1])
+            get(prop("normals")).default = _vec3f(self.normals[3 * t0:3 * t1])
+            get(prop("primvars:displayColor")).default = _vec3f(self.face_color[t0:t1])
+            damage = prop("primvars:damage")
+            get(damage).default = Vt.FloatArray(t1 - t0, 0.0)
+            self.damage_paths.append(damage)
+            for g in range(int(self.subset_piece_offsets[p]),
+                           int(self.subset_piece_offsets[p + 1])):
+                material, is_damage = divmod(int(self.subset_key[g]), 2)
+                faces = self.subset_order[self.subset_start[g]:self.subset_start[g + 1]]
+                subset = path.AppendChild(self._subset_name(material, bool(is_damage)))
+                get(subset.AppendProperty("indices")).default = Vt.IntArray.FromNumpy(
+                    self.local_face[faces])
 
-    def _damage_primvar(self, mesh: Sdf.PrimSpec, p: int, t0: int, t1: int) -> None:
-        faces = t1 - t0
-        spec = _attr(mesh, "primvars:damage", _T.FloatArray,
-                     Vt.FloatArray.FromNumpy(np.zeros(faces, dtype=np.float32)),
-                     interpolation="uniform")
-        e0, e1 = int(self.dmg_offsets[p]), int(self.dmg_offsets[p + 1])
-        if e0 == e1 or faces == 0:
+    def _damage_samples(self) -> None:
+        """Time samples of each piece's per-face damage primvar, in one pass over the
+        frames: a sample where a piece's damage changes, plus one on the frame before
+        that holds the old values (primvars interpolate linearly between samples)."""
+        c, m = self.cache, self.meshes
+        frames = c.damage_frame.astype(np.int64)
+        if not len(frames):
             return
-        face_voxel = self.meshes.voxel[t0:t1]
-        voxels, local = np.unique(face_voxel, return_inverse=True)
-        level = np.zeros(len(voxels), dtype=np.float32)
-        ev_frame = self.dmg_frame[e0:e1]
-        ev_slot = np.searchsorted(voxels, self.dmg_voxel[e0:e1])
-        ev_value = self.dmg_value[e0:e1]
-        bounds = np.flatnonzero(np.diff(ev_frame)) + 1
-        starts = np.concatenate([[0], bounds])
-        ends = np.concatenate([bounds, [len(ev_frame)]])
-        layer, path = self.layer, spec.path
-        previous = level[local].copy()
-        if int(ev_frame[0]) > 0:
-            layer.SetTimeSample(path, 0.0, Vt.FloatArray.FromNumpy(previous))
-        last_written = 0 if int(ev_frame[0]) > 0 else -1
-        for s, e in zip(starts, ends, strict=True):
-            f = int(ev_frame[s])
-            level[ev_slot[s:e]] = ev_value[s:e]  # later events of a frame win
-            current = level[local]
-            if f - 1 > last_written:  # hold the old value up to the frame before the step
-                layer.SetTimeSample(path, float(f - 1), Vt.FloatArray.FromNumpy(previous))
-            layer.SetTimeSample(path, float(f), Vt.FloatArray.FromNumpy(current))
-            previous, last_written = current, f
+        voxels = c.damage_voxel.astype(np.int64)
+        values = c.damage_value.astype(np.float32) / 255.0
+        valid = ((frames >= 0) & (frames < self.frames) & (voxels >= 0)
+                 & (voxels < len(c.voxel_piece)))
+        order = np.lexsort((np.arange(len(frames)), frames))
+        order = order[valid[order]]
+        frames, voxels, values = frames[order], voxels[order], values[order]
+        has_faces = np.diff(m.offsets) > 0
+        piece_of = c.voxel_piece.astype(np.int64)
+        level = np.zeros(len(piece_of), dtype=np.float32)
+        last: dict[int, tuple[int, np.ndarray]] = {}
+        set_sample = self.layer.SetTimeSample
+        bounds = np.flatnonzero(np.diff(frames)) + 1
+        for s, e in zip(np.concatenate([[0], bounds]).tolist(),
+                        np.concatenate([bounds, [len(frames)]]).tolist(), strict=True):
+            f = int(frames[s])
+            level[voxels[s:e]] = values[s:e]  # later events of the same frame win
+            pieces = np.unique(piece_of[voxels[s:e]])
+            for p in pieces[has_faces[pieces]].tolist():
+                t0, t1 = int(m.offsets[p]), int(m.offsets[p + 1])
+                current = level[m.voxel[t0:t1]]
+                written, previous = last.get(p, (-1, np.zeros(t1 - t0, dtype=np.float32)))
+                if f > 0 and written < f - 1:
+                    set_sample(self.damage_paths[p], float(f - 1),
+                               Vt.FloatArray.FromNumpy(previous))
+                set_sample(self.damage_paths[p], float(f), Vt.FloatArray.FromNumpy(current))
+                last[p] = (f, current)
 
-    def _subsets(self, mesh: Sdf.PrimSpec, t0: int, t1: int) -> None:
-        if t1 == t0:
-            return
-        material = self.meshes.material[t0:t1]
-        damage = self.meshes.damage[t0:t1]
-        key = material * 2 + damage.astype(np.int64)
-        groups = np.unique(key)
-        main = int(np.bincount(material).argmax())
-        _bind(mesh, self._material_path(main, False))
-        _attr(mesh, "subsetFamily:materialBind:familyType", _T.Token, "partition", uniform=True)
-        for k in groups:
-            m, is_damage = int(k) // 2, bool(k % 2)
-            name = ("damage_" if is_damage else "surface_") + self.material_names[m]
-            subset = _prim(mesh, name, "GeomSubset")
-            _attr(subset, "elementType", _T.Token, "face", uniform=True)
-            _attr(subset, "familyName", _T.Token, "materialBind", uniform=True)
-            _attr(subset, "indices", _T.IntArray,
-                  Vt.IntArray.FromNumpy(np.flatnonzero(key == k).astype(np.int32)))
-            _bind(subset, self._material_path(m, is_damage))
-
-    # -- pieces: one Xform per piece
     def _animation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         pos = _finite_hold(self.anim.position)
         ori = _sign_continuous(_finite_hold(self.anim.orientation))
         return pos, ori
 
-    def _xforms(self, shot: Sdf.PrimSpec) -> None:
-        self._prepare_meshes()
-        scope = _prim(shot, "Pieces", "Xform")
-        f_count, p_count = self.frames, self.cache.piece_count
+    def _instancer_samples(self) -> None:
+        p_count = self.pieces
+        inst = Sdf.Path(f"{ROOT}/Pieces")
+        self.layer.GetAttributeAtPath(inst.AppendProperty("protoIndices")).default = \
+            Vt.IntArray.FromNumpy(np.arange(p_count, dtype=np.int32))
         pos, ori = self._animation_arrays()
-        pos_pf = np.ascontiguousarray(pos.transpose(1, 0, 2))            # (P, F, 3)
-        ori_pf = np.ascontiguousarray(ori.transpose(1, 0, 2)[..., [1, 2, 3, 0]],
-                                      dtype=np.float32)                  # (P, F, xyzw)
-        vt_pos = Vt.Vec3dArray.FromNumpy(pos_pf.reshape(-1, 3))
-        vt_ori = Vt.QuatfArray.FromNumpy(ori_pf.reshape(-1, 4))
-        end = np.minimum(self.anim.end_frame.astype(np.int64), f_count)
-        layer = self.layer
-        for p in range(p_count):
-            xf = _prim(scope, f"piece_{p:05d}", "Xform")
-            tr = _attr(xf, "xformOp:translate", _T.Double3)
-            ro = _attr(xf, "xformOp:orient", _T.Quatf)
-            _xform_order(xf, ["xformOp:translate", "xformOp:orient"])
-            live = max(int(end[p]), 1)  # frames after the piece is gone are not needed
-            base = p * f_count
-            for spec, values, vt in ((tr, pos_pf[p, :live], vt_pos),
-                                     (ro, ori_pf[p, :live], vt_ori)):
-                path = spec.path
-                for f in np.flatnonzero(_run_ends(values)).tolist():
-                    layer.SetTimeSample(path, float(f), vt[base + f])
-            if end[p] < f_count:
-                vis = _attr(xf, "visibility", _T.Token, uniform=False)
-                if end[p] > 0:
-                    layer.SetTimeSample(vis.path, 0.0, "inherited")
-                layer.SetTimeSample(vis.path, float(end[p]), "invisible")
-            self._mesh(xf, "geom", p)
-
-    # -- pieces: one PointInstancer
-    def _instancer(self, shot: Sdf.PrimSpec) -> None:
-        self._prepare_meshes()
-        p_count, f_count = self.cache.piece_count, self.frames
-        inst = _prim(shot, "Pieces", "PointInstancer")
-        protos = _prim(inst, "Prototypes", "Scope")
-        paths = [self._mesh(protos, f"piece_{p:05d}", p).path for p in range(p_count)]
-        _rel(inst, "prototypes", paths)
-        _attr(inst, "protoIndices", _T.IntArray,
-              Vt.IntArray.FromNumpy(np.arange(p_count, dtype=np.int32)))
-        pos, ori = self._animation_arrays()
-        end = np.minimum(self.anim.end_frame.astype(np.int64), f_count)
-        # radius of each prototype about its origin (the pivot), for a conservative extent
-        radius = np.zeros(p_count, dtype=np.float64)
-        if len(self.points):
-            piece_of_point = np.repeat(np.arange(p_count), np.diff(self.point_offsets))
-            np.maximum.at(radius, piece_of_point, np.linalg.norm(self.points, axis=1))
-        positions = _attr(inst, "positions", _T.Point3fArray)
-        orientations = _attr(inst, "orientations", _T.QuathArray)
-        extent = _attr(inst, "extent", _T.Float3Array)
-        invisible = _attr(inst, "invisibleIds", _T.Int64Array)
-        layer = self.layer
+        # the corners of each prototype's box, turned and moved per frame, bound the instances
+        lo = np.zeros((p_count, 3))
+        hi = np.zeros((p_count, 3))
+        has_points = np.diff(self.point_offsets) > 0
+        if has_points.any():
+            starts = self.point_offsets[:-1][has_points]
+            lo[has_points] = np.minimum.reduceat(self.points, starts, axis=0)
+            hi[has_points] = np.maximum.reduceat(self.points, starts, axis=0)
+        pick = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=bool)
+        corners = np.where(pick[None], hi[:, None, :], lo[:, None, :])             # (P, 8, 3)
+        positions, orientations, orientationsf, extent, invisible = (
+            inst.AppendProperty(n) for n in ("positions", "orientations", "orientationsf",
+                                             "extent", "invisibleIds"))
+        set_sample = self.layer.SetTimeSample
         ids = np.arange(p_count, dtype=np.int64)
-        last_gone = None
-        for f in range(f_count):
-            layer.SetTimeSample(positions.path, float(f), _vec3f(pos[f]))
-            quat = np.ascontiguousarray(ori[f][:, [1, 2, 3, 0]], dtype=np.float16)
-            layer.SetTimeSample(orientations.path, float(f), Vt.QuathArray.FromNumpy(quat))
-            shown = end > f
+        gone_count = -1
+        for f in range(self.frames):
+            set_sample(positions, float(f), _vec3f(pos[f]))
+            quat = np.ascontiguousarray(ori[f][:, [1, 2, 3, 0]], dtype=np.float32)
+            set_sample(orientationsf, float(f), Vt.QuatfArray.FromNumpy(quat))
+            set_sample(orientations, float(f), Vt.QuathArray.FromNumpy(quat.astype(np.float16)))
+            shown = self.end > f
             if shown.any():
-                lo = (pos[f][shown] - radius[shown, None]).min(axis=0)
-                hi = (pos[f][shown] + radius[shown, None]).max(axis=0)
-                box = np.stack([lo, hi])
+                q = np.repeat(ori[f][shown][:, None, :], 8, axis=1)
+                world = pos[f][shown][:, None, :] + _quat_rotate(q, corners[shown])
+                box = np.stack([world.min(axis=(0, 1)), world.max(axis=(0, 1))]) + 0.0
             else:
                 box = np.zeros((2, 3))
-            layer.SetTimeSample(extent.path, float(f), _vec3f(box))
+            set_sample(extent, float(f), _vec3f(box))
             gone = ids[~shown]
-            if last_gone is None or len(gone) != len(last_gone):
-                layer.SetTimeSample(invisible.path, float(f), Vt.Int64Array.FromNumpy(gone))
-                last_gone = gone
+            if len(gone) != gone_count:  # pieces never come back: the set only grows
+                set_sample(invisible, float(f), Vt.Int64Array.FromNumpy(gone))
+                gone_count = len(gone)
 
     # -- dust
     def _dust(self, shot: Sdf.PrimSpec) -> None:
@@ -434,10 +529,7 @@ class _Writer:
             return
         scope = _prim(shot, "Particles", "Xform")
         points = _prim(scope, "dust", "Points")
-        up = np.zeros(3)
-        up["XYZ".index(c.model.meta.get("up_axis", "Y"))] = 1.0
-        gravity = float(c.meta.get("settings", {}).get("gravity", 9.81))
-        g = self.change @ (-gravity * up)
+        g = self.change @ _gravity(c)
         x0 = c.dust_position.astype(np.float64) @ self.change.T
         v0 = c.dust_velocity.astype(np.float64) @ self.change.T
         t0 = c.dust_time.astype(np.float64)
@@ -475,43 +567,48 @@ class _Writer:
 
     # -- shock fronts
     def _shock(self, shot: Sdf.PrimSpec) -> None:
+        """A sphere per charge: time-sampled radius and extent, displayOpacity from the
+        cache's ``shock_opacity`` (else 1 - r / r_max), invisible while the radius or the
+        opacity is 0 (before detonation, or switched off)."""
         c = self.cache
         radius_all = np.asarray(c.shock_radius, dtype=np.float64).reshape(self.frames, -1)
         if radius_all.shape[1] == 0 or self.frames == 0:
             return
+        opacity_all = c.arrays.get("shock_opacity")
         scope = _prim(shot, "Effects", "Xform")
         centres = c.charge_position.astype(np.float64) @ self.change.T
-        layer = self.layer
+        set_sample = self.layer.SetTimeSample
         for k in range(radius_all.shape[1]):
             radius = np.nan_to_num(radius_all[:, k], nan=0.0, posinf=0.0, neginf=0.0)
-            r_max = float(radius.max())
-            opacity = np.clip(1.0 - radius / r_max, 0.0, 1.0) if r_max > 0 else \
-                np.zeros_like(radius)
+            radius = np.maximum(radius, 0.0)
+            if opacity_all is not None and np.shape(opacity_all) == radius_all.shape:
+                opacity = np.nan_to_num(np.asarray(opacity_all, dtype=np.float64)[:, k])
+            else:
+                r_max = float(radius.max())
+                opacity = 1.0 - radius / r_max if r_max > 0 else np.zeros_like(radius)
+            opacity = np.clip(opacity, 0.0, 1.0)
             sphere = _prim(scope, f"shock_{k}", "Sphere")
             _attr(sphere, "xformOp:translate", _T.Double3, Gf.Vec3d(*map(float, centres[k])))
             _xform_order(sphere, ["xformOp:translate"])
             _attr(sphere, "primvars:displayColor", _T.Color3fArray,
                   Vt.Vec3fArray([Gf.Vec3f(*SHOCK_COLOR)]), interpolation="constant")
-            r_spec = _attr(sphere, "radius", _T.Double)
-            e_spec = _attr(sphere, "extent", _T.Float3Array)
-            o_spec = _attr(sphere, "primvars:displayOpacity", _T.FloatArray,
-                           interpolation="constant")
-            for f in np.flatnonzero(_run_ends(radius)).tolist():
+            r_path = _attr(sphere, "radius", _T.Double).path
+            e_path = _attr(sphere, "extent", _T.Float3Array).path
+            o_path = _attr(sphere, "primvars:displayOpacity", _T.FloatArray,
+                           interpolation="constant").path
+            keep = _run_ends(np.stack([radius, opacity], axis=1))
+            for f in np.flatnonzero(keep).tolist():
                 r = float(radius[f])
-                layer.SetTimeSample(r_spec.path, float(f), r)
-                layer.SetTimeSample(e_spec.path, float(f),
-                                    _vec3f(np.array([[-r] * 3, [r] * 3])))
-                layer.SetTimeSample(o_spec.path, float(f),
-                                    Vt.FloatArray([float(opacity[f])]))
+                set_sample(r_path, float(f), r)
+                set_sample(e_path, float(f), _vec3f(np.array([[-r] * 3, [r] * 3]) + 0.0))
+                set_sample(o_path, float(f), Vt.FloatArray([float(opacity[f])]))
+            shown = (radius > 0) & (opacity > 0)
             vis = _attr(sphere, "visibility", _T.Token)
-            live = np.flatnonzero(radius > 0)
-            if len(live) == 0:
-                vis.default = "invisible"
-            elif live[0] == 0:
-                vis.default = "inherited"
-            else:
-                layer.SetTimeSample(vis.path, 0.0, "invisible")
-                layer.SetTimeSample(vis.path, float(live[0]), "inherited")
+            changes = np.flatnonzero(np.diff(shown.astype(np.int8))) + 1
+            if len(changes) == 0:
+                vis.default = "inherited" if shown[0] else "invisible"
+            for f in [0, *changes.tolist()] if len(changes) else []:
+                set_sample(vis.path, float(f), "inherited" if shown[f] else "invisible")
 
 
 def build_layer(cache: SimCache, options: ExportOptions) -> Sdf.Layer:

@@ -1,0 +1,552 @@
+"""USD export: files are read back with pxr and checked against the SimCache.
+
+Two caches: a small synthetic one (three pieces of a two-material box with
+known motion, a piece that vanishes into dust at frame 6, damage steps and a
+shock front), so every expectation is exact; and a real simulation of a brick
+wall, for the integration checks (validation, transforms, the CLI).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pxr = pytest.importorskip("pxr")
+from pxr import Usd, UsdGeom, UsdShade  # noqa: E402
+
+from blastvox.cache import SimCache  # noqa: E402
+from blastvox.export.api import ExportOptions, export  # noqa: E402
+from blastvox.export.pieces import animation, frame_change, piece_meshes  # noqa: E402
+from blastvox.export.usd import write_usd  # noqa: E402
+from blastvox.export.usd_validate import validate_usd  # noqa: E402
+
+F, FPS = 10, 10.0
+VANISH_PIECE, VANISH_FRAME = 2, 6
+GRAVITY = 9.81
+
+
+# ----------------------------------------------------------------------------- caches
+
+def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate v (..., 3) by unit quaternions q (..., 4) (w, x, y, z)."""
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory) -> SimCache:
+    import trimesh
+
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    tmp = tmp_path_factory.mktemp("synthetic")
+    requests = []
+    for name, x, material in (("left", -0.25, "brick"), ("right", 0.25, "wood")):
+        box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+        box.apply_translation((x, 0.0, 0.25))
+        box.export(tmp / f"{name}.stl")
+        requests.append(ObjectRequest(mesh=tmp / f"{name}.stl", name=name,
+                                      voxel_size=(0.25,) * 3, material=material))
+    model = voxelize(requests, VoxelizeSettings(up_axis="Z", ground=None))
+    a = model.arrays
+    n = model.voxel_count
+    slab = np.clip(np.floor((a["voxel_centroid"][:, 0] + 0.5) / 0.25), 0, 3).astype(int)
+    piece = np.array([0, 1, 1, 2])[slab].astype(np.int32)  # piece 1 spans both materials
+    p_count = 3
+    mass = np.bincount(piece, weights=a["voxel_mass"], minlength=p_count)
+    pivot = np.stack([np.bincount(piece, weights=a["voxel_mass"] * a["voxel_centroid"][:, i],
+                                  minlength=p_count) for i in range(3)], axis=1) / mass[:, None]
+    t = np.arange(F) / FPS
+    velocity = np.array([[-2.0, 1.0, 3.0], [0.0, 0.0, 0.0], [3.0, -1.0, 4.0]])
+    g = np.array([0.0, 0.0, -GRAVITY])
+    moving = np.array([1.0, 0.0, 1.0])[:, None]  # piece 1 stays at rest
+    position = pivot[None] + (t[:, None, None] * velocity[None]
+                              + 0.5 * t[:, None, None] ** 2 * g * moving[None])
+    axis = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    spin = np.array([4.0, 0.0, -6.0])
+    half = 0.5 * spin[None] * t[:, None]
+    orientation = np.concatenate([np.cos(half)[..., None], np.sin(half)[..., None] * axis[None]],
+                                 axis=-1)
+    end = np.full(p_count, F, dtype=np.int32)
+    end[VANISH_PIECE] = VANISH_FRAME
+    destroyed = np.where(piece == VANISH_PIECE, VANISH_FRAME, -1).astype(np.int32)
+    dust = np.flatnonzero(destroyed >= 0).astype(np.int32)
+    t_dust = t[VANISH_FRAME]
+    q = orientation[VANISH_FRAME, VANISH_PIECE]
+    dust_pos = position[VANISH_FRAME, VANISH_PIECE] + _quat_rotate(
+        q, a["voxel_centroid"][dust] - pivot[VANISH_PIECE])
+    dust_vel = np.tile(velocity[VANISH_PIECE] + g * t_dust, (len(dust), 1))
+    # damage: a voxel of piece 1 steps to 128 at frame 2 and 255 at frame 5, another to
+    # 64 at frame 5; destroyed voxels jump to 255 at their frame
+    v1 = np.flatnonzero(piece == 1)
+    d_frame = np.array([2, 5, 5] + [VANISH_FRAME] * len(dust), dtype=np.int32)
+    d_voxel = np.array([v1[0], v1[0], v1[1], *dust], dtype=np.int32)
+    d_value = np.array([128, 255, 64] + [255] * len(dust), dtype=np.uint8)
+    radius = np.where(t > 0.15, 340.0 * (t - 0.15), 0.0)
+    i4, f8 = np.zeros(0, np.int32), np.zeros(0)
+    arrays = {
+        "frame_time": t, "voxel_piece": piece, "piece_pivot": pivot, "piece_mass": mass,
+        "piece_position": position.astype(np.float32),
+        "piece_orientation": orientation.astype(np.float32), "piece_end_frame": end,
+        "voxel_destroyed_frame": destroyed, "damage_frame": d_frame, "damage_voxel": d_voxel,
+        "damage_value": d_value, "link_break_link": i4, "link_break_time": f8,
+        "dust_voxel": dust, "dust_time": np.full(len(dust), t_dust), "dust_mass":
+        a["voxel_mass"][dust], "dust_position": dust_pos, "dust_velocity": dust_vel,
+        "charge_position": np.array([[0.0, -3.0, 0.25]]), "charge_tnt_kg": np.array([5.0]),
+        "charge_time": np.array([0.15]), "shock_radius": radius[:, None],
+    }
+    assert n == 16
+    return SimCache(arrays=arrays, model=model,
+                    meta={"fps": FPS, "settings": {"gravity": GRAVITY}})
+
+
+@pytest.fixture(scope="module")
+def wall(tmp_path_factory) -> tuple[SimCache, Path]:
+    """A real simulation: a 2 x 0.5 x 2 m brick wall, 2 kg TNT 2 m in front."""
+    import trimesh
+
+    from blastvox.simulate.run import simulate
+    from blastvox.simulate.settings import ChargeSpec, SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    tmp = tmp_path_factory.mktemp("wall")
+    trimesh.creation.box(extents=(2, 0.5, 2)).export(tmp / "wall.stl")
+    model = voxelize([ObjectRequest(mesh=tmp / "wall.stl", voxel_size=(0.25,) * 3,
+                                    material="brick")], VoxelizeSettings(up_axis="Z"))
+    cache = simulate(model, SimSettings(duration=0.5, fps=24,
+                                        charges=(ChargeSpec((0, -2.0, 1.0), 2.0),)))
+    path = tmp / "wall_sim.npz"
+    cache.save(path)
+    return SimCache.load(path), path
+
+
+def _write(cache: SimCache, path: Path, up: str = "Y", layout: str = "xforms") -> Usd.Stage:
+    export(cache, path, ExportOptions(up_axis=up, layout=layout))
+    stage = Usd.Stage.Open(str(path))
+    assert stage is not None
+    return stage
+
+
+# ----------------------------------------------------------------------------- stage
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_stage_metadata(synthetic, tmp_path, up):
+    stage = _write(synthetic, tmp_path / "shot.usda", up=up)
+    assert UsdGeom.GetStageUpAxis(stage) == up
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetTimeCodesPerSecond() == FPS
+    assert stage.GetFramesPerSecond() == FPS
+    assert stage.GetStartTimeCode() == 0
+    assert stage.GetEndTimeCode() == F - 1
+    assert stage.GetDefaultPrim().GetPath() == "/Shot"
+
+
+def test_one_xform_and_mesh_per_piece(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usdc")
+    pieces = stage.GetPrimAtPath("/Shot/Pieces").GetChildren()
+    assert [p.GetName() for p in pieces] == ["piece_00000", "piece_00001", "piece_00002"]
+    meshes = piece_meshes(synthetic, "Y")
+    for p, prim in enumerate(pieces):
+        assert prim.IsA(UsdGeom.Xform)
+        mesh = UsdGeom.Mesh(prim.GetChild("geom"))
+        counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+        assert len(counts) == meshes.offsets[p + 1] - meshes.offsets[p]
+        assert np.all(counts == 3)
+        assert len(mesh.GetNormalsAttr().Get()) == 3 * len(counts)
+        assert mesh.GetNormalsInterpolation() == UsdGeom.Tokens.faceVarying
+        assert mesh.GetSubdivisionSchemeAttr().Get() == UsdGeom.Tokens.none
+        points = np.asarray(mesh.GetPointsAttr().Get())
+        extent = np.asarray(mesh.GetExtentAttr().Get())
+        assert np.allclose(extent, [points.min(axis=0), points.max(axis=0)])
+        # every triangle of piece_meshes is there (points are shared, so compare corners)
+        corners = points[np.asarray(mesh.GetFaceVertexIndicesAttr().Get())].reshape(-1, 3, 3)
+        expected = meshes.vertices[meshes.offsets[p]:meshes.offsets[p + 1]]
+        assert np.allclose(corners, expected, atol=1e-6)
+
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_world_transform_matches_cache(synthetic, tmp_path, up):
+    stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
+    c = frame_change("Z", up)
+    for p, f in ((0, F - 1), (2, VANISH_FRAME - 1), (0, 3)):
+        prim = stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}")
+        world = UsdGeom.XformCache(Usd.TimeCode(f)).GetLocalToWorldTransform(prim)
+        pos = synthetic.piece_position[f, p].astype(np.float64)
+        assert np.allclose(np.array(world.ExtractTranslation()), c @ pos, atol=1e-6)
+        # a mesh vertex goes where the cache's rigid transform sends it
+        mesh = UsdGeom.Mesh(prim.GetChild("geom"))
+        local = np.asarray(mesh.GetPointsAttr().Get(), dtype=np.float64)
+        got = np.array([world.Transform(pxr.Gf.Vec3d(*x)) for x in local])
+        q = synthetic.piece_orientation[f, p].astype(np.float64)
+        want = (pos + _quat_rotate(q, local @ c)) @ c.T  # local = C (x - pivot)
+        assert np.allclose(got, want, atol=1e-5)
+
+
+def test_unchanged_samples_are_pruned(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usda")
+    resting = UsdGeom.Xformable(stage.GetPrimAtPath("/Shot/Pieces/piece_00001"))
+    translate = resting.GetOrderedXformOps()[0].GetAttr()
+    assert translate.GetTimeSamples() == [0.0]
+    moving = UsdGeom.Xformable(stage.GetPrimAtPath("/Shot/Pieces/piece_00000"))
+    assert len(moving.GetOrderedXformOps()[0].GetAttr().GetTimeSamples()) == F
+    ops = [op.GetOpName() for op in moving.GetOrderedXformOps()]
+    assert ops == ["xformOp:translate", "xformOp:orient"]
+    assert moving.GetOrderedXformOps()[1].GetPrecision() == UsdGeom.XformOp.PrecisionFloat
+    assert moving.GetOrderedXformOps()[0].GetPrecision() == UsdGeom.XformOp.PrecisionDouble
+    # a vanished piece has no samples after it is gone
+    gone = UsdGeom.Xformable(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{VANISH_PIECE:05d}"))
+    assert max(gone.GetOrderedXformOps()[0].GetAttr().GetTimeSamples()) == VANISH_FRAME - 1
+
+
+def test_visibility_switches_at_end_frame(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usdc")
+    gone = UsdGeom.Imageable(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{VANISH_PIECE:05d}"))
+    for f in range(F):
+        want = "invisible" if f >= VANISH_FRAME else "inherited"
+        assert gone.ComputeVisibility(Usd.TimeCode(f)) == want
+    kept = UsdGeom.Imageable(stage.GetPrimAtPath("/Shot/Pieces/piece_00000"))
+    assert not kept.GetVisibilityAttr().HasAuthoredValue()
+    assert kept.ComputeVisibility(Usd.TimeCode(F - 1)) == "inherited"
+
+
+# ----------------------------------------------------------------------------- materials
+
+def _subsets(stage: Usd.Stage, p: int) -> dict[str, UsdGeom.Subset]:
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/geom"))
+    return {s.GetPrim().GetName(): s for s in
+            UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "materialBind")}
+
+
+def test_damage_subsets_match_piece_meshes(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usdc")
+    meshes = piece_meshes(synthetic, "Y")
+    names = synthetic.model.meta["materials"]
+    for p in range(synthetic.piece_count):
+        t0, t1 = meshes.offsets[p], meshes.offsets[p + 1]
+        subsets = _subsets(stage, p)
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/geom"))
+        assert UsdGeom.Subset.GetFamilyType(mesh, "materialBind") == UsdGeom.Tokens.partition
+        valid, reason = UsdGeom.Subset.ValidateFamily(mesh, UsdGeom.Tokens.face, "materialBind")
+        assert valid, reason
+        damage = sum(len(s.GetIndicesAttr().Get()) for n, s in subsets.items()
+                     if n.startswith("damage_"))
+        assert damage == int(meshes.damage[t0:t1].sum())
+        for name, subset in subsets.items():
+            kind, material = name.split("_", 1)
+            faces = np.asarray(subset.GetIndicesAttr().Get()) + t0
+            assert np.all(meshes.damage[faces] == (kind == "damage"))
+            assert {names[m] for m in meshes.material[faces]} == {material}
+    # piece 1 spans both materials: a surface and a damage subset of each
+    assert set(_subsets(stage, 1)) == {"surface_brick", "damage_brick", "surface_wood",
+                                      "damage_wood"}
+
+
+def test_material_bindings(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usda")
+    names = synthetic.model.meta["materials"]
+    colors = synthetic.model.arrays["material_color"]
+    damage_colors = synthetic.model.arrays["material_damage_color"]
+    for i, name in enumerate(names):
+        for path, color in ((f"/Shot/Materials/{name}", colors[i]),
+                            (f"/Shot/Materials/{name}_damage", damage_colors[i])):
+            material = UsdShade.Material(stage.GetPrimAtPath(path))
+            assert material
+            shader = material.ComputeSurfaceSource()[0]
+            assert shader.GetIdAttr().Get() == "UsdPreviewSurface"
+            assert np.allclose(shader.GetInput("diffuseColor").Get(), color, atol=1e-6)
+            assert shader.GetInput("roughness").Get() == pytest.approx(0.8)
+    for p in range(synthetic.piece_count):
+        mesh = stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/geom")
+        assert mesh.HasAPI(UsdShade.MaterialBindingAPI)
+        for name, subset in _subsets(stage, p).items():
+            prim = subset.GetPrim()
+            assert prim.HasAPI(UsdShade.MaterialBindingAPI)
+            bound = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
+            kind, material = name.split("_", 1)
+            suffix = "_damage" if kind == "damage" else ""
+            assert bound.GetPath() == f"/Shot/Materials/{material}{suffix}"
+    # displayColor per face agrees with the bound material
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/geom"))
+    display = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
+    assert display.GetInterpolation() == UsdGeom.Tokens.uniform
+    values = np.asarray(display.Get())
+    for name, subset in _subsets(stage, 1).items():
+        kind, material = name.split("_", 1)
+        i = names.index(material)
+        want = damage_colors[i] if kind == "damage" else colors[i]
+        assert np.allclose(values[np.asarray(subset.GetIndicesAttr().Get())], want, atol=1e-6)
+
+
+def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usdc")
+    meshes = piece_meshes(synthetic, "Y")
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/geom"))
+    primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("damage")
+    assert primvar.GetInterpolation() == UsdGeom.Tokens.uniform
+    t0, t1 = meshes.offsets[1], meshes.offsets[2]
+    face_voxel = meshes.voxel[t0:t1]
+    v1 = np.flatnonzero(synthetic.voxel_piece == 1)
+    for f, levels in ((0, {}), (1, {}), (2, {v1[0]: 128}), (4, {v1[0]: 128}),
+                      (5, {v1[0]: 255, v1[1]: 64}), (F - 1, {v1[0]: 255, v1[1]: 64})):
+        want = np.array([levels.get(v, 0) / 255.0 for v in face_voxel], dtype=np.float32)
+        assert np.allclose(np.asarray(primvar.Get(f)), want), f
+    # samples only around the changes: frame 1 holds the old values, 2 steps, 4 holds, 5 steps
+    assert primvar.GetAttr().GetTimeSamples() == [1.0, 2.0, 4.0, 5.0]
+    untouched = UsdGeom.PrimvarsAPI(UsdGeom.Mesh(
+        stage.GetPrimAtPath("/Shot/Pieces/piece_00000/geom"))).GetPrimvar("damage")
+    assert untouched.GetAttr().GetTimeSamples() == []
+    assert np.all(np.asarray(untouched.Get(F - 1)) == 0.0)
+
+
+# ----------------------------------------------------------------------------- dust, shock
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
+    stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
+    points = UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
+    assert points
+    c = frame_change("Z", up)
+    g = c @ np.array([0.0, 0.0, -GRAVITY])
+    q = len(synthetic.dust_voxel)
+    for f in range(F):
+        got = np.asarray(points.GetPointsAttr().Get(f))
+        ids = np.asarray(points.GetIdsAttr().Get(f))
+        if f < VANISH_FRAME:
+            assert len(got) == 0
+            continue
+        assert np.array_equal(ids, np.arange(q))
+        age = synthetic.frame_time[f] - synthetic.dust_time
+        want = (synthetic.dust_position + synthetic.dust_velocity * age[:, None]) @ c.T \
+            + 0.5 * g * age[:, None] ** 2
+        assert np.allclose(got, want, atol=1e-5)
+        assert len(points.GetWidthsAttr().Get(f)) == q
+
+
+def test_dust_is_dropped_after_its_lifetime(synthetic, tmp_path):
+    arrays = dict(synthetic.arrays)
+    arrays["dust_time"] = np.full(len(arrays["dust_time"]), -1.95)  # before the shot
+    cache = SimCache(arrays=arrays, model=synthetic.model, meta=synthetic.meta)
+    stage = _write(cache, tmp_path / "shot.usda")
+    points = UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
+    assert len(points.GetPointsAttr().Get(0)) == len(cache.dust_voxel)    # 1.95 s old
+    assert len(points.GetPointsAttr().Get(1)) == 0                        # 2.05 s old
+    assert len(points.GetPointsAttr().Get(F - 1)) == 0
+
+
+def test_no_dust_no_points_prim(synthetic, tmp_path):
+    arrays = dict(synthetic.arrays)
+    for key in ("dust_voxel", "dust_time", "dust_mass"):
+        arrays[key] = arrays[key][:0]
+    for key in ("dust_position", "dust_velocity"):
+        arrays[key] = arrays[key][:0]
+    cache = SimCache(arrays=arrays, model=synthetic.model, meta=synthetic.meta)
+    stage = _write(cache, tmp_path / "shot.usda")
+    assert not stage.GetPrimAtPath("/Shot/Particles")
+    assert validate_usd(tmp_path / "shot.usda") == []
+
+
+def test_shock_sphere(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usdc", up="Y")
+    sphere = UsdGeom.Sphere(stage.GetPrimAtPath("/Shot/Effects/shock_0"))
+    assert sphere
+    centre = UsdGeom.XformCache(Usd.TimeCode(0)).GetLocalToWorldTransform(
+        sphere.GetPrim()).ExtractTranslation()
+    assert np.allclose(np.array(centre), frame_change("Z", "Y") @ synthetic.charge_position[0])
+    radius = synthetic.shock_radius[:, 0]
+    opacity = UsdGeom.PrimvarsAPI(sphere).GetPrimvar("displayOpacity")
+    previous = 2.0
+    for f in range(F):
+        assert sphere.GetRadiusAttr().Get(f) == pytest.approx(radius[f])
+        visible = sphere.ComputeVisibility(Usd.TimeCode(f))
+        assert visible == ("inherited" if 0 < radius[f] < radius.max() else "invisible")
+        if radius[f] > 0:
+            value = float(opacity.Get(f)[0])
+            assert value < previous
+            previous = value
+    assert float(opacity.Get(F - 1)[0]) == pytest.approx(0.0)
+
+
+# ----------------------------------------------------------------------------- instancer
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_instancer_layout(synthetic, tmp_path, up):
+    stage = _write(synthetic, tmp_path / "shot.usdc", up=up, layout="instancer")
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Pieces"))
+    assert inst
+    p_count = synthetic.piece_count
+    targets = inst.GetPrototypesRel().GetTargets()
+    assert [t.name for t in targets] == [f"piece_{p:05d}" for p in range(p_count)]
+    assert list(inst.GetProtoIndicesAttr().Get()) == list(range(p_count))
+    anim = animation(synthetic, up)
+    for f in (0, VANISH_FRAME - 1, VANISH_FRAME, F - 1):
+        positions = np.asarray(inst.GetPositionsAttr().Get(f))
+        assert np.allclose(positions, anim.position[f], atol=1e-5)
+        gone = list(inst.GetInvisibleIdsAttr().Get(f) or [])
+        assert gone == ([VANISH_PIECE] if f >= VANISH_FRAME else [])
+        # instance transforms agree with the xforms layout's
+        xforms = inst.ComputeInstanceTransformsAtTime(
+            Usd.TimeCode(f), Usd.TimeCode(f), UsdGeom.PointInstancer.IncludeProtoXform,
+            UsdGeom.PointInstancer.IgnoreMask)
+        assert len(xforms) == p_count
+        for p in range(p_count):
+            assert np.allclose(np.array(xforms[p].ExtractTranslation()), anim.position[f, p],
+                               atol=1e-5)
+            # the instance's rotation is the piece's (orientationsf: float precision)
+            rotation = np.array(xforms[p].ExtractRotationMatrix()).T  # USD: row vectors
+            q = anim.orientation[f, p]
+            for axis in np.eye(3):
+                assert np.allclose(rotation @ axis, _quat_rotate(q, axis), atol=1e-5)
+    # prototypes carry the same subsets and damage primvar as the xforms layout
+    proto = stage.GetPrimAtPath(targets[1])
+    assert UsdGeom.Mesh(proto)
+    names = {s.GetPrim().GetName() for s in UsdGeom.Subset.GetGeomSubsets(
+        UsdGeom.Mesh(proto), UsdGeom.Tokens.face, "materialBind")}
+    assert "damage_brick" in names
+    assert UsdGeom.PrimvarsAPI(proto).GetPrimvar("damage").GetAttr().GetTimeSamples()
+
+
+def test_instancer_orientation_matches(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usda", layout="instancer")
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Pieces"))
+    anim = animation(synthetic, "Y")
+    f = F - 1
+    for attr, tolerance in ((inst.GetOrientationsfAttr(), 1e-6),   # quatf, preferred
+                            (inst.GetOrientationsAttr(), 2e-3)):   # quath
+        quats = attr.Get(f)
+        for p in range(synthetic.piece_count):
+            got = np.array([quats[p].GetReal(), *quats[p].GetImaginary()])
+            want = anim.orientation[f, p]
+            assert min(np.abs(got - want).max(), np.abs(got + want).max()) < tolerance
+
+
+# ----------------------------------------------------------------------------- files
+
+@pytest.mark.parametrize("suffix", [".usda", ".usdc", ".usd"])
+@pytest.mark.parametrize("layout", ["xforms", "instancer"])
+def test_deterministic_bytes(synthetic, tmp_path, suffix, layout):
+    a, b = tmp_path / f"a{suffix}", tmp_path / f"b{suffix}"
+    export(synthetic, a, ExportOptions(layout=layout))
+    export(synthetic, b, ExportOptions(layout=layout))
+    assert a.read_bytes() == b.read_bytes()
+    export(synthetic, a, ExportOptions(layout=layout))  # overwrite in place
+    assert a.read_bytes() == b.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([a.name, b.name])
+
+
+def test_formats_follow_the_suffix(synthetic, tmp_path):
+    from pxr import Sdf
+
+    for suffix, text in ((".usda", True), (".usdc", False), (".usd", False)):
+        path = tmp_path / f"shot{suffix}"
+        export(synthetic, path)
+        assert path.read_bytes().startswith(b"#usda 1.0") == text
+        assert Sdf.Layer.FindOrOpen(str(path))
+
+
+def test_failed_write_leaves_nothing(synthetic, tmp_path, monkeypatch):
+    from blastvox.export import usd
+
+    class Broken:
+        def Export(self, name):  # noqa: N802 (pxr's name)
+            Path(name).write_bytes(b"half")
+            return False
+
+    monkeypatch.setattr(usd, "build_layer", lambda cache, options: Broken())
+    out = tmp_path / "shot.usdc"
+    with pytest.raises(OSError):
+        write_usd(synthetic, out, ExportOptions())
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("layout", ["xforms", "instancer"])
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_validation_passes(synthetic, wall, tmp_path, layout, up):
+    for name, cache in (("synthetic", synthetic), ("wall", wall[0])):
+        for suffix in (".usda", ".usdc"):
+            path = tmp_path / f"{name}{suffix}"
+            export(cache, path, ExportOptions(up_axis=up, layout=layout))
+            assert validate_usd(path) == [], (name, suffix)
+
+
+def test_validator_reports_errors(synthetic, tmp_path):
+    path = tmp_path / "shot.usda"
+    export(synthetic, path)
+    text = path.read_text().replace('    upAxis = "Y"\n', "")
+    text = text.replace('prepend apiSchemas = ["MaterialBindingAPI"]', "")
+    broken = tmp_path / "broken.usda"
+    broken.write_text(text)
+    errors = validate_usd(broken)
+    assert any("MissingUpAxisMetadata" in e for e in errors)
+    assert any("MissingMaterialBindingAPI" in e for e in errors)
+
+
+# ----------------------------------------------------------------------------- real cache
+
+def test_real_simulation(wall, tmp_path):
+    cache, _ = wall
+    stage = _write(cache, tmp_path / "wall.usdc", up="Y")
+    pieces = stage.GetPrimAtPath("/Shot/Pieces").GetChildren()
+    assert len(pieces) == cache.piece_count
+    c = frame_change(cache.model.meta["up_axis"], "Y")
+    f = cache.frame_count - 1
+    alive = np.flatnonzero(cache.piece_end_frame >= cache.frame_count)
+    moved = np.linalg.norm(cache.piece_position[f, alive] - cache.piece_position[0, alive],
+                           axis=1)
+    p = int(alive[np.argmax(moved)])
+    assert moved.max() > 0.01  # the blast moved something
+    world = UsdGeom.XformCache(Usd.TimeCode(f)).GetLocalToWorldTransform(pieces[p])
+    assert np.allclose(np.array(world.ExtractTranslation()),
+                       c @ cache.piece_position[f, p].astype(np.float64), atol=1e-5)
+    meshes = piece_meshes(cache, "Y")
+    total = sum(len(s.GetIndicesAttr().Get()) for q in range(cache.piece_count)
+                for n, s in _subsets(stage, q).items() if n.startswith("damage_"))
+    assert total == int(meshes.damage.sum())
+    vanished = np.flatnonzero(cache.piece_end_frame < cache.frame_count)
+    for q in vanished[:5].tolist():
+        end = int(cache.piece_end_frame[q])
+        prim = UsdGeom.Imageable(pieces[q])
+        assert prim.ComputeVisibility(Usd.TimeCode(end)) == "invisible"
+        if end > 0:
+            assert prim.ComputeVisibility(Usd.TimeCode(end - 1)) == "inherited"
+    if len(cache.dust_voxel):
+        assert UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
+
+
+def _cli(*args, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "blastvox", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_cli_export(wall, tmp_path):
+    _, sim = wall
+    out = tmp_path / "out.usdc"
+    result = _cli("export", sim, "-o", out, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert out.is_file() and validate_usd(out) == []
+    result = _cli("export", sim, "-o", tmp_path / "inst.usda", "--layout", "instancer",
+                  "--up-axis", "Z", "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    stage = Usd.Stage.Open(str(tmp_path / "inst.usda"))
+    assert UsdGeom.GetStageUpAxis(stage) == "Z"
+    assert stage.GetPrimAtPath("/Shot/Pieces").IsA(UsdGeom.PointInstancer)
+
+
+@pytest.mark.parametrize("case", ["missing", "suffix"])
+def test_cli_export_errors(wall, tmp_path, case):
+    _, sim = wall
+    if case == "missing":
+        args, out = (tmp_path / "nope.npz", "-o", tmp_path / "out.usdc"), tmp_path / "out.usdc"
+    else:
+        args, out = (sim, "-o", tmp_path / "out.xyz"), tmp_path / "out.xyz"
+    result = _cli("export", *args, cwd=tmp_path)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("blastvox: error:"), result.stderr
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
