@@ -454,7 +454,7 @@ def blast_parameters(distance_m: Any, charge_kg: Any, explosive: str = "TNT") ->
 # --- numba scalar twins -------------------------------------------------------------------
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _horner_nb(coeffs, u):
     out = coeffs[coeffs.shape[0] - 1]
     for i in range(coeffs.shape[0] - 2, -1, -1):
@@ -492,28 +492,28 @@ def reference_parameters_nb(z):
     return ps, ta, td, imp
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _gfun_nb(x):
     if abs(x) < _SMALL:
         return _horner_nb(_G_SERIES, x)
     return (x + math.expm1(-x)) / (x * x)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _hfun_nb(x):
     if x == 0.0:
         return 1.0
     return -math.expm1(-x) / x
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _qfun_nb(x):
     if abs(x) < _SMALL:
         return _horner_nb(_Q_SERIES, x)
     return (-math.expm1(-x) - x * math.exp(-x)) / (x * x)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _gprime_nb(x):
     if abs(x) < _SMALL:
         return _horner_nb(_GP_SERIES, x)
@@ -574,7 +574,7 @@ def overpressure_nb(t, ta, td, ps, b):
     return sigma * ps * shape
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _cumulative_nb(tau, b, sigma, tau_end):
     tp = min(max(tau, 0.0), 1.0)
     pos = tp * tp * _gfun_nb(b * tp) - tp * (tp - 1.0) * _hfun_nb(b * tp)

@@ -20,8 +20,6 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.quaternion import to_matrix
-
 
 @nb.njit(cache=True)
 def aggregate(members: np.ndarray, voxel_mass: np.ndarray, voxel_centroid: np.ndarray,
@@ -56,15 +54,29 @@ def aggregate(members: np.ndarray, voxel_mass: np.ndarray, voxel_centroid: np.nd
 
 @nb.njit(cache=True)
 def inverse_inertia(inertia: np.ndarray) -> np.ndarray:
-    """I^-1 (3, 3) of a rest-frame inertia tensor; zeros if it is singular (no rotation)."""
-    scale = max(abs(inertia[0, 0]), abs(inertia[1, 1]), abs(inertia[2, 2]))
-    if scale <= 0.0 or abs(np.linalg.det(inertia)) <= 1e-12 * scale ** 3:
-        return np.zeros((3, 3))
-    return np.linalg.inv(inertia)
+    """I^-1 (3, 3) of a rest-frame inertia tensor by its adjugate; zeros if singular.
 
-
-@nb.njit(cache=True)
-def angular_velocity(inv_inertia: np.ndarray, quat: np.ndarray, ang: np.ndarray) -> np.ndarray:
-    """omega (rad/s, world) = R I_rest^-1 R^T L from angular momentum about the centre of mass."""
-    rot = to_matrix(quat)
-    return rot @ (inv_inertia @ (rot.T @ ang))
+    Written out (no LAPACK call) because it is tiny and numba compiles it in a blink.
+    """
+    a, b, c = inertia[0, 0], inertia[0, 1], inertia[0, 2]
+    d, e, f = inertia[1, 0], inertia[1, 1], inertia[1, 2]
+    g, h, k = inertia[2, 0], inertia[2, 1], inertia[2, 2]
+    co0 = e * k - f * h
+    co1 = f * g - d * k
+    co2 = d * h - e * g
+    det = a * co0 + b * co1 + c * co2
+    out = np.zeros((3, 3))
+    scale = max(abs(a), abs(e), abs(k))
+    if scale <= 0.0 or abs(det) <= 1e-12 * scale ** 3:
+        return out
+    inv = 1.0 / det
+    out[0, 0] = co0 * inv
+    out[0, 1] = (c * h - b * k) * inv
+    out[0, 2] = (b * f - c * e) * inv
+    out[1, 0] = co1 * inv
+    out[1, 1] = (a * k - c * g) * inv
+    out[1, 2] = (c * d - a * f) * inv
+    out[2, 0] = co2 * inv
+    out[2, 1] = (b * g - a * h) * inv
+    out[2, 2] = (a * e - b * d) * inv
+    return out

@@ -58,7 +58,7 @@ def boundary_lists(voxel_body, voxel_alive, voxel_link_mask, conform_slot, n_bod
     return count, out
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega):
     rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
     m = body_mass[b]
@@ -67,7 +67,7 @@ def _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega):
             body_lin[b, 2] / m + omega[0] * ry - omega[1] * rx)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _inv_inertia_times(rot, inv, x, y, z):
     """I_world^-1 (x, y, z) = R I^-1 R^T v."""
     r0 = rot[0, 0] * x + rot[1, 0] * y + rot[2, 0] * z
@@ -81,7 +81,7 @@ def _inv_inertia_times(rot, inv, x, y, z):
             rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
     """1/m + n . ((I^-1 (r x n)) x r): inverse mass seen by an impulse along n at r."""
     cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
@@ -90,7 +90,13 @@ def _effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
     return inv_mass + nx * tx + ny * ty + nz * tz
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
+def _unit(axis, component) -> float:
+    """Component ``component`` of the unit vector along ``axis``."""
+    return 1.0 if axis == component else 0.0
+
+
+@nb.njit(cache=True)
 def _apply(b, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang):
     body_lin[b, 0] += jx
     body_lin[b, 1] += jy
@@ -227,29 +233,26 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
                 omega = angular_velocity(rot, inv, body_ang[b])
                 vel = _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
                 rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
-                n = np.zeros(3)
-                n[up_axis] = 1.0
-                k_n = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, n[0], n[1], n[2])
+                k_n = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, _unit(up_axis, 0),
+                                              _unit(up_axis, 1), _unit(up_axis, 2))
                 dj = (target[i] - vel[up_axis]) / k_n
                 old = acc_n[i]
                 acc_n[i] = max(old + dj, 0.0)
                 dj = acc_n[i] - old
-                n *= dj
-                _apply(b, n[0], n[1], n[2], px, py, pz, body_pos, body_lin, body_ang)
+                _apply(b, dj * _unit(up_axis, 0), dj * _unit(up_axis, 1),
+                       dj * _unit(up_axis, 2), px, py, pz, body_pos, body_lin, body_ang)
                 # Coulomb friction on the two tangent axes, within mu * normal impulse
                 omega = angular_velocity(rot, inv, body_ang[b])
                 vel = _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
                 limit = friction * acc_n[i]
-                for t, axis in ((0, e1), (1, e2)):
-                    tvec = np.zeros(3)
-                    tvec[axis] = 1.0
-                    k_t = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, tvec[0], tvec[1],
-                                                  tvec[2])
+                for t in range(2):
+                    axis = e1 if t == 0 else e2
+                    tx, ty, tz = _unit(axis, 0), _unit(axis, 1), _unit(axis, 2)
+                    k_t = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, tx, ty, tz)
                     old_t = acc_t[i, t]
                     acc_t[i, t] = min(max(old_t - vel[axis] / k_t, -limit), limit)
-                    tvec *= acc_t[i, t] - old_t
-                    _apply(b, tvec[0], tvec[1], tvec[2], px, py, pz, body_pos, body_lin,
-                           body_ang)
+                    dj = acc_t[i, t] - old_t
+                    _apply(b, dj * tx, dj * ty, dj * tz, px, py, pz, body_pos, body_lin, body_ang)
         # resting contact: damp, and clamp to rest when balanced on >= 3 points
         omega = angular_velocity(rot, inv, body_ang[b])
         speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
@@ -310,7 +313,7 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
     resolved.
     """
     # broad phase: sort-and-sweep of body spheres along x; at least one body moving
-    order = np.argsort(body_pos[:n_bodies, 0] - body_radius[:n_bodies], kind="mergesort")
+    order = np.argsort(body_pos[:n_bodies, 0] - body_radius[:n_bodies], kind="quicksort")
     pairs = np.empty((64, 2), dtype=np.int64)
     n_pairs = 0
     for ii in range(n_bodies):
@@ -383,16 +386,16 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
         vox[n] = v
         keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
         n += 1
-    sort = np.argsort(keys, kind="mergesort")
+    sort = np.argsort(keys, kind="quicksort")
     skeys = keys[sort]
     resolved = 0
     for ii in range(n):
         i = sort[ii]
         vi = vox[i]
         bi = voxel_body[vi]
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                for dz in (-1, 0, 1):
+        for dx in range(-1, 2):
+            for dy in range(-1, 2):
+                for dz in range(-1, 2):
                     key = _cell_key(pos[i, 0] + dx * cell, pos[i, 1] + dy * cell,
                                     pos[i, 2] + dz * cell, cell)
                     lo = np.searchsorted(skeys, key)
@@ -433,16 +436,18 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
     if vn >= 0.0:
         return 0
     # an asleep body hit hard enough wakes; otherwise it counts as immovable
-    for b in (bi, bj):
-        if body_asleep[b] and -vn > wake_speed:
-            body_asleep[b] = False
+    if body_asleep[bi] and -vn > wake_speed:
+        body_asleep[bi] = False
+    if body_asleep[bj] and -vn > wake_speed:
+        body_asleep[bj] = False
     k = 0.0
-    for b, sx, sy, sz in ((bi, px - body_pos[bi, 0], py - body_pos[bi, 1], pz - body_pos[bi, 2]),
-                          (bj, px - body_pos[bj, 0], py - body_pos[bj, 1], pz - body_pos[bj, 2])):
+    for side in range(2):
+        b = bi if side == 0 else bj
         if body_fixed[b] or body_asleep[b]:
             continue
         k += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
-                                     sx, sy, sz, nx, ny, nz)
+                                     px - body_pos[b, 0], py - body_pos[b, 1],
+                                     pz - body_pos[b, 2], nx, ny, nz)
     if k <= 0.0:
         return 0
     e = min(voxel_restitution[vi], voxel_restitution[vj])
@@ -451,7 +456,9 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
         _apply(bi, -j * nx, -j * ny, -j * nz, px, py, pz, body_pos, body_lin, body_ang)
     if not (body_fixed[bj] or body_asleep[bj]):
         _apply(bj, j * nx, j * ny, j * nz, px, py, pz, body_pos, body_lin, body_ang)
-    for v, b in ((vi, bi), (vj, bj)):
+    for side in range(2):
+        v = vi if side == 0 else vj
+        b = bi if side == 0 else bj
         pressure = 0.5 * voxel_density[v] * vn * vn
         if pressure > voxel_yield[v]:
             voxel_alive[v] = False

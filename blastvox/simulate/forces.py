@@ -29,7 +29,7 @@ _FACE_CORNERS = np.array(
     dtype=np.int64)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _apply(point, weight_area, vec_area, ck, c, t0, t1, charge_pos, charge_time, charge_scale,
            table, body_pos_b, out_p, out_l, b):
     """Add the impulse at one point for one charge to body b's accumulators."""
@@ -62,7 +62,7 @@ def _apply(point, weight_area, vec_area, ck, c, t0, t1, charge_pos, charge_time,
     out_l[b, 2] += dx * fy - dy * fx
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _to_world(rot, pos, com, rest, out) -> None:
     """out = pos + rot (rest - com), no allocation."""
     x, y, z = rest[0] - com[0], rest[1] - com[1], rest[2] - com[2]
@@ -70,7 +70,7 @@ def _to_world(rot, pos, com, rest, out) -> None:
         out[a] = pos[a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _rotate(rot, vec, out) -> None:
     for a in range(3):
         out[a] = rot[a, 0] * vec[0] + rot[a, 1] * vec[1] + rot[a, 2] * vec[2]

@@ -31,7 +31,7 @@ import numpy as np
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _world(rest, body, body_pos, body_rot, body_com, out):
     rot = body_rot[body]
     for a in range(3):

@@ -64,7 +64,7 @@ def integrate_positions(dt: float, body_mass: np.ndarray, body_inv_inertia: np.n
         quaternion.integrate(body_quat[b], wx, wy, wz, dt)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def angular_velocity(rot, inv, ang):
     """omega = R I^-1 R^T L (rad/s, world) without allocation."""
     lx, ly, lz = ang[0], ang[1], ang[2]

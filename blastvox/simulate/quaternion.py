@@ -12,7 +12,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def to_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrix (3, 3) of a unit quaternion q = (w, x, y, z)."""
     m = np.empty((3, 3))
@@ -20,7 +20,7 @@ def to_matrix(q: np.ndarray) -> np.ndarray:
     return m
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def matrix_into(q: np.ndarray, m: np.ndarray) -> None:
     """Write the rotation matrix of unit quaternion q into m (3, 3), no allocation."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -35,7 +35,7 @@ def matrix_into(q: np.ndarray, m: np.ndarray) -> None:
     m[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a * b."""
     out = np.empty(4)

@@ -14,8 +14,9 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.bodies import aggregate, angular_velocity, inverse_inertia
-from blastvox.simulate.quaternion import to_matrix
+from blastvox.simulate.bodies import aggregate, inverse_inertia
+from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.quaternion import matrix_into
 
 
 @nb.njit(cache=True)
@@ -81,6 +82,8 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
     for c in range(ncomp):
         pieces[voxel_body[order[start[c]]]] += 1
     created = 0
+    rot = np.empty((3, 3))
+    pos = np.empty(3)
     for c in range(ncomp):
         members = order[start[c]:start[c + 1]]
         parent = voxel_body[members[0]]
@@ -93,8 +96,12 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
         n_bodies[0] += 1
         created += 1
         mass, com, inertia = aggregate(members, voxel_mass, voxel_centroid, voxel_inertia)
-        rot = to_matrix(body_quat[parent])
-        pos = body_pos[parent] + rot @ (com - body_com[parent])
+        matrix_into(body_quat[parent], rot)
+        dx = com[0] - body_com[parent, 0]
+        dy = com[1] - body_com[parent, 1]
+        dz = com[2] - body_com[parent, 2]
+        for a in range(3):
+            pos[a] = body_pos[parent, a] + rot[a, 0] * dx + rot[a, 1] * dy + rot[a, 2] * dz
         fixed = False
         for v in members:
             voxel_body[v] = b
@@ -115,14 +122,25 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
         if body_fixed[parent]:
             body_lin[b] = 0.0
             body_ang[b] = 0.0
-        else:
-            pm = body_mass[parent]
-            v_parent = body_lin[parent] / pm
-            omega = angular_velocity(body_inv_inertia[parent], body_quat[parent],
-                                     body_ang[parent])
-            v_new = v_parent + np.cross(omega, pos - body_pos[parent])
-            body_lin[b] = mass * v_new
-            body_ang[b] = rot @ inertia @ rot.T @ omega
+            continue
+        # rigid kinematics: v + omega x (c_new - c), omega kept, L = I_world omega
+        wx, wy, wz = angular_velocity(rot, body_inv_inertia[parent], body_ang[parent])
+        rx = pos[0] - body_pos[parent, 0]
+        ry = pos[1] - body_pos[parent, 1]
+        rz = pos[2] - body_pos[parent, 2]
+        pm = body_mass[parent]
+        body_lin[b, 0] = mass * (body_lin[parent, 0] / pm + wy * rz - wz * ry)
+        body_lin[b, 1] = mass * (body_lin[parent, 1] / pm + wz * rx - wx * rz)
+        body_lin[b, 2] = mass * (body_lin[parent, 2] / pm + wx * ry - wy * rx)
+        # I_world omega = R I (R^T omega)
+        s0 = rot[0, 0] * wx + rot[1, 0] * wy + rot[2, 0] * wz
+        s1 = rot[0, 1] * wx + rot[1, 1] * wy + rot[2, 1] * wz
+        s2 = rot[0, 2] * wx + rot[1, 2] * wy + rot[2, 2] * wz
+        i0 = inertia[0, 0] * s0 + inertia[0, 1] * s1 + inertia[0, 2] * s2
+        i1 = inertia[1, 0] * s0 + inertia[1, 1] * s1 + inertia[1, 2] * s2
+        i2 = inertia[2, 0] * s0 + inertia[2, 1] * s1 + inertia[2, 2] * s2
+        for a in range(3):
+            body_ang[b, a] = rot[a, 0] * i0 + rot[a, 1] * i1 + rot[a, 2] * i2
     for p in range(body_mass.shape[0]):
         if pieces[p] >= 2:
             body_live[p] = False

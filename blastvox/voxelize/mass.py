@@ -16,7 +16,7 @@ import numpy as np
 from blastvox.voxelize.lattice import FACE_CORNERS
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _subexpressions(w0: float, w1: float, w2: float):
     temp0 = w0 + w1
     f1 = temp0 + w2

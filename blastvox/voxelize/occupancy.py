@@ -20,7 +20,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _edge(ax: float, ay: float, bx: float, by: float, px: float, py: float) -> float:
     """Signed area (b - a) x (p - a), evaluated with a canonical endpoint order."""
     if (ax, ay) <= (bx, by):
@@ -28,7 +28,7 @@ def _edge(ax: float, ay: float, bx: float, by: float, px: float, py: float) -> f
     return -((ax - bx) * (py - by) - (ay - by) * (px - bx))
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _owns(w: float, ex: float, ey: float) -> bool:
     """Top-left rule: is a point with edge function ``w`` inside for edge vector (ex, ey)?"""
     if w > 0.0:
