@@ -312,7 +312,7 @@ def test_milk_truck_skips_open_parts_with_warning(runs: dict[str, Run]) -> None:
 def test_building_scene(runs: dict[str, Run]) -> None:
     run = runs["building"]
     summary = info_json(run.model)
-    assert {"brick", "concrete"} <= set(summary["materials_used"])
+    assert {"brick", "reinforced_concrete"} <= set(summary["materials_used"])
     assert summary["voxel_count"] > 0 and summary["foundation_voxel_count"] > 0
     assert summary["conform_voxel_count"] > 0
     assert summary["seed"] == 7

@@ -92,6 +92,13 @@ def simulate(
             specs.append(ChargeSpec(position, kg, explosive, t))
         overrides["charges"] = tuple(specs)
     settings = replace(settings, **overrides)
+    if charge:
+        from blastvox.simulate.blast import tnt_equivalent
+
+        try:
+            tnt_equivalent(explosive)
+        except BlastvoxError as exc:
+            raise BlastvoxError(f"--explosive: {exc}") from None
     if not settings.charges:
         raise BlastvoxError(f"{scene or model_path}: no charges: give --charge X,Y,Z:KG or "
                             f"[[charges]] in the scene")

@@ -67,6 +67,8 @@ def read_npz(path: str | os.PathLike, schema: str, max_version: int,
     p = Path(path)
     if not p.is_file():
         raise ContractError(f"{p}: no such {what}")
+    if not zipfile.is_zipfile(p):
+        raise ContractError(f"{p}: not a blastvox {what} (not an .npz archive)")
     try:
         with np.load(p, allow_pickle=False) as data:
             if META_KEY not in data.files:
@@ -74,8 +76,9 @@ def read_npz(path: str | os.PathLike, schema: str, max_version: int,
             arrays = {k: data[k] for k in data.files}
     except ContractError:
         raise
-    except ValueError as exc:  # pickled members refuse to load with allow_pickle=False
-        raise ContractError(f"{p}: not a blastvox {what} ({exc})") from None
+    except ValueError:  # pickled members refuse to load with allow_pickle=False
+        raise ContractError(f"{p}: not a blastvox {what} (it holds pickled objects, which "
+                            f"blastvox never loads)") from None
     except (OSError, zipfile.BadZipFile, EOFError) as exc:
         raise ContractError(
             f"{p}: not a readable .npz {what} (truncated or foreign: {exc})") from None
