@@ -99,10 +99,15 @@ def synthetic(tmp_path_factory) -> SimCache:
         a["voxel_mass"][dust], "dust_position": dust_pos, "dust_velocity": dust_vel,
         "charge_position": np.array([[0.0, -3.0, 0.25]]), "charge_tnt_kg": np.array([5.0]),
         "charge_time": np.array([0.15]), "shock_radius": radius[:, None],
+        # the destroyed voxels' dust as particles of the dust system (index 0)
+        "particle_system": np.zeros(len(dust), np.uint8),
+        "particle_birth": np.full(len(dust), t_dust), "particle_position": dust_pos,
+        "particle_velocity": dust_vel, "particle_size": np.full(len(dust), 0.1, np.float32),
     }
     assert n == 16
     return SimCache(arrays=arrays, model=model,
-                    meta={"fps": FPS, "settings": {"gravity": GRAVITY}})
+                    meta={"fps": FPS, "settings": {"gravity": GRAVITY},
+                          "gravity_vector": [0.0, 0.0, -GRAVITY]})
 
 
 @pytest.fixture(scope="module")
@@ -307,12 +312,14 @@ def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
 
 @pytest.mark.parametrize("up", ["Y", "Z"])
 def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
+    from blastvox.simulate.particles import positions_at
+
     stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
     points = UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
     assert points
     c = frame_change("Z", up)
     g = c @ np.array([0.0, 0.0, -GRAVITY])
-    q = len(synthetic.dust_voxel)
+    q = len(synthetic.particle_birth)
     for f in range(F):
         got = np.asarray(points.GetPointsAttr().Get(f))
         ids = np.asarray(points.GetIdsAttr().Get(f))
@@ -320,30 +327,32 @@ def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
             assert len(got) == 0
             continue
         assert np.array_equal(ids, np.arange(q))
-        age = synthetic.frame_time[f] - synthetic.dust_time
-        want = (synthetic.dust_position + synthetic.dust_velocity * age[:, None]) @ c.T \
-            + 0.5 * g * age[:, None] ** 2
+        alive, want = positions_at(synthetic.particle_birth, synthetic.particle_position @ c.T,
+                                   synthetic.particle_velocity @ c.T, synthetic.particle_system,
+                                   float(synthetic.frame_time[f]), g)
+        assert np.array_equal(alive, np.arange(q))
         assert np.allclose(got, want, atol=1e-5)
         assert len(points.GetWidthsAttr().Get(f)) == q
 
 
 def test_dust_is_dropped_after_its_lifetime(synthetic, tmp_path):
+    from blastvox.simulate.particles import SYSTEMS
+
+    life = SYSTEMS["dust"].lifetime
     arrays = dict(synthetic.arrays)
-    arrays["dust_time"] = np.full(len(arrays["dust_time"]), -1.95)  # before the shot
+    arrays["particle_birth"] = np.full(len(arrays["particle_birth"]), 0.05 - life)
     cache = SimCache(arrays=arrays, model=synthetic.model, meta=synthetic.meta)
     stage = _write(cache, tmp_path / "shot.usda")
     points = UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
-    assert len(points.GetPointsAttr().Get(0)) == len(cache.dust_voxel)    # 1.95 s old
-    assert len(points.GetPointsAttr().Get(1)) == 0                        # 2.05 s old
-    assert len(points.GetPointsAttr().Get(F - 1)) == 0
+    assert len(points.GetPointsAttr().Get(0)) == len(cache.particle_birth)  # just alive
+    assert len(points.GetPointsAttr().Get(F - 1)) == 0                      # expired
 
 
 def test_no_dust_no_points_prim(synthetic, tmp_path):
     arrays = dict(synthetic.arrays)
-    for key in ("dust_voxel", "dust_time", "dust_mass"):
-        arrays[key] = arrays[key][:0]
-    for key in ("dust_position", "dust_velocity"):
-        arrays[key] = arrays[key][:0]
+    for key in list(arrays):
+        if key.startswith(("dust_", "particle_")):
+            arrays[key] = arrays[key][:0]
     cache = SimCache(arrays=arrays, model=synthetic.model, meta=synthetic.meta)
     stage = _write(cache, tmp_path / "shot.usda")
     assert not stage.GetPrimAtPath("/Shot/Particles")

@@ -13,7 +13,8 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
         Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
                                                   (quath) and orientationsf (quatf, which
                                                   readers prefer), extent and invisibleIds
-      Particles/dust (Points)                     dust emitters, ballistic for DUST_LIFE_S
+      Particles/<system> (Points)                 dust, fire, smoke, fireball particles
+      Camera                                      the scene camera, shake baked in
       Effects/shock_<c> (Sphere)                  shock front of charge c
 
 Speed: every call into the USD Python bindings costs microseconds, and creating
@@ -44,9 +45,10 @@ from blastvox.export.pieces import animation, frame_change, piece_meshes
 from blastvox.io.atomic import atomic_path
 
 ROOT = "/Shot"
-DUST_LIFE_S = 2.0
 ROUGHNESS = 0.8
 SHOCK_COLOR = (0.9, 0.9, 0.95)
+PARTICLE_COLORS = {"dust": (0.55, 0.50, 0.45), "fire": (1.0, 0.45, 0.05),
+                   "smoke": (0.25, 0.25, 0.25), "fireball": (1.0, 0.75, 0.2)}
 NANO_LIMIT = 9.0e9  # m: |translation| * 1e9 must fit an int64
 _T = Sdf.ValueTypeNames
 
@@ -234,6 +236,7 @@ class _Writer:
             shot = layer.GetPrimAtPath(ROOT)
             self._dust(shot)
             self._shock(shot)
+            self._camera(shot)
         return layer
 
     # -- numpy preparation
@@ -522,48 +525,93 @@ class _Writer:
                 set_sample(invisible, float(f), Vt.Int64Array.FromNumpy(gone))
                 gone_count = len(gone)
 
-    # -- dust
+    # -- particles
     def _dust(self, shot: Sdf.PrimSpec) -> None:
+        """One UsdGeomPoints per particle system (dust, fire, smoke, fireball) with
+        time-sampled points, velocities, widths and ids, from the cache's particle
+        births evaluated in closed form (blastvox.simulate.particles)."""
+        from blastvox.simulate.particles import SYSTEM_NAMES, SYSTEMS, positions_at
+
         c = self.cache
-        if len(c.dust_voxel) == 0 or self.frames == 0:
+        system = c.arrays.get("particle_system")
+        if system is None or len(system) == 0 or self.frames == 0:
             return
         scope = _prim(shot, "Particles", "Xform")
-        points = _prim(scope, "dust", "Points")
         g = self.change @ _gravity(c)
-        x0 = c.dust_position.astype(np.float64) @ self.change.T
-        v0 = c.dust_velocity.astype(np.float64) @ self.change.T
-        t0 = c.dust_time.astype(np.float64)
-        volume = c.model.voxel_volume[c.dust_voxel.astype(np.int64)]
-        width = np.cbrt(np.maximum(volume, 0.0)).astype(np.float32)
-        material = c.model.voxel_material[c.dust_voxel.astype(np.int64)].astype(np.int64)
-        color = self.damage_colors[np.bincount(material).argmax()]
-        ids_all = np.arange(len(t0), dtype=np.int64)
-        _attr(points, "primvars:displayColor", _T.Color3fArray,
-              Vt.Vec3fArray([Gf.Vec3f(*map(float, color))]), interpolation="constant")
-        specs = {name: _attr(points, name, kind) for name, kind in
-                 (("points", _T.Point3fArray), ("velocities", _T.Vector3fArray),
-                  ("widths", _T.FloatArray),
-                  ("ids", _T.Int64Array), ("extent", _T.Float3Array))}
+        x0 = c.particle_position.astype(np.float64) @ self.change.T
+        v0 = c.particle_velocity.astype(np.float64) @ self.change.T
+        birth = c.particle_birth.astype(np.float64)
+        size = c.particle_size.astype(np.float32)
         layer = self.layer
-        eps = 1e-9
-        previous_empty = False
-        for f, t in enumerate(c.frame_time.astype(np.float64).tolist()):
-            age = t - t0
-            alive = (age >= -eps) & (age <= DUST_LIFE_S + eps)
-            if not alive.any() and previous_empty:
-                continue  # an empty frame after an empty frame adds nothing
-            previous_empty = not alive.any()
-            a = np.maximum(age[alive], 0.0)[:, None]
-            x = x0[alive] + v0[alive] * a + 0.5 * g * a * a
-            w = width[alive]
-            box = (np.stack([(x - w[:, None] / 2).min(axis=0), (x + w[:, None] / 2).max(axis=0)])
-                   if len(x) else np.zeros((2, 3)))
-            layer.SetTimeSample(specs["points"].path, float(f), _vec3f(x))
-            layer.SetTimeSample(specs["velocities"].path, float(f), _vec3f(v0[alive] + g * a))
-            layer.SetTimeSample(specs["widths"].path, float(f), Vt.FloatArray.FromNumpy(w))
-            layer.SetTimeSample(specs["ids"].path, float(f),
-                                Vt.Int64Array.FromNumpy(np.ascontiguousarray(ids_all[alive])))
-            layer.SetTimeSample(specs["extent"].path, float(f), _vec3f(box))
+        for index, name in enumerate(SYSTEM_NAMES):
+            mine = np.flatnonzero(system == index)
+            if not mine.size:
+                continue
+            points = _prim(scope, name, "Points")
+            _attr(points, "primvars:displayColor", _T.Color3fArray,
+                  Vt.Vec3fArray([Gf.Vec3f(*PARTICLE_COLORS[name])]), interpolation="constant")
+            specs = {key: _attr(points, key, kind) for key, kind in
+                     (("points", _T.Point3fArray), ("velocities", _T.Vector3fArray),
+                      ("widths", _T.FloatArray), ("ids", _T.Int64Array),
+                      ("extent", _T.Float3Array))}
+            spec = SYSTEMS[name]
+            sys_index = np.full(len(mine), index, dtype=np.uint8)
+            previous_empty = False
+            for f, t in enumerate(c.frame_time.astype(np.float64).tolist()):
+                alive, x = positions_at(birth[mine], x0[mine], v0[mine], sys_index, t, g)
+                if not alive.size and previous_empty:
+                    continue  # an empty frame after an empty frame adds nothing
+                previous_empty = not alive.size
+                age = t - birth[mine][alive]
+                decay = np.exp(-spec.drag * age)[:, None]
+                vel = v0[mine][alive] * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
+                w = size[mine][alive]
+                box = (np.stack([(x - w[:, None] / 2).min(axis=0),
+                                 (x + w[:, None] / 2).max(axis=0)])
+                       if len(x) else np.zeros((2, 3)))
+                layer.SetTimeSample(specs["points"].path, float(f), _vec3f(x))
+                layer.SetTimeSample(specs["velocities"].path, float(f), _vec3f(vel))
+                layer.SetTimeSample(specs["widths"].path, float(f), Vt.FloatArray.FromNumpy(w))
+                layer.SetTimeSample(specs["ids"].path, float(f),
+                                    Vt.Int64Array.FromNumpy(np.ascontiguousarray(
+                                        mine[alive].astype(np.int64))))
+                layer.SetTimeSample(specs["extent"].path, float(f), _vec3f(box))
+
+    # -- camera
+    def _camera(self, shot: Sdf.PrimSpec) -> None:
+        """The scene's camera with the blast's shake baked into its translation."""
+        camera = self.cache.meta.get("camera")
+        if not camera:
+            return
+        position = np.asarray(camera["position"], dtype=np.float64) @ self.change.T
+        target = np.asarray(camera["look_at"], dtype=np.float64) @ self.change.T
+        offset = np.asarray(self.cache.arrays.get("camera_offset", np.zeros((self.frames, 3))),
+                            dtype=np.float64) @ self.change.T
+        up = np.zeros(3)
+        up["XYZ".index(self.options.up_axis)] = 1.0
+        back = position - target
+        back /= np.linalg.norm(back)
+        right = np.cross(up, back)
+        if np.linalg.norm(right) < 1e-9:  # looking straight along up
+            right = np.cross(np.roll(up, 1), back)
+        right /= np.linalg.norm(right)
+        true_up = np.cross(back, right)
+        # USD cameras look down -Z with +Y up; in USD's row-vector convention the
+        # rows of the local-to-world matrix are the camera's axes in the world
+        rotation = Gf.Matrix3d(*np.stack([right, true_up, back]).ravel().tolist())
+        quat = rotation.ExtractRotation().GetQuat()
+        cam = _prim(shot, "Camera", "Camera")
+        _attr(cam, "focalLength", _T.Float, float(camera.get("focal_length_mm", 35.0)))
+        _attr(cam, "horizontalAperture", _T.Float, 36.0)
+        _attr(cam, "verticalAperture", _T.Float, 24.0)
+        _attr(cam, "clippingRange", _T.Float2, Gf.Vec2f(0.1, 10000.0))
+        translate = _attr(cam, "xformOp:translate", _T.Double3)
+        _attr(cam, "xformOp:orient", _T.Quatd, Gf.Quatd(quat))
+        _xform_order(cam, ["xformOp:translate", "xformOp:orient"])
+        keep = _run_ends(offset)
+        for f in np.flatnonzero(keep).tolist():
+            self.layer.SetTimeSample(translate.path, float(f),
+                                     Gf.Vec3d(*map(float, position + offset[f])))
 
     # -- shock fronts
     def _shock(self, shot: Sdf.PrimSpec) -> None:
