@@ -219,6 +219,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str
                 channel(len(nodes) - 1, "scale", t_acc,
                         b.accessor(sc_view, c * n_frames * 12, FLOAT, n_frames, "VEC3"))
 
+    cameras = _camera(cache, b, nodes, channel, t_acc if n_frames else None)
+
     nodes.append({"name": "blastvox", "children": list(range(len(nodes)))})
     fps = cache.meta.get("fps")
     doc: dict[str, Any] = {
@@ -230,6 +232,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str
                                "piece_count": n_pieces}}],
         "nodes": nodes,
     }
+    if cameras:
+        doc["cameras"] = cameras
     if meshes:
         doc["meshes"] = meshes
     if mats:
@@ -245,6 +249,40 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str
             buffer["uri"] = buffer_uri
         doc["buffers"] = [buffer]
     return doc, blob
+
+
+def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[dict]:
+    """The scene's camera (if any) as a perspective camera node whose translation is
+    animated with the baked shake; glTF cameras look down -Z with +Y up."""
+    camera = cache.meta.get("camera")
+    if not camera:
+        return []
+    change = frame_change(cache.model.meta.get("up_axis", "Y"), "Y")
+    position = np.asarray(camera["position"], dtype=np.float64) @ change.T
+    target = np.asarray(camera["look_at"], dtype=np.float64) @ change.T
+    offset = np.asarray(cache.arrays.get("camera_offset", np.zeros((cache.frame_count, 3))),
+                        dtype=np.float64) @ change.T
+    back = (position - target) / np.linalg.norm(position - target)
+    right = np.cross([0.0, 1.0, 0.0], back)
+    if np.linalg.norm(right) < 1e-9:
+        right = np.array([1.0, 0.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    rot = np.stack([right, up, back], axis=1)  # columns: camera axes in the world
+    w = np.sqrt(max(1e-12, 1.0 + np.trace(rot))) / 2.0
+    quat = np.array([(rot[2, 1] - rot[1, 2]) / (4 * w), (rot[0, 2] - rot[2, 0]) / (4 * w),
+                     (rot[1, 0] - rot[0, 1]) / (4 * w), w])
+    quat /= np.linalg.norm(quat)
+    focal = float(camera.get("focal_length_mm", 35.0))
+    nodes.append({"name": "camera", "camera": 0, "translation": _floats(position + offset[0]),
+                  "rotation": _floats(quat)})
+    if t_acc is not None and np.abs(offset).max() > 0:
+        view = b.view(_f32((position + offset).astype(np.float32)))
+        channel(len(nodes) - 1, "translation", t_acc,
+                b.accessor(view, 0, FLOAT, len(offset), "VEC3"))
+    return [{"name": "camera", "type": "perspective", "perspective": {
+        "yfov": float(2.0 * np.arctan(24.0 / (2.0 * focal))), "aspectRatio": 1.5,
+        "znear": 0.1, "zfar": 10000.0}}]
 
 
 def _gltf_quaternions(wxyz: np.ndarray) -> np.ndarray:
