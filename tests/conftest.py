@@ -1,4 +1,10 @@
-"""Shared fixtures: paths to the real test meshes and small helpers."""
+"""Shared fixtures: paths to the real test meshes, and a warm numba cache.
+
+The first use of the simulator compiles its numba kernels (about a minute on
+two cores) and caches them beside the sources. Tests that start many
+``blastvox`` subprocesses at once would otherwise all compile the same kernels
+concurrently, so the session starts by compiling them once, in-process.
+"""
 
 from __future__ import annotations
 
@@ -12,3 +18,23 @@ DATA = Path(__file__).parent / "data"
 @pytest.fixture(scope="session")
 def data_dir() -> Path:
     return DATA
+
+
+@pytest.fixture(scope="session", autouse=True)
+def warm_numba_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Run a tiny voxelize -> simulate (every effect on) once per test session."""
+    import trimesh
+
+    from blastvox.simulate.run import simulate
+    from blastvox.simulate.settings import ChargeSpec, SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    tmp = tmp_path_factory.mktemp("warmup")
+    trimesh.creation.box(extents=(1.0, 0.5, 1.0)).export(tmp / "wall.stl")
+    for shape, fracture in (("cube", "yield"), ("conform", "damage")):
+        model = voxelize([ObjectRequest(mesh=tmp / "wall.stl", voxel_size=(0.25,) * 3,
+                                        material="wood", shape=shape)],
+                         VoxelizeSettings(up_axis="Z"))
+        simulate(model, SimSettings(duration=0.3, fracture=fracture,
+                                    camera=((0.0, -10.0, 1.0), (0.0, 0.0, 0.5), 35.0),
+                                    charges=(ChargeSpec((0.0, -1.5, 0.5), 2.0),)))

@@ -41,6 +41,22 @@ def _world(rest, body, body_pos, body_rot, body_com, out):
 
 
 @nb.njit(cache=True)
+def oriented_yield(yield_pa, orientation, rot, direction, point, charge, r) -> float:
+    """Yield (Pa) of a link after the orientation factor: Y (1 - k |R_hat . l_hat|).
+
+    rot: the body's rotation; direction: the link's rest direction; point: where
+    the wave's radius vector R = point - charge (|R| = r) is taken.
+    """
+    if r <= 0.0:
+        return yield_pa
+    cosang = 0.0
+    for a in range(3):
+        la = rot[a, 0] * direction[0] + rot[a, 1] * direction[1] + rot[a, 2] * direction[2]
+        cosang += la * (point[a] - charge[a]) / r
+    return yield_pa * (1.0 - orientation * abs(cosang))
+
+
+@nb.njit(cache=True)
 def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
     """Distance to charge c if the front crosses ``point`` this step, else -1."""
     dx = point[0] - charge_pos[c, 0]
@@ -76,14 +92,8 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
             if r < 0.0:
                 continue
             peak = peak_overpressure(table, r, charge_scale[c])
-            rot = body_rot[b]
-            cosang = 0.0
-            if r > 0.0:
-                for a in range(3):
-                    la = (rot[a, 0] * link_direction[link, 0] + rot[a, 1] * link_direction[link, 1]
-                          + rot[a, 2] * link_direction[link, 2])
-                    cosang += la * (mid[a] - charge_pos[c, a]) / r
-            limit = link_yield[link] * (1.0 - orientation * abs(cosang))
+            limit = oriented_yield(link_yield[link], orientation, body_rot[b],
+                                   link_direction[link], mid, charge_pos[c], r)
             if peak > limit:
                 link_alive[link] = False
                 broken[link] = True
@@ -196,14 +206,8 @@ def fracture_damage(charge_pos, charge_scale, front_in, front_out, table,
                     link = voxel_link_ids[k]
                     if not link_alive[link]:
                         continue
-                    cosang = 0.0
-                    if r > 0.0:
-                        for a in range(3):
-                            la = (rot[a, 0] * link_direction[link, 0]
-                                  + rot[a, 1] * link_direction[link, 1]
-                                  + rot[a, 2] * link_direction[link, 2])
-                            cosang += la * (centre[a] - charge_pos[c, a]) / r
-                    limit = link_yield[link] * (1.0 - orientation * abs(cosang))
+                    limit = oriented_yield(link_yield[link], orientation, rot,
+                                           link_direction[link], centre, charge_pos[c], r)
                     if limit < weakest_limit:
                         weakest_limit = limit
                         weakest = link
