@@ -24,8 +24,24 @@ $(VALIDATOR): tools/gltf-validator/package-lock.json
 	npm ci --prefix tools/gltf-validator --no-audit --no-fund --loglevel=error
 	touch $(VALIDATOR)
 
+# Blender as a Python module (bpy, tools/blender/requirements.txt) in its own venv: it
+# pins its own numpy, and its wheel is for CPython 3.11 only. tests/test_blender_import.py
+# imports the USD and glTF exports with it (and skips without it).
+BLENDER_PYTHON ?= python3.11
+BLENDER_VENV   := .venv-blender
+BLENDER_STAMP  := $(BLENDER_VENV)/.installed
+
+.PHONY: blender-venv
+## blender-venv: create .venv-blender with bpy, for the Blender import test
+blender-venv: $(BLENDER_STAMP)
+
+$(BLENDER_STAMP): tools/blender/requirements.txt
+	$(BLENDER_PYTHON) -m venv $(BLENDER_VENV)
+	$(BLENDER_VENV)/bin/python -m pip install --quiet -r tools/blender/requirements.txt
+	touch $(BLENDER_STAMP)
+
 ## test: install, then lint and run the whole test suite
-test: $(STAMP) $(VALIDATOR)
+test: $(STAMP) $(VALIDATOR) $(BLENDER_STAMP)
 	$(BIN)/ruff check blastvox tests benchmarks
 	$(BIN)/python -m pytest -q
 
