@@ -87,7 +87,12 @@ def test_energy_never_grows_after_the_blast(tmp_path):
             energies.append(_energy(st, 9.81))
     assert int(st.n_bodies[0]) > 200  # a real pile-up of a few hundred pieces
     e = np.array(energies)
-    assert np.all(np.diff(e) <= 1e-9 * e[0]), np.diff(e).max()
+    # Never above the energy the pile had once the wave passed, and no step adds
+    # more than 1e-5 of it: impulses only remove energy, but the explicit rotation
+    # update of a tumbling, asymmetric piece has an O(dt^2) error of either sign.
+    assert e.max() <= e[0] * (1 + 1e-9)
+    assert np.all(np.diff(e) <= 1e-5 * e[0]), np.diff(e).max()
+    assert e[-1] < 0.5 * e[0]  # and the pile really does settle
 
 
 def _energy(st, g):

@@ -296,96 +296,124 @@ def _cell_key(x, y, z, cell):
 
 
 @nb.njit(cache=True)
+def _moving(b, body_live, body_dust, body_fixed, body_asleep) -> bool:
+    return body_live[b] and not body_dust[b] and not body_fixed[b] and not body_asleep[b]
+
+
+@nb.njit(cache=True)
+def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos, body_rot,
+                body_live, body_dust, body_fixed, body_asleep, n_bodies, cell):
+    """Spatial hash (sorted keys, voxels, positions) of the boundary voxels of bodies that
+    do not move (fixed or asleep). Rebuilt only when that set changes."""
+    count = 0
+    for b in range(n_bodies):
+        if body_live[b] and not body_dust[b] and (body_fixed[b] or body_asleep[b]):
+            count += offsets[b + 1] - offsets[b]
+    vox = np.empty(count, dtype=np.int64)
+    pos = np.empty((count, 3))
+    keys = np.empty(count, dtype=np.int64)
+    n = 0
+    for b in range(n_bodies):
+        if not (body_live[b] and not body_dust[b] and (body_fixed[b] or body_asleep[b])):
+            continue
+        for k in range(offsets[b], offsets[b + 1]):
+            _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, pos, n)
+            vox[n] = members[k]
+            keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
+            n += 1
+    order = np.argsort(keys, kind="quicksort")
+    return keys[order], vox[order], pos[order]
+
+
+@nb.njit(cache=True)
+def _place(v, b, voxel_centroid, body_com, body_pos, body_rot, pos, n) -> None:
+    rot = body_rot[b]
+    x = voxel_centroid[v, 0] - body_com[b, 0]
+    y = voxel_centroid[v, 1] - body_com[b, 1]
+    z = voxel_centroid[v, 2] - body_com[b, 2]
+    for a in range(3):
+        pos[n, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
+
+
+@nb.njit(cache=True)
 def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield, voxel_alive,
                    voxel_body, offsets, members, body_mass, body_inv_inertia, body_radius,
                    body_com, body_pos, body_rot, body_lin, body_ang, body_fixed, body_live,
                    body_dust, body_asleep, n_bodies, wake_speed, voxel_density, weakening,
-                   destroyed, dirty, hits_out, max_radius) -> int:
+                   destroyed, dirty, hits_out, cell, static_keys, static_vox,
+                   static_pos) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.
 
-    voxel_radius (N,): collision radius (m), at most ``max_radius``. Impacts
-    weaken the voxels they hit by ``weakening`` x the impact pressure
+    voxel_radius (N,): collision radius (m), at most cell / 2. Boundary voxels of
+    moving bodies that lie inside another body's bounding sphere are hashed each
+    step; voxels of bodies at rest (fixed or asleep) come from ``static_*``
+    (:func:`static_hash`), so a big standing structure costs nothing per step.
+    Impacts weaken the voxels they hit by ``weakening`` x the impact pressure
     rho v_n^2 / 2 (Pa; rho the voxel's density in kg/m^3, v_n the approach
     speed): a stone voxel shrugs off 5 m/s (33 kPa) and turns to dust at
     20 m/s (520 kPa, above its yield). A voxel whose yield that pressure
-    exceeds is marked in ``destroyed`` (its body in ``dirty``). hits_out (H, 4) receives
-    contact points and impulses (for dust); returns the number of contacts
-    resolved.
+    exceeds is marked in ``destroyed`` (its body in ``dirty``). hits_out (H, 4)
+    receives contact points and impulses (for dust); returns the number of
+    contacts resolved.
     """
-    # broad phase: sort-and-sweep of body spheres along x; at least one body moving
+    # broad phase: sort and sweep of body spheres along x; pairs with a moving body
     order = np.argsort(body_pos[:n_bodies, 0] - body_radius[:n_bodies], kind="quicksort")
-    pairs = np.empty((64, 2), dtype=np.int64)
-    n_pairs = 0
+    near = np.zeros(voxel_body.shape[0], dtype=np.bool_)
+    count = 0
     for ii in range(n_bodies):
         a = order[ii]
         if not body_live[a] or body_dust[a]:
             continue
-        a_moves = not body_fixed[a] and not body_asleep[a]
+        a_moves = _moving(a, body_live, body_dust, body_fixed, body_asleep)
         for jj in range(ii + 1, n_bodies):
             b = order[jj]
             if body_pos[b, 0] - body_radius[b] > body_pos[a, 0] + body_radius[a]:
                 break
             if not body_live[b] or body_dust[b]:
                 continue
-            if not a_moves and (body_fixed[b] or body_asleep[b]):
+            b_moves = _moving(b, body_live, body_dust, body_fixed, body_asleep)
+            if not a_moves and not b_moves:
                 continue
             d2 = 0.0
             for c in range(3):
                 d2 += (body_pos[a, c] - body_pos[b, c]) ** 2
-            if d2 < (body_radius[a] + body_radius[b]) ** 2:
-                if n_pairs == pairs.shape[0]:
-                    grown = np.empty((2 * n_pairs, 2), dtype=np.int64)
-                    grown[:n_pairs] = pairs
-                    pairs = grown
-                pairs[n_pairs, 0] = a
-                pairs[n_pairs, 1] = b
-                n_pairs += 1
-    if n_pairs == 0:
-        return 0
-    # mid phase: only boundary voxels inside the other body's sphere go in the hash
-    rmax = max_radius
-    near = np.zeros(voxel_body.shape[0], dtype=np.bool_)
-    count = 0
-    for p in range(n_pairs):
-        for side in range(2):
-            b = pairs[p, side]
-            other = pairs[p, 1 - side]
-            rot = body_rot[b]
-            reach = body_radius[other] + 2.0 * rmax
-            for k in range(offsets[b], offsets[b + 1]):
-                v = members[k]
-                if near[v]:
+            if d2 >= (body_radius[a] + body_radius[b]) ** 2:
+                continue
+            # mid phase: a moving body's voxels inside the other's sphere
+            for side in range(2):
+                mover = a if side == 0 else b
+                other = b if side == 0 else a
+                if not _moving(mover, body_live, body_dust, body_fixed, body_asleep):
                     continue
-                x = voxel_centroid[v, 0] - body_com[b, 0]
-                y = voxel_centroid[v, 1] - body_com[b, 1]
-                z = voxel_centroid[v, 2] - body_com[b, 2]
-                d2 = 0.0
-                for a in range(3):
-                    w = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
-                    d2 += (w - body_pos[other, a]) ** 2
-                if d2 < reach * reach:
-                    near[v] = True
-                    count += 1
+                reach = body_radius[other] + cell
+                rot = body_rot[mover]
+                for k in range(offsets[mover], offsets[mover + 1]):
+                    v = members[k]
+                    if near[v]:
+                        continue
+                    x = voxel_centroid[v, 0] - body_com[mover, 0]
+                    y = voxel_centroid[v, 1] - body_com[mover, 1]
+                    z = voxel_centroid[v, 2] - body_com[mover, 2]
+                    d2 = 0.0
+                    for c in range(3):
+                        w = (body_pos[mover, c] + rot[c, 0] * x + rot[c, 1] * y
+                             + rot[c, 2] * z)
+                        d2 += (w - body_pos[other, c]) ** 2
+                    if d2 < reach * reach:
+                        near[v] = True
+                        count += 1
     if count == 0:
         return 0
-    cell = 2.0 * rmax
     vox = np.empty(count, dtype=np.int64)
     pos = np.empty((count, 3))
     keys = np.empty(count, dtype=np.int64)
     n = 0
     for v in range(voxel_body.shape[0]):
-        if not near[v]:
-            continue
-        b = voxel_body[v]
-        rot = body_rot[b]
-        x = voxel_centroid[v, 0] - body_com[b, 0]
-        y = voxel_centroid[v, 1] - body_com[b, 1]
-        z = voxel_centroid[v, 2] - body_com[b, 2]
-        for a in range(3):
-            pos[n, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
-        vox[n] = v
-        keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
-        n += 1
+        if near[v]:
+            _place(v, voxel_body[v], voxel_centroid, body_com, body_pos, body_rot, pos, n)
+            vox[n] = v
+            keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
+            n += 1
     sort = np.argsort(keys, kind="quicksort")
     skeys = keys[sort]
     resolved = 0
@@ -398,21 +426,34 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                 for dz in range(-1, 2):
                     key = _cell_key(pos[i, 0] + dx * cell, pos[i, 1] + dy * cell,
                                     pos[i, 2] + dz * cell, cell)
+                    # moving against moving: each pair once (lower voxel first)
                     lo = np.searchsorted(skeys, key)
                     hi = np.searchsorted(skeys, key, side="right")
                     for jj in range(lo, hi):
                         j = sort[jj]
                         vj = vox[j]
                         bj = voxel_body[vj]
-                        if vj <= vi or bj == bi:
-                            continue
-                        if not voxel_alive[vi] or not voxel_alive[vj]:
+                        if vj <= vi or bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:
                             continue
                         resolved += _resolve_pair(
                             vi, vj, bi, bj, pos[i], pos[j], voxel_radius, voxel_restitution,
                             voxel_yield, voxel_alive, body_mass, body_inv_inertia, body_pos,
                             body_rot, body_lin, body_ang, body_fixed, body_asleep, wake_speed,
                             voxel_density, weakening, destroyed, dirty, hits_out, resolved)
+                    # moving against resting
+                    lo = np.searchsorted(static_keys, key)
+                    hi = np.searchsorted(static_keys, key, side="right")
+                    for jj in range(lo, hi):
+                        vj = static_vox[jj]
+                        bj = voxel_body[vj]
+                        if bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:
+                            continue
+                        resolved += _resolve_pair(
+                            vi, vj, bi, bj, pos[i], static_pos[jj], voxel_radius,
+                            voxel_restitution, voxel_yield, voxel_alive, body_mass,
+                            body_inv_inertia, body_pos, body_rot, body_lin, body_ang,
+                            body_fixed, body_asleep, wake_speed, voxel_density, weakening,
+                            destroyed, dirty, hits_out, resolved)
     return resolved
 
 

@@ -90,3 +90,38 @@ def wake_on_impulse(impulse, angular, body_asleep, n_bodies) -> None:
                                or impulse[b, 2] != 0.0 or angular[b, 0] != 0.0
                                or angular[b, 1] != 0.0 or angular[b, 2] != 0.0):
             body_asleep[b] = False
+
+
+@nb.njit(cache=True)
+def settle(body_mass, body_inv_inertia, body_rot, body_lin, body_ang, body_radius, body_fixed,
+           body_live, body_dust, body_asleep, body_still, n_bodies, sleep_speed,
+           still_steps) -> None:
+    """Put to sleep bodies that have stayed slower than ``sleep_speed`` (m/s, at their
+    rim) for ``still_steps`` steps in a row: debris resting on other debris or leaning
+    on a structure (the ground contact clamps balanced bodies sooner)."""
+    for b in range(n_bodies):
+        if not body_live[b] or body_fixed[b] or body_dust[b] or body_asleep[b]:
+            body_still[b] = 0
+            continue
+        m = body_mass[b]
+        speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
+        rot = body_rot[b]
+        inv = body_inv_inertia[b]
+        lx, ly, lz = body_ang[b, 0], body_ang[b, 1], body_ang[b, 2]
+        r0 = rot[0, 0] * lx + rot[1, 0] * ly + rot[2, 0] * lz
+        r1 = rot[0, 1] * lx + rot[1, 1] * ly + rot[2, 1] * lz
+        r2 = rot[0, 2] * lx + rot[1, 2] * ly + rot[2, 2] * lz
+        s0 = inv[0, 0] * r0 + inv[0, 1] * r1 + inv[0, 2] * r2
+        s1 = inv[1, 0] * r0 + inv[1, 1] * r1 + inv[1, 2] * r2
+        s2 = inv[2, 0] * r0 + inv[2, 1] * r1 + inv[2, 2] * r2
+        spin = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2) * body_radius[b]
+        if speed < sleep_speed and spin < sleep_speed:
+            body_still[b] += 1
+            if body_still[b] >= still_steps:
+                body_asleep[b] = True
+                body_still[b] = 0
+                for a in range(3):
+                    body_lin[b, a] = 0.0
+                    body_ang[b, a] = 0.0
+        else:
+            body_still[b] = 0

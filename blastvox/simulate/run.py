@@ -35,6 +35,7 @@ from blastvox.simulate.kernels import (
     body_rotations,
     link_alive_counts,
     link_masks,
+    settle,
     wake_on_impulse,
 )
 from blastvox.simulate.particles import Emitter, particle_meta
@@ -175,6 +176,11 @@ class _Run:
         self.contacts = np.zeros((64, 3))
         self.ground = sm.ground_height if settings.ground else None
         self.boundary = None  # (offsets, members), rebuilt after topology changes
+        self.boundary_version = 0
+        self.still = np.zeros(capacity, dtype=np.int64)
+        self.still_steps = max(1, round(0.5 / dt))  # half a second below sleep_speed
+        self.static_key = None
+        self.static = None
         self.broken_total = self.ground_contacts = self.collisions = 0
         self.crossed = np.zeros(sm.n_voxels, dtype=bool)
         combustible = bool(np.isfinite(state.voxel_combust).any())
@@ -223,6 +229,10 @@ class _Run:
             self._collide(step, t1, frame_next)
         if self.ground is not None:
             self._ground()
+        if self.settings.collisions or self.ground is not None:
+            settle(st.body_mass, st.body_inv_inertia, self.rot, st.body_lin, st.body_ang,
+                   st.body_radius, st.body_fixed, st.body_live, st.body_dust, st.body_asleep,
+                   self.still, self.n_bodies, self.settings.sleep_speed, self.still_steps)
         integrate_positions(self.dt, st.body_mass, st.body_inv_inertia, self.rot, st.body_pos,
                             st.body_quat, st.body_lin, st.body_ang, st.body_fixed, st.body_live,
                             st.body_dust, st.body_asleep, self.n_bodies)
@@ -313,11 +323,28 @@ class _Run:
             if need > len(self.contacts):
                 self.contacts = np.zeros((need, 3))
             self.boundary = (offsets, members)
+            self.boundary_version += 1
         return self.boundary
+
+    def _static(self):
+        """The hash of resting bodies' voxels, rebuilt when what rests changes."""
+        st, sm = self.state, self.sm
+        n = self.n_bodies
+        resting = st.body_live[:n] & ~st.body_dust[:n] & (st.body_fixed[:n] | st.body_asleep[:n])
+        key = (self.boundary_version, resting.tobytes())
+        if self.static_key != key:
+            offsets, members = self._boundary()
+            self.static = contact.static_hash(
+                sm.voxel_centroid, st.voxel_body, offsets, members, st.body_com, st.body_pos,
+                self.rot, st.body_live, st.body_dust, st.body_fixed, st.body_asleep, n,
+                2.0 * self.max_contact_radius)
+            self.static_key = key
+        return self.static
 
     def _collide(self, step: int, t1: float, frame_next: int) -> None:
         st, sm, s = self.state, self.sm, self.settings
         offsets, members = self._boundary()
+        static_keys, static_vox, static_pos = self._static()
         self.destroyed[:] = False
         self.dirty[:self.n_bodies] = False
         before = self.collisions
@@ -327,7 +354,7 @@ class _Run:
             st.body_radius, st.body_com, st.body_pos, self.rot, st.body_lin, st.body_ang,
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
             s.sleep_speed, self.voxel_density, s.weakening, self.destroyed, self.dirty, self.hits,
-            self.max_contact_radius)
+            2.0 * self.max_contact_radius, static_keys, static_vox, static_pos)
         resolved = min(self.collisions - before, len(self.hits))
         if self.settings.dust and resolved:
             self._collision_dust(resolved, t1)
