@@ -29,14 +29,13 @@ What Blender 5.0.1 does (found out with this test, and asserted exactly):
 * Pieces, glTF: one object per node, named piece_00000...; a piece that vanishes is
   scaled to 0 from its end frame (STEP), so its geometry collapses to a point.
 * Pieces, USD: with the importer's default ``merge_parent_xform=True`` each
-  Xform piece_NNNNN and its only child Mesh "geom" become one object named after
-  the *mesh*: "geom", "geom.001", ... in no piece order, so the piece names are lost
-  (xfail below). With ``merge_parent_xform=False`` the Xform is an empty named
-  piece_NNNNN (the mesh "geom.NNN" its child): that import is the one checked.
+  Xform piece_NNNNN and its only child Mesh become one object named after the
+  mesh, which is why the export names the mesh after its piece (it was "geom",
+  and the names came out as "geom.001"... in no order).
   Transforms arrive as Transform Cache constraints (only for prims with more than
   one time sample; a piece that never moves is imported static).
-* Vanishing, USD: Blender 5.0 does not import time-sampled ``visibility``, so a
-  piece that vanishes stays shown, frozen at its last pose (xfail below).
+* Vanishing, USD: Blender 5.0 does not import time-sampled ``visibility``, so the
+  export also scales a vanishing piece to 0 at its end frame (as glTF does).
 """
 
 from __future__ import annotations
@@ -155,7 +154,7 @@ def gltf(shot: Shot) -> dict:
 
 @pytest.fixture(scope="module")
 def usd(shot: Shot) -> dict:
-    return _blender(shot.usd, [shot.mid, shot.late], merge_parent_xform=False)
+    return _blender(shot.usd, [shot.mid, shot.late])
 
 
 def _check_pieces(shot: Shot, report: dict, rotation: np.ndarray) -> None:
@@ -217,21 +216,17 @@ def test_usd_import(shot: Shot, usd: dict) -> None:
     _check_pieces(shot, usd, shot.rot_usd)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "Blender 5.0 merges Xform piece_NNNNN with its only child Mesh 'geom' into one "
-    "object named after the mesh ('geom', 'geom.001', ... in no piece order): the USD "
-    "export's piece names are lost on a default import"))
 def test_usd_default_import_keeps_piece_names(shot: Shot) -> None:
     report = _blender(shot.usd, [shot.late])
     assert report["frame_start"] == 0 and report["frame_end"] == shot.frames - 1
     assert report["piece_count"] == shot.pieces
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "Blender 5.0's USD importer ignores time-sampled visibility: a piece that vanishes "
-    "stays shown, frozen at its last pose"))
 def test_usd_vanished_pieces_hidden(shot: Shot, usd: dict) -> None:
+    """A piece gone by the late frame is scaled to 0 there (visibility is not imported)."""
     assert len(shot.gone), "the shot should have pieces that vanish"
     at = usd["frames"][str(shot.late)]
-    shown = [shot.name(p) for p in shot.gone.tolist() if at[shot.name(p)]["bounds"]]
+    shown = [shot.name(p) for p in shot.gone.tolist()
+             if at[shot.name(p)]["bounds"] is not None
+             and np.any(np.ptp(np.asarray(at[shot.name(p)]["bounds"]), axis=0) > 1e-6)]
     assert not shown, f"{len(shown)} of {len(shot.gone)} vanished pieces still shown"

@@ -158,7 +158,7 @@ def test_one_xform_and_mesh_per_piece(synthetic, tmp_path):
     meshes = piece_meshes(synthetic, "Y")
     for p, prim in enumerate(pieces):
         assert prim.IsA(UsdGeom.Xform)
-        mesh = UsdGeom.Mesh(prim.GetChild("geom"))
+        mesh = UsdGeom.Mesh(prim.GetChild(prim.GetName()))
         counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
         assert len(counts) == meshes.offsets[p + 1] - meshes.offsets[p]
         assert np.all(counts == 3)
@@ -184,7 +184,7 @@ def test_world_transform_matches_cache(synthetic, tmp_path, up):
         pos = synthetic.piece_position[f, p].astype(np.float64)
         assert np.allclose(np.array(world.ExtractTranslation()), c @ pos, atol=1e-6)
         # a mesh vertex goes where the cache's rigid transform sends it
-        mesh = UsdGeom.Mesh(prim.GetChild("geom"))
+        mesh = UsdGeom.Mesh(prim.GetChild(prim.GetName()))
         local = np.asarray(mesh.GetPointsAttr().Get(), dtype=np.float64)
         got = np.array([world.Transform(pxr.Gf.Vec3d(*x)) for x in local])
         q = synthetic.piece_orientation[f, p].astype(np.float64)
@@ -222,7 +222,7 @@ def test_visibility_switches_at_end_frame(synthetic, tmp_path):
 # ----------------------------------------------------------------------------- materials
 
 def _subsets(stage: Usd.Stage, p: int) -> dict[str, UsdGeom.Subset]:
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/geom"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/piece_{p:05d}"))
     return {s.GetPrim().GetName(): s for s in
             UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "materialBind")}
 
@@ -234,7 +234,7 @@ def test_damage_subsets_match_piece_meshes(synthetic, tmp_path):
     for p in range(synthetic.piece_count):
         t0, t1 = meshes.offsets[p], meshes.offsets[p + 1]
         subsets = _subsets(stage, p)
-        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/geom"))
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/piece_{p:05d}"))
         assert UsdGeom.Subset.GetFamilyType(mesh, "materialBind") == UsdGeom.Tokens.partition
         valid, reason = UsdGeom.Subset.ValidateFamily(mesh, UsdGeom.Tokens.face, "materialBind")
         assert valid, reason
@@ -266,7 +266,7 @@ def test_material_bindings(synthetic, tmp_path):
             assert np.allclose(shader.GetInput("diffuseColor").Get(), color, atol=1e-6)
             assert shader.GetInput("roughness").Get() == pytest.approx(0.8)
     for p in range(synthetic.piece_count):
-        mesh = stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/geom")
+        mesh = stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/piece_{p:05d}")
         assert mesh.HasAPI(UsdShade.MaterialBindingAPI)
         for name, subset in _subsets(stage, p).items():
             prim = subset.GetPrim()
@@ -276,7 +276,7 @@ def test_material_bindings(synthetic, tmp_path):
             suffix = "_damage" if kind == "damage" else ""
             assert bound.GetPath() == f"/Shot/Materials/{material}{suffix}"
     # displayColor per face agrees with the bound material
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/geom"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/piece_00001"))
     display = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
     assert display.GetInterpolation() == UsdGeom.Tokens.uniform
     values = np.asarray(display.Get())
@@ -290,7 +290,7 @@ def test_material_bindings(synthetic, tmp_path):
 def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usdc")
     meshes = piece_meshes(synthetic, "Y")
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/geom"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/piece_00001"))
     primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("damage")
     assert primvar.GetInterpolation() == UsdGeom.Tokens.uniform
     t0, t1 = meshes.offsets[1], meshes.offsets[2]
@@ -303,7 +303,7 @@ def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
     # samples only around the changes: frame 1 holds the old values, 2 steps, 4 holds, 5 steps
     assert primvar.GetAttr().GetTimeSamples() == [1.0, 2.0, 4.0, 5.0]
     untouched = UsdGeom.PrimvarsAPI(UsdGeom.Mesh(
-        stage.GetPrimAtPath("/Shot/Pieces/piece_00000/geom"))).GetPrimvar("damage")
+        stage.GetPrimAtPath("/Shot/Pieces/piece_00000/piece_00000"))).GetPrimvar("damage")
     assert untouched.GetAttr().GetTimeSamples() == []
     assert np.all(np.asarray(untouched.Get(F - 1)) == 0.0)
 

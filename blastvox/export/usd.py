@@ -5,7 +5,7 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
     /Shot
       Materials/<material>, <material>_damage     UsdPreviewSurface per used material
       Pieces/piece_00000 (Xform)                  layout "xforms": time-sampled translate
-        geom (Mesh)                               (double3) and orient (quatf), visibility
+        piece_NNNNN (Mesh)                             (double3) and orient (quatf), visibility
           surface_<material>, damage_<material>   for pieces that vanish; a static mesh with
                                                   GeomSubsets (materialBind, partition) and a
                                                   time-sampled per-face ``primvars:damage``
@@ -386,10 +386,20 @@ class _Writer:
             out.append((row_o * int(ko.sum())) % tuple(orient[p][ko].ravel().tolist()))
             out.append("            }\n            double3 xformOp:translate.timeSamples = {\n")
             out.append((row_t * int(kt.sum())) % tuple(translate[p][kt].ravel().tolist()))
+            ops = '"xformOp:translate", "xformOp:orient"'
+            if end < f_count:
+                # Blender's USD importer ignores visibility: shrink to nothing as well
+                # held at 1 up to the frame before (samples interpolate linearly)
+                keep = "".join(f"                {f}: (1, 1, 1),\n"
+                               for f in sorted({0, end - 1}) if 0 <= f < end)
+                out.append("            }\n            float3 xformOp:scale.timeSamples = {\n"
+                           f"{keep}                {end}: (0, 0, 0),\n")
+                ops += ', "xformOp:scale"'
             out.append("            }\n"
-                       '            uniform token[] xformOpOrder = ["xformOp:translate", '
-                       '"xformOp:orient"]\n\n')
-            out.append(self._mesh_text("geom", p, "            "))
+                       f"            uniform token[] xformOpOrder = [{ops}]\n\n")
+            # the mesh carries the piece's name, so importers that merge an Xform with
+            # its only child (Blender) keep it
+            out.append(self._mesh_text(f"piece_{p:05d}", p, "            "))
             out.append("        }\n\n")
         out.append("    }\n")
         return "".join(out)
@@ -414,7 +424,7 @@ class _Writer:
     def _mesh_path(self, p: int) -> Sdf.Path:
         if self.instancer:
             return Sdf.Path(f"{ROOT}/Pieces/Prototypes/piece_{p:05d}")
-        return Sdf.Path(f"{ROOT}/Pieces/piece_{p:05d}/geom")
+        return Sdf.Path(f"{ROOT}/Pieces/piece_{p:05d}/piece_{p:05d}")
 
     def _mesh_values(self) -> None:
         m = self.meshes
