@@ -80,17 +80,32 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
     """
     count = 0
     mid = np.empty(3)
+    n_charges = charge_pos.shape[0]
     for link in range(link_voxels.shape[0]):
         if not link_alive[link]:
             continue
         b = voxel_body[link_voxels[link, 0]]
         if not active[b]:
             continue
-        _world(link_midpoint[link], b, body_pos, body_rot, body_com, mid)
-        for c in range(charge_pos.shape[0]):
-            r = crossing(mid, charge_pos, front_in, front_out, c)
-            if r < 0.0:
+        # hot loop over every link while a front crosses the model: scalar code only
+        x = link_midpoint[link, 0] - body_com[b, 0]
+        y = link_midpoint[link, 1] - body_com[b, 1]
+        z = link_midpoint[link, 2] - body_com[b, 2]
+        mx = body_pos[b, 0] + body_rot[b, 0, 0] * x + body_rot[b, 0, 1] * y + body_rot[b, 0, 2] * z
+        my = body_pos[b, 1] + body_rot[b, 1, 0] * x + body_rot[b, 1, 1] * y + body_rot[b, 1, 2] * z
+        mz = body_pos[b, 2] + body_rot[b, 2, 0] * x + body_rot[b, 2, 1] * y + body_rot[b, 2, 2] * z
+        for c in range(n_charges):
+            if front_out[c] <= 0.0:  # not detonated yet
                 continue
+            dx = mx - charge_pos[c, 0]
+            dy = my - charge_pos[c, 1]
+            dz = mz - charge_pos[c, 2]
+            r2 = dx * dx + dy * dy + dz * dz
+            if r2 > front_out[c] * front_out[c] or (front_in[c] >= 0.0
+                                                    and r2 <= front_in[c] * front_in[c]):
+                continue
+            r = math.sqrt(r2)
+            mid[0], mid[1], mid[2] = mx, my, mz
             peak = peak_overpressure(table, r, charge_scale[c])
             limit = oriented_yield(link_yield[link], orientation, body_rot[b],
                                    link_direction[link], mid, charge_pos[c], r)
@@ -116,18 +131,30 @@ def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weaken
     crossed (N,) marks every voxel a front crossed this step (for dust cues).
     """
     released = 0
-    centre = np.empty(3)
+    n_charges = charge_pos.shape[0]
     for v in range(voxel_centroid.shape[0]):
         if not voxel_alive[v]:
             continue
         b = voxel_body[v]
         if not active[b]:
             continue
-        _world(voxel_centroid[v], b, body_pos, body_rot, body_com, centre)
-        for c in range(charge_pos.shape[0]):
-            r = crossing(centre, charge_pos, front_in, front_out, c)
-            if r < 0.0:
+        x = voxel_centroid[v, 0] - body_com[b, 0]
+        y = voxel_centroid[v, 1] - body_com[b, 1]
+        z = voxel_centroid[v, 2] - body_com[b, 2]
+        cx = body_pos[b, 0] + body_rot[b, 0, 0] * x + body_rot[b, 0, 1] * y + body_rot[b, 0, 2] * z
+        cy = body_pos[b, 1] + body_rot[b, 1, 0] * x + body_rot[b, 1, 1] * y + body_rot[b, 1, 2] * z
+        cz = body_pos[b, 2] + body_rot[b, 2, 0] * x + body_rot[b, 2, 1] * y + body_rot[b, 2, 2] * z
+        for c in range(n_charges):
+            if front_out[c] <= 0.0:  # not detonated yet
                 continue
+            dx = cx - charge_pos[c, 0]
+            dy = cy - charge_pos[c, 1]
+            dz = cz - charge_pos[c, 2]
+            r2 = dx * dx + dy * dy + dz * dz
+            if r2 > front_out[c] * front_out[c] or (front_in[c] >= 0.0
+                                                    and r2 <= front_in[c] * front_in[c]):
+                continue
+            r = math.sqrt(r2)
             peak = peak_overpressure(table, r, charge_scale[c])
             crossed[v] = True
             if peak > voxel_yield[v]:
