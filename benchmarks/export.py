@@ -21,15 +21,13 @@ The .glb row is skipped if :mod:`blastvox.export.gltf` is not there.
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import tempfile
 import time
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
+from _machine import machine  # benchmarks/ is on sys.path when run as a script
 
 TARGET_S = {".usdc": 3.0, ".glb": 3.0}
 
@@ -104,27 +102,6 @@ def synthetic_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0, se
                     meta={"fps": fps, "duration": float(t[-1]), "settings": settings})
 
 
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh
-                       if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    versions = ", ".join(f"{p} {_version(p)}" for p in ("blastvox", "numpy", "usd-core"))
-    load = ", ".join(f"{x:.1f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
-    return (f"Machine: {platform.platform()}; {cpu}; {os.cpu_count()} CPUs; load average "
-            f"{load}; Python {platform.python_version()}; {versions}")
-
-
-def _version(package: str) -> str:
-    try:
-        return metadata.version(package)
-    except metadata.PackageNotFoundError:
-        return "?"
-
-
 def _has_gltf() -> bool:
     try:
         import blastvox.export.gltf  # noqa: F401
@@ -148,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     cases = [(".usdc", "xforms"), (".usda", "xforms"), (".usdc", "instancer")]
     if _has_gltf():
         cases.append((".glb", "xforms"))
-    print(machine())
+    print(machine(("blastvox", "numpy", "usd-core")))
     print(f"\nSynthetic SimCache: {cache.piece_count:,} pieces, {cache.frame_count} frames, "
           f"{cache.model.voxel_count:,} voxels, {len(cache.dust_voxel):,} dust emitters, "
           f"{len(cache.damage_frame):,} damage events (built in {build_s:.1f} s); "

@@ -35,15 +35,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from dataclasses import dataclass
-from importlib import metadata
 from pathlib import Path
+
+from _machine import machine  # benchmarks/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "building" / "scene.toml"
@@ -190,26 +190,6 @@ def start_up(building: Path, directory: Path) -> dict:
 # --------------------------------------------------------------------------- report
 
 
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh
-                       if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    versions = ", ".join(f"{p} {_version(p)}" for p in ("blastvox", "numpy", "numba"))
-    return (f"Machine: {platform.platform()}; {cpu}; {os.cpu_count()} CPUs; "
-            f"Python {platform.python_version()}; {versions}")
-
-
-def _version(package: str) -> str:
-    try:
-        return metadata.version(package)
-    except metadata.PackageNotFoundError:
-        return "?"
-
-
 def verdict(ok: bool) -> str:
     return "pass" if ok else "FAIL"
 
@@ -230,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(run_case(CASES[args.worker], args.model, args.repeat)))
         return 0
 
-    print(machine())
+    print(machine(("blastvox", "numpy", "numba")))
     print()
     runs = f"Best of {args.repeat} warm runs" if args.repeat > 1 else "One warm run"
     print(f"{runs} per case after one warm-up run; dt = 1/240 s, 24 fps; "

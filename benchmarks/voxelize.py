@@ -18,15 +18,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import resource
 import subprocess
 import sys
 import time
 from dataclasses import dataclass
-from importlib import metadata
 from pathlib import Path
+
+from _machine import machine  # benchmarks/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"
@@ -96,27 +95,6 @@ def run_in_subprocess(index: int, repeat: int) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh
-                       if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    versions = ", ".join(f"{p} {_version(p)}" for p in ("blastvox", "numpy", "numba", "trimesh",
-                                                         "manifold3d"))
-    return (f"Machine: {platform.platform()}; {cpu}; {os.cpu_count()} CPUs; "
-            f"Python {platform.python_version()}; {versions}")
-
-
-def _version(package: str) -> str:
-    try:
-        return metadata.version(package)
-    except metadata.PackageNotFoundError:
-        return "?"
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="only the small cases")
@@ -132,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(run_case(CASES[args.worker], args.repeat)))
         return 0
 
-    print(machine())
+    print(machine(("blastvox", "numpy", "numba", "trimesh", "manifold3d")))
     print()
     runs = f"Best of {args.repeat} warm runs" if args.repeat > 1 else "One warm run"
     print(f"{runs} per case (after one warm-up run); "
