@@ -92,17 +92,11 @@ class SimCache:
     def save(self, path: str | Path) -> None:
         """Write atomically and deterministically."""
         meta = dict(self.meta)
-        from blastvox import model as model_contract
-
-        # the embedded model's meta carries its own contract stamps however the
-        # model was obtained (just voxelized or loaded), so bytes do not depend on it
-        model_meta = dict(self.model.meta)
-        model_meta.update(schema=model_contract.SCHEMA,
-                          schema_version=model_contract.SCHEMA_VERSION,
-                          units=model_contract.UNITS,
-                          tool_version=model_meta.get("tool_version", __version__))
+        # the embedded model carries its contract stamps however it was obtained
+        # (just voxelized or loaded), so the bytes do not depend on that
         meta.update(schema=SCHEMA, schema_version=SCHEMA_VERSION, units=UNITS,
-                    tool_version=meta.get("tool_version", __version__), model=model_meta)
+                    tool_version=meta.get("tool_version", __version__),
+                    model=self.model.contract_meta())
         arrays = dict(self.arrays)
         arrays.update({MODEL_PREFIX + k: v for k, v in self.model.arrays.items()})
         write_npz(path, arrays, meta)

@@ -111,12 +111,16 @@ class VoxelModel:
         """Voxel corners (N, 8, 3) in metres."""
         return self.arrays["vertices"][self.arrays["voxel_vertices"]]
 
-    def save(self, path: str | Path) -> None:
-        """Write atomically and deterministically to ``path``."""
+    def contract_meta(self) -> dict[str, Any]:
+        """``meta`` with the contract's stamps (schema, version, units, tool version)."""
         meta = dict(self.meta)
         meta.update(schema=SCHEMA, schema_version=SCHEMA_VERSION, units=UNITS,
                     tool_version=meta.get("tool_version", __version__))
-        write_npz(path, self.arrays, meta)
+        return meta
+
+    def save(self, path: str | Path) -> None:
+        """Write atomically and deterministically to ``path``."""
+        write_npz(path, self.arrays, self.contract_meta())
 
     @classmethod
     def load(cls, path: str | Path) -> VoxelModel:

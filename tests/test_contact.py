@@ -101,7 +101,6 @@ def _energy(st, g):
     m = st.body_mass[b]
     kinetic = 0.5 * np.sum(np.sum(st.body_lin[b] ** 2, axis=1) / m)
     for i in b:
-        rot = simrun.body_rotations  # noqa: F841  (rotation from the quaternion below)
         q = st.body_quat[i]
         w, x, y, z = q
         r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],

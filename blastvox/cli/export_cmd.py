@@ -8,15 +8,12 @@ from pathlib import Path
 
 import typer
 
+from blastvox.cli.options import UpAxis
+
 
 class Layout(StrEnum):
     xforms = "xforms"
     instancer = "instancer"
-
-
-class UpAxis(StrEnum):
-    Y = "Y"
-    Z = "Z"
 
 
 def export(

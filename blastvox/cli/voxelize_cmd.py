@@ -8,6 +8,7 @@ from pathlib import Path
 
 import typer
 
+from blastvox.cli.options import UpAxis
 from blastvox.errors import BlastvoxError, SceneError
 
 DEFAULT_RESOLUTION = 32
@@ -16,11 +17,6 @@ DEFAULT_RESOLUTION = 32
 class Shape(StrEnum):
     cube = "cube"
     conform = "conform"
-
-
-class UpAxis(StrEnum):
-    Y = "Y"
-    Z = "Z"
 
 
 def _parse_size(text: str, where: str) -> tuple[float, float, float]:

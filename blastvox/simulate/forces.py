@@ -30,7 +30,7 @@ _FACE_CORNERS = np.array(
 
 
 @nb.njit(cache=True)
-def _apply(point, weight_area, vec_area, ck, c, t0, t1, charge_pos, charge_time, charge_scale,
+def _apply(point, weight_area, vec_area, c, t0, t1, charge_pos, charge_time, charge_scale,
            table, body_pos_b, out_p, out_l, b):
     """Add the impulse at one point for one charge to body b's accumulators."""
     rx = point[0] - charge_pos[c, 0]
@@ -119,7 +119,7 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                         continue
                     _rotate(rot, conform_area[slot, f], area)
                     _to_world(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
-                    _apply(point, 1.0, area, 0, c, t0, t1, charge_pos, charge_time,
+                    _apply(point, 1.0, area, c, t0, t1, charge_pos, charge_time,
                            charge_scale, table, body_pos[b], out_p, out_l, b)
                 continue
             for f in range(6):
@@ -143,5 +143,5 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                 for k in range(4):
                     corner = voxel_vertices[v, _FACE_CORNERS[f, k]]
                     _to_world(rot, body_pos[b], body_com[b], vertices[corner], point)
-                    _apply(point, 0.25, area, k, c, t0, t1, charge_pos, charge_time,
+                    _apply(point, 0.25, area, c, t0, t1, charge_pos, charge_time,
                            charge_scale, table, body_pos[b], out_p, out_l, b)

@@ -7,6 +7,7 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.simulate.integrate import angular_velocity
 from blastvox.simulate.quaternion import matrix_into
 
 
@@ -105,16 +106,8 @@ def settle(body_mass, body_inv_inertia, body_rot, body_lin, body_ang, body_radiu
             continue
         m = body_mass[b]
         speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
-        rot = body_rot[b]
-        inv = body_inv_inertia[b]
-        lx, ly, lz = body_ang[b, 0], body_ang[b, 1], body_ang[b, 2]
-        r0 = rot[0, 0] * lx + rot[1, 0] * ly + rot[2, 0] * lz
-        r1 = rot[0, 1] * lx + rot[1, 1] * ly + rot[2, 1] * lz
-        r2 = rot[0, 2] * lx + rot[1, 2] * ly + rot[2, 2] * lz
-        s0 = inv[0, 0] * r0 + inv[0, 1] * r1 + inv[0, 2] * r2
-        s1 = inv[1, 0] * r0 + inv[1, 1] * r1 + inv[1, 2] * r2
-        s2 = inv[2, 0] * r0 + inv[2, 1] * r1 + inv[2, 2] * r2
-        spin = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2) * body_radius[b]
+        wx, wy, wz = angular_velocity(body_rot[b], body_inv_inertia[b], body_ang[b])
+        spin = math.sqrt(wx * wx + wy * wy + wz * wz) * body_radius[b]
         if speed < sleep_speed and spin < sleep_speed:
             body_still[b] += 1
             if body_still[b] >= still_steps:

@@ -13,14 +13,6 @@ import numpy as np
 
 
 @nb.njit(cache=True)
-def to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) of a unit quaternion q = (w, x, y, z)."""
-    m = np.empty((3, 3))
-    matrix_into(q, m)
-    return m
-
-
-@nb.njit(cache=True)
 def matrix_into(q: np.ndarray, m: np.ndarray) -> None:
     """Write the rotation matrix of unit quaternion q into m (3, 3), no allocation."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -33,17 +25,6 @@ def matrix_into(q: np.ndarray, m: np.ndarray) -> None:
     m[2, 0] = 2.0 * (x * z - w * y)
     m[2, 1] = 2.0 * (y * z + w * x)
     m[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-
-
-@nb.njit(cache=True)
-def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a * b."""
-    out = np.empty(4)
-    out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3]
-    out[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2]
-    out[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1]
-    out[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]
-    return out
 
 
 @nb.njit(cache=True)

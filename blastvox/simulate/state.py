@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from blastvox.model import VoxelModel
-from blastvox.voxelize.lattice import FACE_CORNERS, face_triangles
 
 CONFORM_FACES = 7  # cell faces 0..5 plus the original surface
 
@@ -166,11 +165,3 @@ def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray)
     np.add.at(weight, (owner, tags.astype(np.int64)), mag)
     centroid = moment / np.where(weight > 0, weight, 1.0)[..., None]
     return area, centroid
-
-
-def hex_face_vectors(vertices: np.ndarray, voxel_vertices: np.ndarray) -> np.ndarray:
-    """Outward vector areas (N, 6, 3) of the hexahedral faces, m^2 (for tests and tools)."""
-    quads = voxel_vertices[:, FACE_CORNERS]
-    tris = vertices[face_triangles(quads)]  # (N, 6, 2, 3, 3)
-    return 0.5 * np.cross(tris[..., 1, :] - tris[..., 0, :],
-                          tris[..., 2, :] - tris[..., 0, :]).sum(axis=2)

@@ -280,10 +280,10 @@ def _link(lat: _Lattice) -> None:
     linked[lat.link_voxels[:, 1], lat.link_face - 1] = True
     bits = (~linked).astype(np.uint8) << np.arange(6, dtype=np.uint8)
     boundary = bits.sum(axis=1).astype(np.uint8)
+    # conform voxels with at least one triangle on the original surface
+    owner = np.repeat(lat.conform_local, np.diff(lat.conform_offsets))
     has_surface = np.zeros(len(lat.ijk), dtype=bool)
-    for k, v in enumerate(lat.conform_local.tolist()):
-        tags = lat.conform_tags[lat.conform_offsets[k]:lat.conform_offsets[k + 1]]
-        has_surface[v] = bool(np.any(tags == 6))
+    has_surface[owner[lat.conform_tags == 6]] = True
     boundary[has_surface] |= np.uint8(1 << SURFACE_BIT)
     lat.boundary = boundary
 
