@@ -54,6 +54,7 @@ examples: $(STAMP)
 
 ## bench: print the benchmark tables
 bench: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	$(BIN)/python benchmarks/voxelize.py
 	$(BIN)/python benchmarks/convergence.py
 
