@@ -4,9 +4,25 @@ Momentum form, semi-implicit Euler: :func:`integrate_velocities` adds the
 blast impulse of the step (exact, see :mod:`blastvox.simulate.forces`),
 gravity and drag to the momenta; contacts then change momenta at velocity
 level; :func:`integrate_positions` moves bodies with the resulting velocities.
-Rotation uses the exact exponential map of omega = R I_rest^-1 R^T L, so
-quaternions stay unit and a free spin keeps L exactly. Drag is exponential
-decay of the momenta (1/s rates), stable at any step.
+Drag is exponential decay of the momenta (1/s rates), stable at any step.
+
+Rotation (:func:`rotate_free`) keeps the world angular momentum L fixed and
+turns the body by the exact exponential map of an angular velocity omega that
+is implicit in the step: omega = R I^-1 R^T (L + exp(-h omega^) L) / 2, the
+inertia applied to the mean of the body-frame momentum at both ends of the
+step (the implicit midpoint rule of Euler's equations, with the exponential
+map instead of the Cayley map). That conserves, to round-off, what a free
+rigid body conserves: |q| = 1 (a unit rotation), L (never touched) and the
+kinetic energy L . omega / 2 (the body-frame momentum turns about omega, so
+its change is orthogonal to I^-1 times its mean). A spin about a principal
+axis keeps its exact phase (then omega = I^-1 L, as before). The explicit
+update omega = R I^-1 R^T L of the papers pumps energy into a tumbling,
+asymmetric body until it spins about its axis of least inertia (twice the
+energy within 10 s at 1e3 rad/s, even at dt = 1/2400 s). omega is found by
+fixed-point iteration, on sub-steps of at most :data:`SUBSTEP_RAD` of spin so
+the iteration contracts; a body spinning more than :data:`MAX_SPIN_PER_STEP`
+rad per step falls back to one explicit update (and
+:mod:`blastvox.simulate.limits` warns).
 """
 
 from __future__ import annotations
@@ -17,6 +33,17 @@ import numba as nb
 import numpy as np
 
 from blastvox.simulate import quaternion
+
+#: Spin (rad) of one rotation sub-step, measured as h |L| tr(I^-1) / 3 (|omega| h
+#: for a body of isotropic inertia): small enough that the fixed-point iteration
+#: for the implicit omega contracts by about 4x per iteration whatever the shape.
+SUBSTEP_RAD = 1.0 / 6.0
+#: Sub-steps at most per step; beyond MAX_SPIN_PER_STEP rad per step of spin the
+#: rotation falls back to one explicit update (energy then bounded by L^2 / 2 I_min,
+#: not conserved) and the run warns (blastvox.simulate.limits).
+MAX_SUBSTEPS = 240
+MAX_SPIN_PER_STEP = SUBSTEP_RAD * MAX_SUBSTEPS  # 40 rad
+_MAX_ITERATIONS = 60
 
 
 @nb.njit(cache=True)
@@ -54,14 +81,14 @@ def integrate_positions(dt: float, body_mass: np.ndarray, body_inv_inertia: np.n
     body_inv_inertia: (B, 3, 3) rest-frame I^-1; body_rot: (B, 3, 3) rotation
     matrices of the current quaternions.
     """
+    scratch = np.empty((3, 3))
     for b in range(n_bodies):
         if not moving(b, body_live, body_fixed, body_dust, body_asleep):
             continue
         m = body_mass[b]
         for a in range(3):
             body_pos[b, a] += body_lin[b, a] / m * dt
-        wx, wy, wz = angular_velocity(body_rot[b], body_inv_inertia[b], body_ang[b])
-        quaternion.integrate(body_quat[b], wx, wy, wz, dt)
+        rotate_free(body_quat[b], body_rot[b], body_inv_inertia[b], body_ang[b], dt, scratch)
 
 
 @nb.njit(cache=True)
@@ -78,3 +105,72 @@ def angular_velocity(rot, inv, ang):
     wy = rot[1, 0] * s0 + rot[1, 1] * s1 + rot[1, 2] * s2
     wz = rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2
     return wx, wy, wz
+
+
+@nb.njit(cache=True)
+def spin_rate(inv, ang) -> float:
+    """|L| tr(I^-1) / 3 (rad/s): |omega| for isotropic inertia, otherwise between |omega| / 3
+    and |L| / I_min (inv: (3, 3) rest-frame I^-1 in 1/(kg m^2); ang: (3,) L in N m s)."""
+    norm = math.sqrt(ang[0] * ang[0] + ang[1] * ang[1] + ang[2] * ang[2])
+    return norm * (inv[0, 0] + inv[1, 1] + inv[2, 2]) / 3.0
+
+
+@nb.njit(cache=True)
+def _world_rate(rot, inv, lx, ly, lz):
+    """R I^-1 R^T (lx, ly, lz): :func:`angular_velocity` of a momentum given as scalars."""
+    r0 = rot[0, 0] * lx + rot[1, 0] * ly + rot[2, 0] * lz
+    r1 = rot[0, 1] * lx + rot[1, 1] * ly + rot[2, 1] * lz
+    r2 = rot[0, 2] * lx + rot[1, 2] * ly + rot[2, 2] * lz
+    s0 = inv[0, 0] * r0 + inv[0, 1] * r1 + inv[0, 2] * r2
+    s1 = inv[1, 0] * r0 + inv[1, 1] * r1 + inv[1, 2] * r2
+    s2 = inv[2, 0] * r0 + inv[2, 1] * r1 + inv[2, 2] * r2
+    return (rot[0, 0] * s0 + rot[0, 1] * s1 + rot[0, 2] * s2,
+            rot[1, 0] * s0 + rot[1, 1] * s1 + rot[1, 2] * s2,
+            rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2)
+
+
+@nb.njit(cache=True)
+def _turn(wx, wy, wz, h, vx, vy, vz):
+    """(vx, vy, vz) rotated by the angle |omega| h about omega (Rodrigues), h of any sign."""
+    rate = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if rate == 0.0:
+        return vx, vy, vz
+    ax, ay, az = wx / rate, wy / rate, wz / rate
+    c, s = math.cos(rate * h), math.sin(rate * h)
+    d = (ax * vx + ay * vy + az * vz) * (1.0 - c)
+    return (vx * c + (ay * vz - az * vy) * s + ax * d,
+            vy * c + (az * vx - ax * vz) * s + ay * d,
+            vz * c + (ax * vy - ay * vx) * s + az * d)
+
+
+@nb.njit(cache=True)
+def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
+    """Turn unit quaternion q (w, x, y, z) by dt s of torque-free motion (see module doc).
+
+    rot: (3, 3) rotation matrix of q; inv: (3, 3) rest-frame I^-1 (1/(kg m^2));
+    ang: (3,) world angular momentum L (N m s), unchanged; scratch: (3, 3) work array.
+    """
+    lx, ly, lz = ang[0], ang[1], ang[2]
+    spin = spin_rate(inv, ang) * dt
+    if spin == 0.0:
+        return
+    if spin > MAX_SPIN_PER_STEP:
+        wx, wy, wz = angular_velocity(rot, inv, ang)
+        quaternion.integrate(q, wx, wy, wz, dt)
+        return
+    k = max(1, int(math.ceil(spin / SUBSTEP_RAD)))
+    h = dt / k
+    for sub in range(k):
+        r = rot
+        if sub > 0:
+            quaternion.matrix_into(q, scratch)
+            r = scratch
+        wx, wy, wz = _world_rate(r, inv, lx, ly, lz)
+        for _ in range(_MAX_ITERATIONS):
+            ex, ey, ez = _turn(wx, wy, wz, -h, lx, ly, lz)
+            nx, ny, nz = _world_rate(r, inv, 0.5 * (lx + ex), 0.5 * (ly + ey), 0.5 * (lz + ez))
+            change = abs(nx - wx) + abs(ny - wy) + abs(nz - wz)
+            wx, wy, wz = nx, ny, nz
+            if change <= 1e-14 * (abs(wx) + abs(wy) + abs(wz)):
+                break
+        quaternion.integrate(q, wx, wy, wz, h)
