@@ -12,6 +12,7 @@ from blastvox.cli import (
     export_cmd,
     info_cmd,
     materials_cmd,
+    preview_cmd,
     run_cmd,
     simulate_cmd,
     voxelize_cmd,
@@ -42,6 +43,8 @@ app.command("materials", help="List the material library (built-in plus a TOML f
     materials_cmd.materials)
 app.command("blast", help="Blast-wave calculator: overpressure, arrival, duration and impulse "
             "at distances.")(blast_cmd.blast)
+app.command("preview", help="Render a SimCache headless: a contact sheet (.png) or an "
+            "animation (.gif, .mp4).")(preview_cmd.preview)
 app.command("diff", help="Compare two caches within tolerances (exit 0 same, 1 different, "
             "2 error).")(diff_cmd.diff)
 

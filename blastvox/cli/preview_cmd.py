@@ -1,0 +1,67 @@
+"""``blastvox preview``: SimCache -> contact sheet (.png) or animation (.gif, .mp4)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+
+def preview(
+    cache_path: Path = typer.Argument(..., metavar="SIM", help="SimCache .npz from "
+                                      "`blastvox simulate` or `blastvox run`."),
+    output: Path = typer.Option(..., "-o", "--output", help="Output: .png (contact sheet of "
+                                "the frames), .gif or .mp4 (animation)."),
+    frames: str = typer.Option(None, "--frames", metavar="A:B:STEP",
+                               help="Frames A to B inclusive, every STEP (A alone: one frame; "
+                                    "'::10': every tenth). [default: 6 frames spread over the "
+                                    "shot for .png, every frame for .gif/.mp4]"),
+    camera: str = typer.Option(None, "--camera", metavar="scene|auto|PX,PY,PZ:LX,LY,LZ[:MM]",
+                               help="scene: the scene's camera with its shake; auto: framed "
+                                    "on the action; or a position and look-at point in m "
+                                    "(model frame) and a focal length in mm (default 35). "
+                                    "[default: scene if the shot has one, else auto]"),
+    size: str = typer.Option("960x540", "--size", metavar="WxH",
+                             help="Pixels of each frame."),
+    hide: str = typer.Option(None, "--hide", metavar="LAYER[,LAYER]",
+                             help="Leave out layers: pieces, ground, particles, shock."),
+    supersample: int = typer.Option(2, "--supersample", metavar="N",
+                                    help="Anti-aliasing: N x N samples per pixel (1-4)."),
+    fps: float = typer.Option(None, "--fps", help="Animation frame rate [default: the shot's "
+                              "fps / STEP]."),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar or summary."),
+) -> None:
+    """Render a SimCache headless on the CPU: pieces with their materials and damage faces,
+    dust, fire and smoke, the ground and the shock fronts, from the scene camera or an
+    automatic one."""
+    from blastvox.preview.options import (
+        PreviewOptions,
+        check_fps,
+        check_supersample,
+        output_format,
+        parse_camera,
+        parse_frame_spec,
+        parse_hide,
+        parse_size,
+    )
+
+    started = time.perf_counter()
+    output_format(output)  # argument errors first, before loading anything
+    options = PreviewOptions(frames=parse_frame_spec(frames), camera=parse_camera(camera),
+                             size=parse_size(size), supersample=check_supersample(supersample),
+                             hide=parse_hide(hide), fps=check_fps(fps))
+    from blastvox.cache import SimCache
+    from blastvox.cli.console import RichProgress, err_console
+    from blastvox.preview.api import preview as run
+
+    cache = SimCache.load(cache_path)
+    with RichProgress(enabled=not quiet) as progress:
+        result = run(cache, output, options, progress=progress, source=str(cache_path))
+    if not quiet:
+        n = len(result.frames)
+        what = (f"contact sheet of {n} frame{'s' * (n != 1)}" if result.kind == "sheet"
+                else f"{n} frames at {result.fps:.4g} fps")
+        err_console().print(f"{output}: {what}, {result.size[0]}x{result.size[1]} px, "
+                            f"{result.render_seconds / max(n, 1):.3f} s/frame rendering, "
+                            f"{time.perf_counter() - started:.2f} s total", markup=False)
