@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import typer
 
@@ -65,6 +66,10 @@ def blast(
                                       "comma-separated (required)."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per "
                                  "distance, in SI units."),
+    plot: Path = typer.Option(None, "--plot", metavar="OUT.png",
+                              help="Also plot the pressure-time curves at the distances "
+                                   "(negative phase included) and peak overpressure and "
+                                   "impulse against distance (.png, .svg or .pdf)."),
 ) -> None:
     """Free-air blast wave of a spherical charge at the given distances.
 
@@ -76,9 +81,17 @@ def blast(
 
     mass = parse_charge(charge)
     distances = parse_distances(distance)
+    if plot is not None:
+        from blastvox.preview.plots import check_plot_path
+
+        check_plot_path(plot)
     factor = tnt_equivalent(explosive)
     params = blast_parameters(distances, mass, explosive)
     records = params.records()
+    if plot is not None:
+        from blastvox.preview.plots import write_blast_plot
+
+        write_blast_plot(plot, mass, explosive, distances)
     if as_json:
         typer.echo(json.dumps(records, indent=2))
         return
