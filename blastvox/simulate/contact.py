@@ -288,23 +288,86 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
 
 
 @nb.njit(cache=True)
-def _cell_key(x, y, z, cell):
-    i = int(math.floor(x / cell)) + 1048576
-    j = int(math.floor(y / cell)) + 1048576
-    k = int(math.floor(z / cell)) + 1048576
-    return (i * 2097152 + j) * 2097152 + k
-
-
-@nb.njit(cache=True)
 def _moving(b, body_live, body_dust, body_fixed, body_asleep) -> bool:
     return body_live[b] and not body_dust[b] and not body_fixed[b] and not body_asleep[b]
 
 
 @nb.njit(cache=True)
+def _cell(x, cell) -> int:
+    return int(math.floor(x / cell)) + 1048576
+
+
+@nb.njit(cache=True)
+def _key(i, j, k) -> int:
+    """Hash key (>= 0) of integer cell (i, j, k)."""
+    return (i * 2097152 + j) * 2097152 + k
+
+
+@nb.njit(cache=True)
+def _slot(key, mask) -> int:
+    """Table slot of a cell key: fold the three 21-bit fields, then a Fibonacci mix."""
+    h = (key ^ (key >> 21) ^ (key >> 42)) * -7046029254386353131  # 0x9E3779B97F4A7C15
+    return (h ^ (h >> 32)) & mask  # int64 arithmetic wraps
+
+
+@nb.njit(cache=True)
+def cell_table(sorted_keys):
+    """Open-addressing table of the runs of equal keys in ``sorted_keys`` (M,).
+
+    Returns (table_key, run_start, run_end), each (T,) with T a power of two at
+    least twice the number of distinct keys; empty slots have key -1.
+    """
+    n = sorted_keys.shape[0]
+    distinct = 0
+    for i in range(n):
+        if i == 0 or sorted_keys[i] != sorted_keys[i - 1]:
+            distinct += 1
+    size = 16
+    while size < 2 * distinct:
+        size *= 2
+    mask = size - 1
+    table_key = np.full(size, -1, dtype=np.int64)
+    run_start = np.zeros(size, dtype=np.int64)
+    run_end = np.zeros(size, dtype=np.int64)
+    i = 0
+    while i < n:
+        key = sorted_keys[i]
+        j = i + 1
+        while j < n and sorted_keys[j] == key:
+            j += 1
+        s = _slot(key, mask)
+        while table_key[s] != -1:
+            s = (s + 1) & mask
+        table_key[s] = key
+        run_start[s] = i
+        run_end[s] = j
+        i = j
+    return table_key, run_start, run_end
+
+
+@nb.njit(cache=True)
+def _run_of(key, table_key, run_start, run_end):
+    """(start, end) of ``key``'s run in the sorted arrays, (0, 0) if absent."""
+    mask = table_key.shape[0] - 1
+    s = _slot(key, mask)
+    while True:
+        t = table_key[s]
+        if t == key:
+            return run_start[s], run_end[s]
+        if t == -1:
+            return 0, 0
+        s = (s + 1) & mask
+
+
+@nb.njit(cache=True)
 def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos, body_rot,
                 body_live, body_dust, body_fixed, body_asleep, n_bodies, cell):
-    """Spatial hash (sorted keys, voxels, positions) of the boundary voxels of bodies that
-    do not move (fixed or asleep). Rebuilt only when that set changes."""
+    """Spatial hash of the boundary voxels of bodies that do not move (fixed or asleep).
+
+    Returns (voxels (S,), positions (S, 3), table_key, run_start, run_end): the
+    voxels sorted by cell key, and the :func:`cell_table` of their keys.
+    Rebuilt only when the set of resting bodies changes.
+    """
     count = 0
     for b in range(n_bodies):
         if body_live[b] and not body_dust[b] and (body_fixed[b] or body_asleep[b]):
@@ -319,10 +382,12 @@ def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos
         for k in range(offsets[b], offsets[b + 1]):
             _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, pos, n)
             vox[n] = members[k]
-            keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
+            keys[n] = _key(_cell(pos[n, 0], cell), _cell(pos[n, 1], cell),
+                           _cell(pos[n, 2], cell))
             n += 1
-    order = np.argsort(keys, kind="quicksort")
-    return keys[order], vox[order], pos[order]
+    order = np.argsort(keys, kind="mergesort")
+    table_key, run_start, run_end = cell_table(keys[order])
+    return vox[order], pos[order], table_key, run_start, run_end
 
 
 @nb.njit(cache=True)
@@ -335,133 +400,157 @@ def _place(v, b, voxel_centroid, body_com, body_pos, body_rot, pos, n) -> None:
         pos[n, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
 
 
+# A moving body with at most this many boundary voxels is hashed whole every step;
+# a bigger one only where it is inside the bounding sphere of a body it may touch.
+SMALL_BODY = 64
+
+
+@nb.njit(cache=True)
+def _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_pos, body_rot,
+                 body_fixed, body_live, body_dust, body_asleep, n_bodies, cell, world, near):
+    """Mark (in ``near``, by boundary slot) the voxels of moving bodies that may touch
+    another body this step, with their world centres in ``world``; returns how many.
+
+    Small bodies (<= SMALL_BODY boundary voxels) take part whole: the voxel hash
+    is their broad phase. A bigger moving body takes part where it is within
+    ``cell`` of the bounding sphere of a live body whose sphere its own meets.
+    """
+    count = 0
+    for b in range(n_bodies):
+        if not _moving(b, body_live, body_dust, body_fixed, body_asleep):
+            continue
+        first, last = offsets[b], offsets[b + 1]
+        if last - first <= SMALL_BODY:
+            for k in range(first, last):
+                _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, world, k)
+                near[k] = True
+            count += last - first
+            continue
+        placed = False
+        for o in range(n_bodies):
+            if o == b or not body_live[o] or body_dust[o]:
+                continue
+            d2 = ((body_pos[b, 0] - body_pos[o, 0]) ** 2 + (body_pos[b, 1] - body_pos[o, 1]) ** 2
+                  + (body_pos[b, 2] - body_pos[o, 2]) ** 2)
+            if d2 >= (body_radius[b] + body_radius[o]) ** 2:
+                continue
+            if not placed:
+                for k in range(first, last):
+                    _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, world, k)
+                placed = True
+            reach = body_radius[o] + cell
+            for k in range(first, last):
+                if not near[k] and ((world[k, 0] - body_pos[o, 0]) ** 2
+                                    + (world[k, 1] - body_pos[o, 1]) ** 2
+                                    + (world[k, 2] - body_pos[o, 2]) ** 2) < reach * reach:
+                    near[k] = True
+                    count += 1
+    return count
+
+
 @nb.njit(cache=True)
 def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield, voxel_alive,
                    voxel_body, offsets, members, body_mass, body_inv_inertia, body_radius,
                    body_com, body_pos, body_rot, body_lin, body_ang, body_fixed, body_live,
-                   body_dust, body_asleep, n_bodies, wake_speed, voxel_density, weakening,
-                   destroyed, dirty, hits_out, cell, static_keys, static_vox,
-                   static_pos) -> int:
+                   body_dust, body_asleep, n_bodies, wake_speed, rest_speed, friction,
+                   voxel_density, weakening, destroyed, dirty, resting, hits_out, cell,
+                   static_vox, static_pos, static_table, static_start, static_end) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.
 
-    voxel_radius (N,): collision radius (m), at most cell / 2. Boundary voxels of
-    moving bodies that lie inside another body's bounding sphere are hashed each
-    step; voxels of bodies at rest (fixed or asleep) come from ``static_*``
-    (:func:`static_hash`), so a big standing structure costs nothing per step.
+    voxel_radius (N,): collision radius (m), at most cell / 2. The boundary
+    voxels of moving bodies that may touch something (:func:`_near_voxels`) go
+    into a spatial hash each step; voxels of bodies at rest (fixed or asleep)
+    come from ``static_*`` (:func:`static_hash`), so a big standing structure
+    costs nothing per step. Contacts are resolved in hash order (deterministic)
+    with restitution and Coulomb ``friction`` (mu). Bodies in a gentle contact
+    (approach speed below ``rest_speed``, m/s) are flagged in ``resting`` (B,)
+    for resting-contact damping.
     Impacts weaken the voxels they hit by ``weakening`` x the impact pressure
     rho v_n^2 / 2 (Pa; rho the voxel's density in kg/m^3, v_n the approach
     speed): a stone voxel shrugs off 5 m/s (33 kPa) and turns to dust at
     20 m/s (520 kPa, above its yield). A voxel whose yield that pressure
     exceeds is marked in ``destroyed`` (its body in ``dirty``). hits_out (H, 4)
-    receives contact points and impulses (for dust); returns the number of
-    contacts resolved.
+    receives contact points and approach speeds (m/s, for dust); returns the
+    number of contacts resolved.
     """
-    # broad phase: sort and sweep of body spheres along x; pairs with a moving body
-    order = np.argsort(body_pos[:n_bodies, 0] - body_radius[:n_bodies], kind="quicksort")
-    near = np.zeros(voxel_body.shape[0], dtype=np.bool_)
-    count = 0
-    for ii in range(n_bodies):
-        a = order[ii]
-        if not body_live[a] or body_dust[a]:
-            continue
-        a_moves = _moving(a, body_live, body_dust, body_fixed, body_asleep)
-        for jj in range(ii + 1, n_bodies):
-            b = order[jj]
-            if body_pos[b, 0] - body_radius[b] > body_pos[a, 0] + body_radius[a]:
-                break
-            if not body_live[b] or body_dust[b]:
-                continue
-            b_moves = _moving(b, body_live, body_dust, body_fixed, body_asleep)
-            if not a_moves and not b_moves:
-                continue
-            d2 = 0.0
-            for c in range(3):
-                d2 += (body_pos[a, c] - body_pos[b, c]) ** 2
-            if d2 >= (body_radius[a] + body_radius[b]) ** 2:
-                continue
-            # mid phase: a moving body's voxels inside the other's sphere
-            for side in range(2):
-                mover = a if side == 0 else b
-                other = b if side == 0 else a
-                if not _moving(mover, body_live, body_dust, body_fixed, body_asleep):
-                    continue
-                reach = body_radius[other] + cell
-                rot = body_rot[mover]
-                for k in range(offsets[mover], offsets[mover + 1]):
-                    v = members[k]
-                    if near[v]:
-                        continue
-                    x = voxel_centroid[v, 0] - body_com[mover, 0]
-                    y = voxel_centroid[v, 1] - body_com[mover, 1]
-                    z = voxel_centroid[v, 2] - body_com[mover, 2]
-                    d2 = 0.0
-                    for c in range(3):
-                        w = (body_pos[mover, c] + rot[c, 0] * x + rot[c, 1] * y
-                             + rot[c, 2] * z)
-                        d2 += (w - body_pos[other, c]) ** 2
-                    if d2 < reach * reach:
-                        near[v] = True
-                        count += 1
+    world = np.empty((members.shape[0], 3))  # world centres, by boundary slot
+    near = np.zeros(members.shape[0], dtype=np.bool_)
+    count = _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_pos,
+                         body_rot, body_fixed, body_live, body_dust, body_asleep, n_bodies, cell,
+                         world, near)
     if count == 0:
         return 0
-    vox = np.empty(count, dtype=np.int64)
-    pos = np.empty((count, 3))
+    slot = np.empty(count, dtype=np.int64)
+    ijk = np.empty((count, 3), dtype=np.int64)
     keys = np.empty(count, dtype=np.int64)
     n = 0
-    for v in range(voxel_body.shape[0]):
-        if near[v]:
-            _place(v, voxel_body[v], voxel_centroid, body_com, body_pos, body_rot, pos, n)
-            vox[n] = v
-            keys[n] = _cell_key(pos[n, 0], pos[n, 1], pos[n, 2], cell)
+    for k in range(members.shape[0]):
+        if near[k]:
+            slot[n] = k
+            for a in range(3):
+                ijk[n, a] = _cell(world[k, a], cell)
+            keys[n] = _key(ijk[n, 0], ijk[n, 1], ijk[n, 2])
             n += 1
-    sort = np.argsort(keys, kind="quicksort")
-    skeys = keys[sort]
+    sort = np.argsort(keys, kind="mergesort")
+    table_key, run_start, run_end = cell_table(keys[sort])
     resolved = 0
     for ii in range(n):
         i = sort[ii]
-        vi = vox[i]
+        vi = members[slot[i]]
         bi = voxel_body[vi]
+        ci = world[slot[i]]
         for dx in range(-1, 2):
             for dy in range(-1, 2):
                 for dz in range(-1, 2):
-                    key = _cell_key(pos[i, 0] + dx * cell, pos[i, 1] + dy * cell,
-                                    pos[i, 2] + dz * cell, cell)
+                    key = _key(ijk[i, 0] + dx, ijk[i, 1] + dy, ijk[i, 2] + dz)
                     # moving against moving: each pair once (lower voxel first)
-                    lo = np.searchsorted(skeys, key)
-                    hi = np.searchsorted(skeys, key, side="right")
+                    lo, hi = _run_of(key, table_key, run_start, run_end)
                     for jj in range(lo, hi):
                         j = sort[jj]
-                        vj = vox[j]
+                        vj = members[slot[j]]
                         bj = voxel_body[vj]
                         if vj <= vi or bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:
                             continue
+                        cj = world[slot[j]]
+                        if not _touching(ci, cj, voxel_radius[vi] + voxel_radius[vj]):
+                            continue
                         resolved += _resolve_pair(
-                            vi, vj, bi, bj, pos[i], pos[j], voxel_radius, voxel_restitution,
+                            vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution,
                             voxel_yield, voxel_alive, body_mass, body_inv_inertia, body_pos,
                             body_rot, body_lin, body_ang, body_fixed, body_asleep, wake_speed,
-                            voxel_density, weakening, destroyed, dirty, hits_out, resolved)
+                            rest_speed, friction, voxel_density, weakening, destroyed, dirty,
+                            resting, hits_out, resolved)
                     # moving against resting
-                    lo = np.searchsorted(static_keys, key)
-                    hi = np.searchsorted(static_keys, key, side="right")
+                    lo, hi = _run_of(key, static_table, static_start, static_end)
                     for jj in range(lo, hi):
                         vj = static_vox[jj]
                         bj = voxel_body[vj]
                         if bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:
                             continue
+                        cj = static_pos[jj]
+                        if not _touching(ci, cj, voxel_radius[vi] + voxel_radius[vj]):
+                            continue
                         resolved += _resolve_pair(
-                            vi, vj, bi, bj, pos[i], static_pos[jj], voxel_radius,
-                            voxel_restitution, voxel_yield, voxel_alive, body_mass,
-                            body_inv_inertia, body_pos, body_rot, body_lin, body_ang,
-                            body_fixed, body_asleep, wake_speed, voxel_density, weakening,
-                            destroyed, dirty, hits_out, resolved)
+                            vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution,
+                            voxel_yield, voxel_alive, body_mass, body_inv_inertia, body_pos,
+                            body_rot, body_lin, body_ang, body_fixed, body_asleep, wake_speed,
+                            rest_speed, friction, voxel_density, weakening, destroyed, dirty,
+                            resting, hits_out, resolved)
     return resolved
+
+
+@nb.njit(cache=True)
+def _touching(ci, cj, reach) -> bool:
+    """Do spheres at ci and cj (3,) with radii summing to ``reach`` (m) overlap?"""
+    d2 = (cj[0] - ci[0]) ** 2 + (cj[1] - ci[1]) ** 2 + (cj[2] - ci[2]) ** 2
+    return d2 < reach * reach
 
 
 @nb.njit(cache=True)
 def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel_yield,
                   voxel_alive, body_mass, body_inv_inertia, body_pos, body_rot, body_lin,
-                  body_ang, body_fixed, body_asleep, wake_speed, voxel_density, weakening,
-                  destroyed, dirty, hits_out, index) -> int:
+                  body_ang, body_fixed, body_asleep, wake_speed, rest_speed, friction,
+                  voxel_density, weakening, destroyed, dirty, resting, hits_out, index) -> int:
     dx, dy, dz = cj[0] - ci[0], cj[1] - ci[1], cj[2] - ci[2]
     dist = math.sqrt(dx * dx + dy * dy + dz * dz)
     reach = voxel_radius[vi] + voxel_radius[vj]
@@ -476,6 +565,9 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
     vn = (vb[0] - va[0]) * nx + (vb[1] - va[1]) * ny + (vb[2] - va[2]) * nz
     if vn >= 0.0:
         return 0
+    if -vn < rest_speed:
+        resting[bi] = True
+        resting[bj] = True
     # an asleep body hit hard enough wakes; otherwise it counts as immovable
     if body_asleep[bi] and -vn > wake_speed:
         body_asleep[bi] = False
@@ -493,10 +585,30 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
         return 0
     e = min(voxel_restitution[vi], voxel_restitution[vj])
     j = -(1.0 + e) * vn / k
-    if not (body_fixed[bi] or body_asleep[bi]):
-        _apply(bi, -j * nx, -j * ny, -j * nz, px, py, pz, body_pos, body_lin, body_ang)
-    if not (body_fixed[bj] or body_asleep[bj]):
-        _apply(bj, j * nx, j * ny, j * nz, px, py, pz, body_pos, body_lin, body_ang)
+    _impulse_pair(bi, bj, j * nx, j * ny, j * nz, px, py, pz, body_pos, body_lin, body_ang,
+                  body_fixed, body_asleep)
+    # Coulomb friction: remove the sliding velocity at the contact, within mu * j
+    wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
+    wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
+    va = _point_velocity(bi, px, py, pz, body_pos, body_lin, body_mass, wi)
+    vb = _point_velocity(bj, px, py, pz, body_pos, body_lin, body_mass, wj)
+    rx, ry, rz = vb[0] - va[0], vb[1] - va[1], vb[2] - va[2]
+    rn = rx * nx + ry * ny + rz * nz
+    tx, ty, tz = rx - rn * nx, ry - rn * ny, rz - rn * nz
+    slide = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if slide > 1e-12 and friction > 0.0:
+        tx, ty, tz = tx / slide, ty / slide, tz / slide
+        k_t = 0.0
+        for side in range(2):
+            b = bi if side == 0 else bj
+            if body_fixed[b] or body_asleep[b]:
+                continue
+            k_t += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
+                                           px - body_pos[b, 0], py - body_pos[b, 1],
+                                           pz - body_pos[b, 2], tx, ty, tz)
+        jt = min(slide / k_t, friction * j)
+        _impulse_pair(bi, bj, -jt * tx, -jt * ty, -jt * tz, px, py, pz, body_pos, body_lin,
+                      body_ang, body_fixed, body_asleep)
     for side in range(2):
         v = vi if side == 0 else vj
         b = bi if side == 0 else bj
@@ -511,5 +623,16 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
         hits_out[index, 0] = px
         hits_out[index, 1] = py
         hits_out[index, 2] = pz
-        hits_out[index, 3] = j
+        hits_out[index, 3] = -vn
     return 1
+
+
+@nb.njit(cache=True)
+def _impulse_pair(bi, bj, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang, body_fixed,
+                  body_asleep) -> None:
+    """Impulse (jx, jy, jz) (N s) on bj at point p, and its opposite on bi; bodies at rest
+    (fixed or asleep) count as immovable."""
+    if not (body_fixed[bi] or body_asleep[bi]):
+        _apply(bi, -jx, -jy, -jz, px, py, pz, body_pos, body_lin, body_ang)
+    if not (body_fixed[bj] or body_asleep[bj]):
+        _apply(bj, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang)

@@ -118,3 +118,28 @@ def settle(body_mass, body_inv_inertia, body_rot, body_lin, body_ang, body_radiu
                     body_ang[b, a] = 0.0
         else:
             body_still[b] = 0
+
+
+@nb.njit(cache=True)
+def damp_resting(resting, body_mass, body_inv_inertia, body_rot, body_lin, body_ang,
+                 body_radius, n_bodies, decay, limit) -> None:
+    """Resting-contact damping between fragments (as the ground's, Martins 2001 §5.2).
+
+    Bodies flagged in ``resting`` (B,) (a gentle contact this step) that move
+    slower than ``limit`` (m/s, centre speed and rim speed) lose the fraction
+    1 - ``decay`` of their momenta; the flags are cleared. Only ever removes
+    energy, and lets piles settle and sleep instead of jittering.
+    """
+    for b in range(n_bodies):
+        if not resting[b]:
+            continue
+        resting[b] = False
+        speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) \
+            / body_mass[b]
+        wx, wy, wz = angular_velocity(body_rot[b], body_inv_inertia[b], body_ang[b])
+        spin = math.sqrt(wx * wx + wy * wy + wz * wz) * body_radius[b]
+        if speed > limit or spin > limit:
+            continue
+        for a in range(3):
+            body_lin[b, a] *= decay
+            body_ang[b, a] *= decay

@@ -18,6 +18,7 @@ any NUMBA_NUM_THREADS.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -33,6 +34,7 @@ from blastvox.simulate.kernels import (
     bodies_in_shell,
     body_radii,
     body_rotations,
+    damp_resting,
     link_alive_counts,
     link_masks,
     settle,
@@ -169,6 +171,10 @@ class _Run:
         self.order = np.zeros(sm.n_voxels, dtype=np.int64)
         self.vertex_stamp = np.full(len(sm.vertices), -1, dtype=np.int64)
         self.hits = np.zeros((4096, 4))
+        self.resting = np.zeros(capacity, dtype=bool)
+        # a contact slower than one step of gravity's pull (plus sleep speed) is resting
+        self.rest_speed = settings.sleep_speed + 2.0 * abs(settings.gravity) * dt
+        self.rest_decay = math.exp(-settings.rest_damping * dt)
         self.max_contact_radius = float(sm.voxel_contact_radius.max(initial=0.0))
         # kg/m^3 per voxel (its contact radius is (volume)^(1/3) / 2)
         self.voxel_density = sm.voxel_mass / np.maximum((2.0 * sm.voxel_contact_radius) ** 3,
@@ -344,7 +350,7 @@ class _Run:
     def _collide(self, step: int, t1: float, frame_next: int) -> None:
         st, sm, s = self.state, self.sm, self.settings
         offsets, members = self._boundary()
-        static_keys, static_vox, static_pos = self._static()
+        static_vox, static_pos, static_table, static_start, static_end = self._static()
         self.destroyed[:] = False
         self.dirty[:self.n_bodies] = False
         before = self.collisions
@@ -353,8 +359,12 @@ class _Run:
             st.voxel_alive, st.voxel_body, offsets, members, st.body_mass, st.body_inv_inertia,
             st.body_radius, st.body_com, st.body_pos, self.rot, st.body_lin, st.body_ang,
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
-            s.sleep_speed, self.voxel_density, s.weakening, self.destroyed, self.dirty, self.hits,
-            2.0 * self.max_contact_radius, static_keys, static_vox, static_pos)
+            s.sleep_speed, self.rest_speed, s.friction, self.voxel_density, s.weakening,
+            self.destroyed, self.dirty, self.resting, self.hits, 2.0 * self.max_contact_radius,
+            static_vox, static_pos, static_table, static_start, static_end)
+        damp_resting(self.resting, st.body_mass, st.body_inv_inertia, self.rot, st.body_lin,
+                     st.body_ang, st.body_radius, self.n_bodies, self.rest_decay,
+                     4.0 * s.sleep_speed)
         resolved = min(self.collisions - before, len(self.hits))
         if self.settings.dust and resolved:
             self._collision_dust(resolved, t1)
@@ -426,8 +436,10 @@ class _Run:
         self.emitter.emit("dust", t, pos, vel, np.repeat(size, per))
 
     def _collision_dust(self, resolved: int, t: float) -> None:
+        if not self.emitter.room("dust"):
+            return
         hits = self.hits[:resolved]
-        strong = hits[hits[:, 3] > 10.0]  # impulses above 10 N s raise dust
+        strong = hits[hits[:, 3] > 2.0]  # impacts above 2 m/s raise dust; resting contacts don't
         if len(strong):
             rng = self.emitter.rng("dust")
             vel = rng.normal(0.0, 1.0, (len(strong), 3)) + 2.0 * self.sm.up
