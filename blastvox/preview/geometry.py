@@ -31,9 +31,9 @@ CHAR_COLOR = np.array([0.02, 0.015, 0.012])  #: linear RGB of fully charred face
 #: birth, how its radius grows over its life (x (1 + grow * age / lifetime))
 PARTICLE_STYLE: dict[str, tuple[tuple[float, float, float], float, float]] = {
     "dust": ((0.36, 0.32, 0.27), 0.55, 0.5),
-    "fire": ((3.0, 1.1, 0.2), 0.6, 0.3),
+    "fire": ((2.0, 0.65, 0.1), 0.6, 0.3),
     "smoke": ((0.05, 0.05, 0.055), 0.3, 1.5),
-    "fireball": ((4.0, 1.6, 0.35), 0.3, 0.6),
+    "fireball": ((1.8, 0.6, 0.12), 0.3, 0.6),
 }
 
 
