@@ -1,0 +1,1 @@
+"""Post-run analysis of SimCaches: error metrics between runs of the same shot."""
