@@ -1,0 +1,647 @@
+"""Performance in one command: throughput against memory bandwidth, Mazarak Table 5-1,
+PyBullet side by side, start-up, and the targets.
+
+    python benchmarks/performance.py            # everything (about 10 minutes on 2 cores)
+    python benchmarks/performance.py --quick    # no 1M block, no 10,000 pieces, no cold start
+
+Prints the machine line and load average, then markdown tables:
+
+(a) Blast + fracture + dynamics throughput of ``simulate(model, settings)`` on
+    ``benchmarks/simulate.py``'s block (10 m of reinforced concrete, 1 kg TNT 1 m
+    from its +X face, 0.25 s at 1/240 s, collisions off) at 5^3, 10^3, 22^3, 46^3
+    and 100^3 voxels, each in its own process, beside a memory-bandwidth bound
+    measured in that process: NumPy copying, step by step, the bytes the run's
+    sweeps must at least read and write (the byte model is ``SWEEPS`` below: per
+    voxel and per link for each kernel that sweeps them, counted per call in an
+    untimed run, plus ``BODY_BYTES`` per live body per step). The last column is
+    simulate time / bound time.
+(b) Frames per second against boundary voxels, collisions on and off, laid out
+    like Mazarak 1999 Table 5-1 with the paper's figures (``benchmarks/_debris.py``,
+    shared with ``benchmarks/contacts.py``).
+(c) The same debris in blastvox and PyBullet, in this process: K = 100, 1,000
+    (and 10,000) 0.2 m boxes thrown about over a ground plane for 2 s at
+    1/240 s; time of the stepping loops, their ratio, the per-phase profile of
+    blastvox's step when it is behind, and a check that both end alike. See
+    ``FAIRNESS`` for how the two are set up alike.
+(d) Start-up: ``blastvox simulate`` of the house example with a fresh, empty
+    ``NUMBA_CACHE_DIR`` (cold: compiles every kernel) and warm, and
+    ``blastvox --help``.
+
+Then the targets, pass or FAIL. The script reports, it does not gate: it exits
+0 even when a target is missed, and 1 only if a case crashes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import ctypes
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+from _debris import (
+    PIECE_M,
+    Debris,
+    cubes,
+    debris,
+    debris_settings,
+    lattice,
+    print_table_5_1,
+    rotations,
+    runner,
+    table_5_1,
+)
+from _machine import machine  # benchmarks/ is on sys.path when run as a script
+from simulate import Case, cli, make_model, settings_for, start_up
+
+from blastvox.model import VoxelModel
+
+ROOT = Path(__file__).resolve().parent.parent
+HOUSE = ROOT / "examples" / "house" / "scene.toml"
+BLOCK_CELLS = (5, 10, 22, 46, 100)  # voxels along the block's edge: ~1e2 ... 1e6 voxels
+BLOCK_DURATION = 0.25  # s of shot, as benchmarks/simulate.py's blocks
+PIECES = (100, 1_000, 10_000)  # PyBullet comparison
+PIECE_STEPS = 480  # 2 s at 1/240 s
+TARGET_BOUND_RATIO = 3.0
+TARGET_HELP_S = 0.3
+TARGET_HOUSE_S = 1.0
+
+
+# --------------------------------------------------------------------------- (a) bandwidth
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Bytes one call of a kernel must at least read plus write, per voxel and per link."""
+
+    per_voxel: int
+    per_link: int
+    what: str
+
+
+#: The byte model: each kernel that sweeps voxels or links, as ``blastvox.simulate.run``
+#: calls it (module attribute), and what one call must at least touch per voxel / link.
+SWEEPS: dict[str, Sweep] = {
+    "fracture_links": Sweep(8, 42, "links: alive 1, voxel pair 16, midpoint 24 read, "
+                                   "broken flag 1 cleared; voxels: body 8 read"),
+    "fracture_voxels": Sweep(35, 0, "alive 1, body 8, centroid 24 read; destroyed and "
+                                    "crossed flags 1 + 1 cleared"),
+    "blast_impulses": Sweep(18, 0, "alive 1, body 8, link mask 1, conform slot 8 read"),
+    "link_masks": Sweep(2, 25, "links: alive 1, voxel pair 16, face 8 read; voxels: "
+                               "link mask 1 cleared, 1 written"),
+    "split_bodies": Sweep(25, 0, "body 8 and its dirty flag 1 read, component 8 written "
+                                 "and 8 read"),
+    "body_radii": Sweep(41, 0, "body 8, alive 1, centroid 24, radius 8 read"),
+    "boundary_lists": Sweep(18, 0, "body 8, alive 1, link mask 1, conform slot 8 read"),
+    "link_alive_counts": Sweep(50, 18, "once a frame with the recorder: per voxel link "
+                                       "offsets 8 read, counts 8 written, yield 8, initial "
+                                       "yield 8, damage 8, alive 1, damage level 1 + 1; per "
+                                       "link 2 ids 16 and 2 alive flags 2 read"),
+}
+#: Per live body and step (velocities, contacts' sleep test, positions, rotation matrix):
+#: mass 8, inverse inertia 72, flags 4, radius 8 read; position 24, quaternion 32,
+#: linear and angular momentum 24 + 24 read and written; rotation 72 written.
+BODY_BYTES = 8 + 72 + 4 + 8 + 2 * (24 + 32 + 24 + 24) + 72
+
+
+def _homes() -> dict[str, ModuleType]:
+    """The module through which ``run.py`` calls each swept kernel."""
+    from blastvox.simulate import contact, fracture, topology
+    from blastvox.simulate import run as simrun
+
+    return {"fracture_links": fracture, "fracture_voxels": fracture,
+            "blast_impulses": simrun, "link_masks": simrun, "split_bodies": topology,
+            "body_radii": simrun, "boundary_lists": contact, "link_alive_counts": simrun}
+
+
+@contextlib.contextmanager
+def patched(targets: list[tuple[object, str]], make: Callable[[str, Callable], Callable]
+            ) -> Iterator[list[str]]:
+    """Replace ``getattr(obj, name)`` by ``make(name, original)`` for each target that
+    exists, restore them on exit; yields the names that were missing."""
+    saved, missing = [], []
+    for obj, name in targets:
+        original = getattr(obj, name, None)
+        if original is None:
+            missing.append(name)
+            continue
+        saved.append((obj, name, original))
+        setattr(obj, name, make(name, original))
+    try:
+        yield missing
+    finally:
+        for obj, name, original in reversed(saved):
+            setattr(obj, name, original)
+
+
+def count_sweeps(model: VoxelModel, settings) -> dict:
+    """One untimed ``simulate`` that counts each swept kernel's calls and the live
+    bodies of every step; returns the counts and the byte total of the model."""
+    from blastvox.simulate import run as simrun
+
+    calls = dict.fromkeys(SWEEPS, 0)
+    bodies = [0, 0]  # live bodies summed over steps, steps
+
+    def counting(name: str, original: Callable) -> Callable:
+        def wrapper(*args, **kwargs):
+            calls[name] += 1
+            return original(*args, **kwargs)
+        return wrapper
+
+    def counting_step(name: str, original: Callable) -> Callable:
+        def step(self, *args, **kwargs):
+            n = int(self.state.n_bodies[0])
+            bodies[0] += int(np.count_nonzero(self.state.body_live[:n]))
+            bodies[1] += 1
+            return original(self, *args, **kwargs)
+        return step
+
+    homes = _homes()
+    with patched([(homes[name], name) for name in SWEEPS], counting) as missing, \
+            patched([(simrun._Run, "step")], counting_step):
+        simrun.simulate(model, settings)
+    n, links = model.voxel_count, len(model.arrays["link_voxels"])
+    total = sum(calls[k] * (s.per_voxel * n + s.per_link * links) for k, s in SWEEPS.items())
+    total += BODY_BYTES * bodies[0]
+    return {"calls": calls, "body_steps": bodies[0], "steps": bodies[1], "bytes": total,
+            "missing": missing}
+
+
+def copy_seconds(nbytes: int, steps: int, repeat: int = 3) -> float:
+    """Best of ``repeat``: NumPy copying ``nbytes`` (read + write) in ``steps`` equal copies."""
+    half = max(1, nbytes // (2 * max(steps, 1)))
+    src = np.ones(half, dtype=np.uint8)
+    dst = np.empty_like(src)
+    np.copyto(dst, src)
+    best = math.inf
+    for _ in range(repeat):
+        started = time.perf_counter()
+        for _ in range(steps):
+            np.copyto(dst, src)
+        best = min(best, time.perf_counter() - started)
+    return best
+
+
+def stream_gbs(mib: int = 256, repeat: int = 3) -> float:
+    """Machine copy bandwidth, GB/s of bytes read + written, by a ``mib`` MiB NumPy copy."""
+    nbytes = mib << 20
+    return 2 * nbytes / copy_seconds(2 * nbytes, 1, repeat) / 1e9
+
+
+def throughput_worker(cells: int, model_path: Path, repeat: int) -> dict:
+    """Count, then time ``simulate`` of one block; measure its bandwidth bound (in a worker)."""
+    from blastvox.simulate.run import simulate
+
+    model = VoxelModel.load(model_path)
+    settings = settings_for(Case(f"block{cells}", cells=cells, duration=BLOCK_DURATION))
+    counted = count_sweeps(model, settings)  # also compiles / loads the numba cache
+    seconds = []
+    for _ in range(repeat):
+        started = time.perf_counter()
+        cache = simulate(model, settings)
+        seconds.append(time.perf_counter() - started)
+    steps = int(cache.meta["steps"])
+    return {"voxels": model.voxel_count, "links": len(model.arrays["link_voxels"]),
+            "steps": steps, "seconds": seconds, "bytes": counted["bytes"],
+            "calls": counted["calls"], "missing": counted["missing"],
+            "bound": copy_seconds(counted["bytes"], steps), "gbs": stream_gbs(),
+            "pieces": cache.summary()["piece_count"]}
+
+
+def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dict], bool]:
+    """(a): one worker process per block size; prints the table."""
+    print("## (a) Blast + fracture + dynamics throughput against memory bandwidth\n")
+    print(f"`simulate()` of the 10 m reinforced-concrete block, 1 kg TNT 1 m off its +X "
+          f"face, {BLOCK_DURATION:g} s at 1/240 s, collisions off; best of {repeat} after one "
+          "counting run. Bound: NumPy copying the bytes the run's sweeps must at least read "
+          "and write (byte model in `performance.py`), step by step, in the same process.\n")
+    print("| voxels | links | steps | simulate s | voxel-steps/s | model MB/step | "
+          "bound s | simulate / bound | pieces |")
+    print("|--:|--:|--:|--:|--:|--:|--:|--:|--:|", flush=True)
+    results, crashed, gbs, missing = {}, False, [], set()
+    for cells in BLOCK_CELLS:
+        if quick and cells >= 100:
+            continue
+        case = Case(f"block{cells}", cells=cells, duration=BLOCK_DURATION)
+        try:
+            model = make_model(case, directory)
+            proc = subprocess.run([sys.executable, __file__, "--worker", str(cells), "--model",
+                                   str(model), "--repeat", str(repeat if cells > 22 else
+                                                               max(repeat, 5))],
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                lines = proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"]
+                raise RuntimeError(f"worker crashed: {lines[-1]}")
+            r = json.loads(proc.stdout.strip().splitlines()[-1])
+        except RuntimeError as exc:
+            crashed = True
+            print(f"| {cells ** 3:,} | — | — | — | — | — | — | error: {exc} | — |", flush=True)
+            continue
+        best = min(r["seconds"])
+        results[cells] = {**r, "best": best, "ratio": best / r["bound"]}
+        gbs.append(r["gbs"])
+        missing.update(r["missing"])
+        print(f"| {r['voxels']:,} | {r['links']:,} | {r['steps']} | {best:.3f} | "
+              f"{r['voxels'] * r['steps'] / best / 1e6:,.2f}M | "
+              f"{r['bytes'] / r['steps'] / 1e6:,.2f} | {r['bound']:.4f} | "
+              f"{best / r['bound']:,.1f}× | {r['pieces']:,} |", flush=True)
+    if missing:
+        print(f"\nByte model: kernels not found in blastvox.simulate, so not counted: "
+              f"{', '.join(sorted(missing))}.")
+    if gbs:
+        print(f"\nNumPy copy bandwidth of this machine (256 MiB, read + write): "
+              f"{np.median(gbs):.1f} GB/s.")
+    return results, crashed
+
+
+# --------------------------------------------------------------------------- (c) PyBullet
+
+
+FAIRNESS = """\
+How the two are set up alike:
+
+* the same K pieces: 0.2 m boxes of stone's density ({mass:g} kg, inertia m s^2/6), the
+  same seeded start (`_debris.debris`: positions, orientations, velocities, spins),
+  gravity 9.81 m/s^2, a ground plane at z = 0, dt = 1/240 s, the same number of steps,
+  one thread each, in this process, after a warm-up; building the scenes is not timed;
+* PyBullet: `p.DIRECT`, maximal-coordinate rigid bodies (`btRigidBody`, box shapes),
+  `setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, numSolverIterations=8)`
+  (blastvox's ground solve does 8 Gauss-Seidel sweeps; pybullet's default is 50), a
+  `stepSimulation()` loop; blastvox: `_Run.step` in a loop (what `simulate()` runs,
+  without recording frames);
+* restitution {e:g} and friction {mu:g} at the ground in both: Bullet multiplies the two
+  bodies' coefficients, so box and plane each get sqrt(e) and sqrt(mu) (box on box in
+  Bullet: e {e:g}, mu {mu:g}; in blastvox the smaller restitution of the two voxels,
+  {e:g}, and its own friction model); Bullet's restitution velocity threshold is
+  blastvox's bounce threshold, {bounce:.3f} m/s;
+* sleeping "on" is each engine's own rule: blastvox puts to sleep pieces slower than
+  {sleep:g} m/s for 0.5 s, or balanced on the ground; Bullet (`URDF_ENABLE_SLEEPING`,
+  sleepThreshold {sleep:g} m/s) after 2 s below it, a constant pybullet does not expose,
+  so within these 2 s no Bullet box sleeps and one Bullet time serves both rows;
+  sleeping "off" is blastvox with sleep_speed = 0 (no clamping to rest, no resting
+  damping): the strictly comparable pair;
+* margins: Bullet's box collision margin is {margin:g} m (pybullet's default for boxes,
+  inside the box), its contact breaking threshold 0.02 m; blastvox uses speculative
+  ground contacts (within one step's travel) and spheres of radius s/2 between pieces,
+  no margin."""
+
+
+def import_pybullet() -> ModuleType | None:
+    """pybullet, imported without its build-time banner (C stdio); None if missing."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+            os.dup2(null.fileno(), 2)
+            try:
+                import pybullet
+            finally:
+                with contextlib.suppress(OSError, AttributeError):
+                    ctypes.CDLL(None).fflush(None)
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+    except ImportError:
+        return None
+    finally:
+        for fd in saved:
+            os.close(fd)
+    return pybullet
+
+
+@dataclass
+class Outcome:
+    """Time of the stepping loop and the pieces' final state (world, Z up)."""
+
+    seconds: float
+    pos: np.ndarray
+    quat: np.ndarray  # (w, x, y, z)
+    vel: np.ndarray
+
+    def summary(self) -> dict[str, float]:
+        """Fraction of pieces touching the ground (lowest corner within 1 cm), mean
+        centre height, mean speed and rms horizontal spread about the mean, m."""
+        rot = rotations(self.quat)
+        lowest = self.pos[:, 2] - 0.5 * PIECE_M * np.abs(rot[:, 2, :]).sum(axis=1)
+        spread = self.pos[:, :2] - self.pos[:, :2].mean(axis=0)
+        return {"ground": float(np.mean(lowest < 0.01)), "height": float(self.pos[:, 2].mean()),
+                "speed": float(np.linalg.norm(self.vel, axis=1).mean()),
+                "spread": float(np.sqrt((spread ** 2).sum(axis=1).mean()))}
+
+
+def bullet_run(p: ModuleType, start: Debris, mass: float, steps: int, settings,
+               restitution: float) -> tuple[Outcome, float]:
+    """PyBullet's run of ``start``; returns the outcome and the boxes' collision margin."""
+    c = p.connect(p.DIRECT)
+    try:
+        p.setGravity(0.0, 0.0, -settings.gravity, physicsClientId=c)
+        p.setPhysicsEngineParameter(fixedTimeStep=settings.dt, numSubSteps=0,
+                                    numSolverIterations=8,
+                                    restitutionVelocityThreshold=bounce_speed(settings),
+                                    physicsClientId=c)
+        surface = {"restitution": math.sqrt(restitution),
+                   "lateralFriction": math.sqrt(settings.friction)}
+        plane = p.createMultiBody(0.0, p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c),
+                                  physicsClientId=c)
+        p.changeDynamics(plane, -1, **surface, physicsClientId=c)
+        box = p.createCollisionShape(p.GEOM_BOX, halfExtents=[PIECE_M / 2] * 3,
+                                     physicsClientId=c)
+        ids = []
+        for k in range(start.count):
+            w, x, y, z = start.quat[k]
+            b = p.createMultiBody(mass, box, basePosition=start.pos[k].tolist(),
+                                  baseOrientation=[x, y, z, w], useMaximalCoordinates=True,
+                                  flags=p.URDF_ENABLE_SLEEPING, physicsClientId=c)
+            p.changeDynamics(b, -1, sleepThreshold=settings.sleep_speed, **surface,
+                             physicsClientId=c)
+            p.resetBaseVelocity(b, start.vel[k].tolist(), start.omega[k].tolist(),
+                                physicsClientId=c)
+            ids.append(b)
+        margin = float(p.getDynamicsInfo(ids[0], -1, physicsClientId=c)[-1]) if ids else 0.0
+        started = time.perf_counter()
+        for _ in range(steps):
+            p.stepSimulation(physicsClientId=c)
+        seconds = time.perf_counter() - started
+        pos, quat, vel = [], [], []
+        for b in ids:
+            where, (x, y, z, w) = p.getBasePositionAndOrientation(b, physicsClientId=c)
+            pos.append(where)
+            quat.append((w, x, y, z))
+            vel.append(p.getBaseVelocity(b, physicsClientId=c)[0])
+        return Outcome(seconds, np.array(pos), np.array(quat), np.array(vel)), margin
+    finally:
+        p.disconnect(c)
+
+
+def bounce_speed(settings) -> float:
+    """blastvox's ground bounce threshold, m/s: slower impacts come to rest."""
+    return settings.sleep_speed + 2.0 * 9.81 * settings.dt
+
+
+#: Phases of blastvox's step for the profile: (object, attribute, label, nested).
+def _phases(run) -> list[tuple[object, str, str, bool]]:
+    from blastvox.simulate import contact
+    from blastvox.simulate import run as simrun
+
+    return [(run, "_blast", "blast (shell test, impulses)", False),
+            (simrun, "integrate_velocities", "integrate velocities", False),
+            (run, "_collide", "collisions between pieces", False),
+            (contact, "boundary_lists", "  of which boundary lists", True),
+            (contact, "static_hash", "  of which resting-voxel hash rebuilds", True),
+            (contact, "collide_bodies", "  of which collide_bodies", True),
+            (simrun, "damp_resting", "  of which resting damping", True),
+            (run, "_ground", "ground contact", False),
+            (simrun, "settle", "settle (sleep test)", False),
+            (simrun, "integrate_positions", "integrate positions", False),
+            (simrun, "body_rotations", "rotation matrices", False)]
+
+
+def blastvox_run(model: VoxelModel, start: Debris, steps: int, sleep: bool,
+                 profile: bool = False) -> tuple[Outcome, dict[str, float]]:
+    """blastvox's run of ``start``: the outcome and, with ``profile``, seconds per phase."""
+    run = runner(model, debris_settings(sleep=sleep), start)
+    spent: dict[str, float] = {}
+    labels = {name: (label, nested) for _, name, label, nested in _phases(run)}
+
+    def timing(name: str, original: Callable) -> Callable:
+        label = labels[name][0]
+
+        def wrapper(*args, **kwargs):
+            started = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                spent[label] = spent.get(label, 0.0) + time.perf_counter() - started
+        return wrapper
+
+    targets = [(obj, name) for obj, name, _, _ in _phases(run)] if profile else []
+    with patched(targets, timing):
+        started = time.perf_counter()
+        for step in range(1, steps + 1):
+            run.step(step, 0)
+        seconds = time.perf_counter() - started
+    if profile:
+        top = sum(t for label, t in spent.items() if not label.startswith(" "))
+        spent["other (step glue, shell tests)"] = seconds - top
+    st = run.state
+    k = start.count
+    mass = st.body_mass[:k, None]
+    return Outcome(seconds, st.body_pos[:k].copy(), st.body_quat[:k].copy(),
+                   st.body_lin[:k] / mass), spent
+
+
+def pybullet_side_by_side(directory: Path, quick: bool) -> tuple[dict[int, dict], bool]:
+    """(c): prints the timing, profile and end-state tables."""
+    print("## (c) The same debris in blastvox and PyBullet\n")
+    p = import_pybullet()
+    if p is None:
+        print("pybullet is not installed (`pip install -e '.[bench]'`): not run.")
+        return {}, False
+    settings = debris_settings()
+    pieces = [k for k in PIECES if not (quick and k > 1_000)]
+    # warm-up: numba kernels compiled or loaded, both sleep settings; Bullet's first world
+    warm_model = cubes(lattice(100), directory)
+    mass = float(warm_model.arrays["voxel_mass"][0])
+    restitution = float(warm_model.arrays["material_restitution"][
+        warm_model.arrays["voxel_material"][0]])
+    for sleep in (True, False):
+        blastvox_run(warm_model, debris(100), 240, sleep)
+    _, margin = bullet_run(p, debris(100), mass, 10, settings, restitution)
+    print(FAIRNESS.format(mass=mass, e=restitution, mu=settings.friction,
+                          bounce=bounce_speed(settings), sleep=settings.sleep_speed,
+                          margin=margin) + "\n")
+    print(f"{PIECE_STEPS} steps (2 s at 1/240 s); wall seconds of the stepping loop; "
+          "ratio = blastvox / PyBullet (below 1: blastvox ahead).\n")
+    print("| pieces | PyBullet s | blastvox s, sleeping off | ratio, off | "
+          "blastvox s, sleeping on | ratio, on |")
+    print("|--:|--:|--:|--:|--:|--:|", flush=True)
+    results: dict[int, dict] = {}
+    crashed = False
+    for k in pieces:
+        try:
+            model, start = cubes(lattice(k), directory), debris(k)
+            bullet, _ = bullet_run(p, start, mass, PIECE_STEPS, settings, restitution)
+            off, _ = blastvox_run(model, start, PIECE_STEPS, sleep=False)
+            on, _ = blastvox_run(model, start, PIECE_STEPS, sleep=True)
+        except Exception as exc:  # report the crash, go on with the other sizes
+            crashed = True
+            print(f"| {k:,} | error: {type(exc).__name__}: {exc} | — | — | — | — |", flush=True)
+            continue
+        results[k] = {"model": model, "start": start, "bullet": bullet, "off": off, "on": on,
+                      "ratio_off": off.seconds / bullet.seconds,
+                      "ratio_on": on.seconds / bullet.seconds}
+        print(f"| {k:,} | {bullet.seconds:.2f} | {off.seconds:.2f} | "
+              f"{results[k]['ratio_off']:.2f} | {on.seconds:.2f} | "
+              f"{results[k]['ratio_on']:.2f} |", flush=True)
+
+    print("\nEnd state after 2 s (on the ground: lowest corner within 1 cm of it; spread: "
+          "rms horizontal distance from the mean):\n")
+    print("| pieces | run | on the ground | mean height m | mean speed m/s | spread m |")
+    print("|--:|---|--:|--:|--:|--:|")
+    for k, r in results.items():
+        for name, outcome in (("PyBullet", r["bullet"]), ("blastvox, sleeping off", r["off"]),
+                              ("blastvox, sleeping on", r["on"])):
+            s = outcome.summary()
+            print(f"| {k:,} | {name} | {100 * s['ground']:.1f} % | {s['height']:.3f} | "
+                  f"{s['speed']:.3f} | {s['spread']:.2f} |")
+
+    behind = [(k, sleep) for k, r in results.items() for sleep in (False, True)
+              if r["ratio_on" if sleep else "ratio_off"] >= 1.0]
+    for k, sleep in behind:
+        r = results[k]
+        _, spent = blastvox_run(r["model"], r["start"], PIECE_STEPS, sleep, profile=True)
+        total = sum(t for label, t in spent.items() if not label.startswith(" "))
+        print(f"\nblastvox is behind at {k:,} pieces, sleeping {'on' if sleep else 'off'}: "
+              f"where its step spends the time (a separate, profiled run; {total:.2f} s):\n")
+        print("| phase | s | share |")
+        print("|---|--:|--:|")
+        for label, t in sorted(spent.items(), key=lambda item: -item[1]):
+            print(f"| {label} | {t:.2f} | {100 * t / total:.0f} % |")
+    for r in results.values():
+        del r["model"], r["start"]
+    return results, crashed
+
+
+# --------------------------------------------------------------------------- (d) start-up
+
+
+def start_ups(directory: Path, quick: bool) -> tuple[dict | None, bool]:
+    """(d): cold and warm ``blastvox simulate`` of the house, ``blastvox --help``."""
+    print("## (d) Start-up\n")
+    model = directory / "house.npz"
+    try:
+        cli("voxelize", "--scene", HOUSE, "-o", model, "-q")
+        result = start_up(model, directory, scene=HOUSE, duration=None, cold=not quick,
+                          warm_runs=3)
+        result["in_process"] = house_in_process(model)
+    except (RuntimeError, subprocess.CalledProcessError) as exc:
+        print(f"start-up measurement failed: {exc}\n")
+        return None, True
+    print("| start-up | wall s |")
+    print("|---|--:|")
+    shot = "`blastvox simulate` house (examples/house, its 4 s of shot)"
+    if result["cold"] is None:
+        print(f"| {shot}, fresh NUMBA_CACHE_DIR (cold, compiles) | not run (--quick) |")
+    else:
+        print(f"| {shot}, fresh NUMBA_CACHE_DIR (cold, compiles) | {result['cold']:.2f} |")
+    print(f"| {shot}, warm (best of 3) | {result['warm']:.2f} |")
+    print(f"| of which `simulate()` in-process, warm (best of 3; no start-up, no file I/O) | "
+          f"{result['in_process']:.2f} |")
+    print(f"| `{result['help_command']} --help` (best of 5) | {result['help']:.3f} |\n")
+    return result, False
+
+
+def house_in_process(model_path: Path, repeat: int = 3) -> float:
+    """Best of ``repeat`` warm ``simulate()`` calls of the house in this process, s."""
+    from blastvox.scene import load_scene
+    from blastvox.simulate.run import simulate
+    from blastvox.simulate.settings import settings_from_scene
+
+    model = VoxelModel.load(model_path)
+    settings = settings_from_scene(load_scene(HOUSE))
+    simulate(model, settings)  # warm-up
+    best = math.inf
+    for _ in range(repeat):
+        started = time.perf_counter()
+        simulate(model, settings)
+        best = min(best, time.perf_counter() - started)
+    return best
+
+
+# --------------------------------------------------------------------------- report
+
+
+def verdict(ok: bool) -> str:
+    """pass or FAIL."""
+    return "pass" if ok else "FAIL"
+
+
+def targets(blocks: dict[int, dict], bullet: dict[int, dict], startup: dict | None,
+            quick: bool) -> None:
+    """The targets table."""
+    print("## Targets\n")
+    print("| target | measured | result |")
+    print("|---|--:|---|")
+    for k in PIECES[1:]:
+        for sleep in ("off", "on"):
+            label = (f"blastvox ahead of PyBullet at {k:,} pieces, sleeping {sleep} in both "
+                     "(ratio < 1)")
+            r = bullet.get(k)
+            if r is None:
+                print(f"| {label} | not run{' (--quick)' if quick else ''} | — |")
+            else:
+                ratio = r[f"ratio_{sleep}"]
+                print(f"| {label} | {ratio:.2f} | {verdict(ratio < 1.0)} |")
+    big = blocks.get(max(BLOCK_CELLS))
+    label = f"simulate within {TARGET_BOUND_RATIO:g}× of the bandwidth bound, 1M voxels"
+    if big is None:
+        print(f"| {label} | not run{' (--quick)' if quick else ''} | — |")
+    else:
+        print(f"| {label} | {big['ratio']:.1f}× | "
+              f"{verdict(big['ratio'] <= TARGET_BOUND_RATIO)} |")
+    if startup is not None:
+        print(f"| `blastvox --help` < {TARGET_HELP_S:g} s | {startup['help']:.3f} s | "
+              f"{verdict(startup['help'] < TARGET_HELP_S)} |")
+        print(f"| warm `blastvox simulate` of the house < {TARGET_HOUSE_S:g} s | "
+              f"{startup['warm']:.2f} s | {verdict(startup['warm'] < TARGET_HOUSE_S)} |")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run every part and print the tables; 1 if a case crashed, else 0."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="no 1M-voxel block, no 10,000 pieces, no cold start")
+    parser.add_argument("--repeat", type=int, help="timed runs per block, best counts "
+                        "(default: 3, or 1 with --quick; at least 5 up to 10^4 voxels)")
+    parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--model", type=Path, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.repeat is None:
+        args.repeat = 1 if args.quick else 3
+    if args.repeat < 1:
+        parser.error("--repeat must be at least 1")
+    if args.worker is not None:
+        print(json.dumps(throughput_worker(args.worker, args.model, args.repeat)))
+        return 0
+
+    started = time.perf_counter()
+    print(machine(("blastvox", "numpy", "numba", "pybullet")))
+    print(f"\nCommand: `python benchmarks/performance.py{' --quick' if args.quick else ''}`\n",
+          flush=True)
+    with tempfile.TemporaryDirectory(prefix="blastvox-perf-") as tmp:
+        directory = Path(tmp)
+        blocks, crashed_a = throughput(directory, args.quick, args.repeat)
+        print("\n## (b) Frames per second against boundary voxels (Mazarak 1999 Table 5-1)\n")
+        print("One-voxel pieces thrown about over the ground (`_debris.debris`, the scene "
+              "of (c)), first 0.5 s; 24 fps at 1/240 s, 10 steps a frame; the paper's "
+              "figures on a 333 MHz Pentium II.\n")
+        crashed_b = False
+        try:
+            print_table_5_1(table_5_1(directory))
+        except Exception as exc:  # report, go on
+            crashed_b = True
+            print(f"Table 5-1 measurement failed: {type(exc).__name__}: {exc}")
+        print()
+        bullet, crashed_c = pybullet_side_by_side(directory, args.quick)
+        print()
+        startup, crashed_d = start_ups(directory, args.quick)
+    targets(blocks, bullet, startup, args.quick)
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    print(f"\nLoad average at the end: {load}; wall time of this run "
+          f"{time.perf_counter() - started:.0f} s.")
+    return 1 if crashed_a or crashed_b or crashed_c or crashed_d else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
