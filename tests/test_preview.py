@@ -279,6 +279,21 @@ def test_damage_faces_take_the_damage_colour(halves: Path, out: Path, capsys) ->
     assert abs(x0 - face[:, 0].min()) <= 1.5 and abs(x1 + 1 - face[:, 0].max()) <= 1.5
 
 
+@pytest.mark.parametrize("camera", [CAMERA, "3,-6,2:0,0,0:50", "-4,-3,0.2:0,0,0:35"])
+def test_pieces_at_rest_look_like_the_intact_box(box_model: VoxelModel, out: Path, capsys,
+                                                  camera: str) -> None:
+    # eight pieces (cut at x = 0, y = 0 and z = 0) at rest: their inside faces (damage
+    # faces) touch and must stay hidden, even seen edge-on along the cuts
+    c = box_model.arrays["voxel_centroid"]
+    piece = (c[:, 0] > 0) * 4 + (c[:, 1] > 0) * 2 + (c[:, 2] > 0)
+    static_cache(box_model, piece.astype(np.int64), 1).save(out / "cut.npz")
+    static_cache(box_model, np.zeros(len(piece), np.int64), 1).save(out / "whole.npz")
+    cut = render_known(out / "cut.npz", out, capsys, "--camera", camera, name="cut.png")
+    whole = render_known(out / "whole.npz", out, capsys, "--camera", camera, name="whole.png")
+    differ = np.any(np.abs(cut.astype(int) - whole.astype(int)) > 8, axis=2)
+    assert differ.sum() <= 3, np.argwhere(differ)[:10]
+
+
 def test_scene_camera_and_its_shake(known: Path, out: Path, capsys) -> None:
     from blastvox.preview.sheet import GAP_PX
 

@@ -29,6 +29,7 @@ import numba as nb
 import numpy as np
 
 EDGE_TOL_PX = 1e-3  #: a pixel centre this close outside a triangle edge is inside
+EDGE_DEPTH_BIAS = 1.0 - 1e-6  #: and loses a depth tie against a triangle it is inside
 
 
 @nb.njit(cache=True)
@@ -110,8 +111,11 @@ def _fill_triangle(color, depth, x0, y0, w0, x1, y1, w1, x2, y2, w2, r, g, b) ->
 
     Edge functions are stepped incrementally along each row. A pixel centre on
     an edge shared by two triangles (or a hair's breadth outside both, from
-    rounding) must not be missed by both, so a centre within ``EDGE_TOL_PX``
-    of an edge counts as inside; the z-test settles the overlap.
+    rounding or a T-junction) must not be missed by both, so a centre within
+    ``EDGE_TOL_PX`` of an edge counts as inside. There it takes the depth of the
+    nearest point of the triangle (not an extrapolation, which for a face seen
+    edge-on could come out nearer than the face in front of it), pushed back by
+    ``EDGE_DEPTH_BIAS``, so that a triangle the centre is really inside wins.
     """
     area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
     if area == 0.0 or not math.isfinite(area):
@@ -140,7 +144,11 @@ def _fill_triangle(color, depth, x0, y0, w0, x1, y1, w1, x2, y2, w2, r, g, b) ->
         e2 = c2 + a2 * sx + b2 * sy
         for px in range(xmin, xmax + 1):
             if e0 >= t0 and e1 >= t1 and e2 >= t2:
-                z = (e0 * w0 + e1 * w1 + e2 * w2) * inv_area
+                if e0 >= 0.0 and e1 >= 0.0 and e2 >= 0.0:
+                    z = (e0 * w0 + e1 * w1 + e2 * w2) * inv_area
+                else:  # only just outside: the edge's depth, pushed back a hair
+                    k0, k1, k2 = max(e0, 0.0), max(e1, 0.0), max(e2, 0.0)
+                    z = (k0 * w0 + k1 * w1 + k2 * w2) / (k0 + k1 + k2) * EDGE_DEPTH_BIAS
                 if z > depth[py, px]:
                     depth[py, px] = z
                     color[py, px, 0] = r
