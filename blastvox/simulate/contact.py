@@ -385,7 +385,7 @@ def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos
             keys[n] = _key(_cell(pos[n, 0], cell), _cell(pos[n, 1], cell),
                            _cell(pos[n, 2], cell))
             n += 1
-    order = np.argsort(keys, kind="mergesort")
+    order = np.argsort(keys, kind="quicksort")
     table_key, run_start, run_end = cell_table(keys[order])
     return vox[order], pos[order], table_key, run_start, run_end
 
@@ -491,7 +491,7 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                 ijk[n, a] = _cell(world[k, a], cell)
             keys[n] = _key(ijk[n, 0], ijk[n, 1], ijk[n, 2])
             n += 1
-    sort = np.argsort(keys, kind="mergesort")
+    sort = np.argsort(keys, kind="quicksort")
     table_key, run_start, run_end = cell_table(keys[sort])
     resolved = 0
     for ii in range(n):

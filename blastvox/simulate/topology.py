@@ -107,12 +107,17 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
             voxel_body[v] = b
             if voxel_foundation[v] and voxel_alive[v]:
                 fixed = True
+        # element-wise copies: row assignment would compile numba's shape-error machinery
+        inv = inverse_inertia(inertia)
         body_mass[b] = mass
-        body_com[b] = com
-        body_inertia[b] = inertia
-        body_inv_inertia[b] = inverse_inertia(inertia)
-        body_pos[b] = pos
-        body_quat[b] = body_quat[parent]
+        for a in range(3):
+            body_com[b, a] = com[a]
+            body_pos[b, a] = pos[a]
+            for c in range(3):
+                body_inertia[b, a, c] = inertia[a, c]
+                body_inv_inertia[b, a, c] = inv[a, c]
+        for a in range(4):
+            body_quat[b, a] = body_quat[parent, a]
         body_fixed[b] = fixed
         body_live[b] = True
         body_dust[b] = members.shape[0] == 1 and not voxel_alive[members[0]]
