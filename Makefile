@@ -57,6 +57,7 @@ bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	$(BIN)/python benchmarks/voxelize.py
 	$(BIN)/python benchmarks/convergence.py
+	$(BIN)/python benchmarks/performance.py
 
 clean:
 	rm -rf out .pytest_cache

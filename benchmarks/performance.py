@@ -144,6 +144,84 @@ def patched(targets: list[tuple[object, str]], make: Callable[[str, Callable], C
             setattr(obj, name, original)
 
 
+#: Phases of a run for the profile: (module in blastvox.simulate, class or None, attribute).
+#: The step's own methods and the kernels it calls; a phase called inside another is
+#: listed under it.
+PHASES = (("run", None, "build_model"), ("run", None, "initial_state"),
+          ("run", "_Run", "__init__"), ("run", "_Run", "_fracture"),
+          ("fracture", None, "fracture_links"),
+          ("fracture", None, "fracture_voxels"), ("run", "_Run", "_topology"),
+          ("topology", None, "split_bodies"), ("run", None, "link_masks"),
+          ("run", None, "body_radii"), ("run", "_Run", "_blast"),
+          ("run", None, "blast_impulses"), ("run", None, "integrate_velocities"),
+          ("run", "_Run", "_collide"), ("contact", None, "static_hash"),
+          ("contact", None, "collide_bodies"), ("run", None, "damp_resting"),
+          ("run", "_Run", "_ground"), ("contact", None, "boundary_lists"),
+          ("contact", None, "ground_contacts"), ("run", None, "settle"),
+          ("run", None, "integrate_positions"), ("run", None, "body_rotations"),
+          ("recorder", "Recorder", "frame"), ("run", None, "link_alive_counts"),
+          ("recorder", "Recorder", "pack"), ("cues", None, "shock_opacity"),
+          ("cues", None, "camera_shake"))
+
+
+class Phases:
+    """Wall time per phase of blastvox runs (wrappers on the attributes in PHASES).
+
+    A call made while another wrapped call runs is booked under that caller as
+    well as in its own right, so top-level phases add up to at most the total.
+    """
+
+    def __init__(self) -> None:
+        self.spent: dict[tuple[str, ...], float] = {}
+        self.stack: list[str] = []
+
+    def wrap(self, name: str, original: Callable) -> Callable:
+        """``original`` timed under ``name``."""
+        def wrapper(*args, **kwargs):
+            key = (*self.stack[:1], name) if self.stack else (name,)
+            self.stack.append(name)
+            started = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                self.spent[key] = self.spent.get(key, 0.0) + time.perf_counter() - started
+                self.stack.pop()
+        return wrapper
+
+    def installed(self) -> contextlib.AbstractContextManager:
+        """Context manager: the wrappers in place (those that exist)."""
+        import importlib
+
+        targets = []
+        for module, cls, attribute in PHASES:
+            home = importlib.import_module(f"blastvox.simulate.{module}")
+            targets.append((getattr(home, cls) if cls else home, attribute))
+        return patched(targets, self.wrap)
+
+    def table(self, total: float) -> dict[str, float]:
+        """{label: seconds}: top-level phases, those called within them indented, and
+        "other" (the total less the top-level phases), largest first within each group."""
+        top = {k[0]: t for k, t in self.spent.items() if len(k) == 1}
+        out: dict[str, float] = {}
+        for name, t in sorted(top.items(), key=lambda item: -item[1]):
+            out[name] = t
+            inner = {k[1]: u for k, u in self.spent.items() if len(k) == 2 and k[0] == name}
+            for sub, u in sorted(inner.items(), key=lambda item: -item[1]):
+                out[f"  {sub} (in {name})"] = u
+        out["other (Python glue, untimed kernels)"] = total - sum(top.values())
+        return out
+
+
+def print_phases(spent: dict[str, float], total: float) -> None:
+    """Markdown table of :meth:`Phases.table`."""
+    print("| phase | s | share |")
+    print("|---|--:|--:|")
+    for label, t in spent.items():
+        name = f"&nbsp;&nbsp;{label.strip()}" if label.startswith(" ") else f"`{label}`" \
+            if not label.startswith("other") else label
+        print(f"| {name} | {t:.3f} | {100 * t / total:.0f} % |")
+
+
 def count_sweeps(model: VoxelModel, settings) -> dict:
     """One untimed ``simulate`` that counts each swept kernel's calls and the live
     bodies of every step; returns the counts and the byte total of the model."""
@@ -198,8 +276,9 @@ def stream_gbs(mib: int = 256, repeat: int = 3) -> float:
     return 2 * nbytes / copy_seconds(2 * nbytes, 1, repeat) / 1e9
 
 
-def throughput_worker(cells: int, model_path: Path, repeat: int) -> dict:
-    """Count, then time ``simulate`` of one block; measure its bandwidth bound (in a worker)."""
+def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) -> dict:
+    """Count, then time ``simulate`` of one block; measure its bandwidth bound; with
+    ``profile``, one more run timed phase by phase (called in a worker process)."""
     from blastvox.simulate.run import simulate
 
     model = VoxelModel.load(model_path)
@@ -211,8 +290,17 @@ def throughput_worker(cells: int, model_path: Path, repeat: int) -> dict:
         cache = simulate(model, settings)
         seconds.append(time.perf_counter() - started)
     steps = int(cache.meta["steps"])
-    return {"voxels": model.voxel_count, "links": len(model.arrays["link_voxels"]),
-            "steps": steps, "seconds": seconds, "bytes": counted["bytes"],
+    phases = None
+    if profile:
+        profiler = Phases()
+        with profiler.installed():
+            started = time.perf_counter()
+            simulate(model, settings)
+            total = time.perf_counter() - started
+        phases = {"total": total, "spent": profiler.table(total)}
+    return {"phases": phases, "voxels": model.voxel_count,
+            "links": len(model.arrays["link_voxels"]), "steps": steps, "seconds": seconds,
+            "bytes": counted["bytes"],
             "calls": counted["calls"], "missing": counted["missing"],
             "bound": copy_seconds(counted["bytes"], steps), "gbs": stream_gbs(),
             "pieces": cache.summary()["piece_count"]}
@@ -229,15 +317,15 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
           "bound s | simulate / bound | pieces |")
     print("|--:|--:|--:|--:|--:|--:|--:|--:|--:|", flush=True)
     results, crashed, gbs, missing = {}, False, [], set()
-    for cells in BLOCK_CELLS:
-        if quick and cells >= 100:
-            continue
+    sizes = [cells for cells in BLOCK_CELLS if not (quick and cells >= 100)]
+    for cells in sizes:
         case = Case(f"block{cells}", cells=cells, duration=BLOCK_DURATION)
         try:
             model = make_model(case, directory)
             proc = subprocess.run([sys.executable, __file__, "--worker", str(cells), "--model",
                                    str(model), "--repeat", str(repeat if cells > 22 else
-                                                               max(repeat, 5))],
+                                                               max(repeat, 5)),
+                                   *(["--profile"] if cells == sizes[-1] else [])],
                                   capture_output=True, text=True)
             if proc.returncode != 0:
                 lines = proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"]
@@ -261,6 +349,12 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
     if gbs:
         print(f"\nNumPy copy bandwidth of this machine (256 MiB, read + write): "
               f"{np.median(gbs):.1f} GB/s.")
+    largest = results.get(sizes[-1])
+    if largest and largest["phases"]:
+        total = largest["phases"]["total"]
+        print(f"\nWhere the {largest['voxels']:,}-voxel run spends its time (a separate, "
+              f"profiled run, {total:.2f} s):\n")
+        print_phases(largest["phases"]["spent"], total)
     return results, crashed
 
 
@@ -389,56 +483,22 @@ def bounce_speed(settings) -> float:
     return settings.sleep_speed + 2.0 * 9.81 * settings.dt
 
 
-#: Phases of blastvox's step for the profile: (object, attribute, label, nested).
-def _phases(run) -> list[tuple[object, str, str, bool]]:
-    from blastvox.simulate import contact
-    from blastvox.simulate import run as simrun
-
-    return [(run, "_blast", "blast (shell test, impulses)", False),
-            (simrun, "integrate_velocities", "integrate velocities", False),
-            (run, "_collide", "collisions between pieces", False),
-            (contact, "boundary_lists", "  of which boundary lists", True),
-            (contact, "static_hash", "  of which resting-voxel hash rebuilds", True),
-            (contact, "collide_bodies", "  of which collide_bodies", True),
-            (simrun, "damp_resting", "  of which resting damping", True),
-            (run, "_ground", "ground contact", False),
-            (simrun, "settle", "settle (sleep test)", False),
-            (simrun, "integrate_positions", "integrate positions", False),
-            (simrun, "body_rotations", "rotation matrices", False)]
-
-
 def blastvox_run(model: VoxelModel, start: Debris, steps: int, sleep: bool,
                  profile: bool = False) -> tuple[Outcome, dict[str, float]]:
-    """blastvox's run of ``start``: the outcome and, with ``profile``, seconds per phase."""
+    """blastvox's run of ``start``: the outcome and, with ``profile``, seconds per phase
+    (:class:`Phases`)."""
     run = runner(model, debris_settings(sleep=sleep), start)
-    spent: dict[str, float] = {}
-    labels = {name: (label, nested) for _, name, label, nested in _phases(run)}
-
-    def timing(name: str, original: Callable) -> Callable:
-        label = labels[name][0]
-
-        def wrapper(*args, **kwargs):
-            started = time.perf_counter()
-            try:
-                return original(*args, **kwargs)
-            finally:
-                spent[label] = spent.get(label, 0.0) + time.perf_counter() - started
-        return wrapper
-
-    targets = [(obj, name) for obj, name, _, _ in _phases(run)] if profile else []
-    with patched(targets, timing):
+    phases = Phases()
+    with phases.installed() if profile else contextlib.nullcontext():
         started = time.perf_counter()
         for step in range(1, steps + 1):
             run.step(step, 0)
         seconds = time.perf_counter() - started
-    if profile:
-        top = sum(t for label, t in spent.items() if not label.startswith(" "))
-        spent["other (step glue, shell tests)"] = seconds - top
     st = run.state
     k = start.count
     mass = st.body_mass[:k, None]
     return Outcome(seconds, st.body_pos[:k].copy(), st.body_quat[:k].copy(),
-                   st.body_lin[:k] / mass), spent
+                   st.body_lin[:k] / mass), phases.table(seconds) if profile else {}
 
 
 def pybullet_side_by_side(directory: Path, quick: bool) -> tuple[dict[int, dict], bool]:
@@ -500,14 +560,11 @@ def pybullet_side_by_side(directory: Path, quick: bool) -> tuple[dict[int, dict]
               if r["ratio_on" if sleep else "ratio_off"] >= 1.0]
     for k, sleep in behind:
         r = results[k]
-        _, spent = blastvox_run(r["model"], r["start"], PIECE_STEPS, sleep, profile=True)
-        total = sum(t for label, t in spent.items() if not label.startswith(" "))
+        outcome, spent = blastvox_run(r["model"], r["start"], PIECE_STEPS, sleep, profile=True)
         print(f"\nblastvox is behind at {k:,} pieces, sleeping {'on' if sleep else 'off'}: "
-              f"where its step spends the time (a separate, profiled run; {total:.2f} s):\n")
-        print("| phase | s | share |")
-        print("|---|--:|--:|")
-        for label, t in sorted(spent.items(), key=lambda item: -item[1]):
-            print(f"| {label} | {t:.2f} | {100 * t / total:.0f} % |")
+              f"where its step spends the time (a separate, profiled run, "
+              f"{outcome.seconds:.2f} s):\n")
+        print_phases(spent, outcome.seconds)
     for r in results.values():
         del r["model"], r["start"]
     return results, crashed
@@ -606,13 +663,15 @@ def main(argv: list[str] | None = None) -> int:
                         "(default: 3, or 1 with --quick; at least 5 up to 10^4 voxels)")
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--model", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument("--profile", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.repeat is None:
         args.repeat = 1 if args.quick else 3
     if args.repeat < 1:
         parser.error("--repeat must be at least 1")
     if args.worker is not None:
-        print(json.dumps(throughput_worker(args.worker, args.model, args.repeat)))
+        print(json.dumps(throughput_worker(args.worker, args.model, args.repeat,
+                                           args.profile)))
         return 0
 
     started = time.perf_counter()
