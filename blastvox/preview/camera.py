@@ -21,7 +21,7 @@ import numpy as np
 
 APERTURE_MM = 36.0        #: horizontal film back, as the USD/glTF exports
 AUTO_FOCAL_MM = 35.0      #: focal length of the automatic camera
-AUTO_ELEVATION_DEG = 22.0  #: the automatic camera looks down at this angle
+AUTO_ELEVATION_DEG = 15.0  #: the automatic camera looks down at this angle
 AUTO_AZIMUTH_DEG = 30.0   #: and this far round from the charge side (or the front)
 AUTO_FILL = 0.85          #: the action fills this fraction of the frame's half-extent
 

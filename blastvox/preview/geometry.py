@@ -51,15 +51,17 @@ def quaternion_matrices(q: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class PieceFrame:
-    """Pieces alive at one frame: local (T, 3, 3) m and normals (T, 3) piece-local,
-    rotation (T, 3, 3) and position (T, 3) m of each triangle's piece (local -> world),
-    albedo (T, 3) linear RGB."""
+    """Pieces at one frame. Per triangle (T of all pieces): local (T, 3, 3) m and normals
+    (T, 3), piece-local; piece (T,) index; albedo (T, 3) linear RGB. Per piece (P):
+    rotation (P, 3, 3) and position (P, 3) m (local -> world), alive (P,) bool."""
 
     local: np.ndarray
     normals: np.ndarray
+    piece: np.ndarray
+    albedo: np.ndarray
     rotation: np.ndarray
     position: np.ndarray
-    albedo: np.ndarray
+    alive: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -102,8 +104,9 @@ class PreviewScene:
                                    color[meshes.material])
         self.end_frame = cache.piece_end_frame.astype(np.int64)
         ignite = cache.arrays.get("voxel_ignite_frame")
-        self.ignite_frame = (np.full(len(cache.voxel_piece), -1) if ignite is None
-                             else ignite.astype(np.int64))
+        ignite_frame = (np.full(len(cache.voxel_piece), -1) if ignite is None
+                        else ignite.astype(np.int64))
+        self.tri_ignite = ignite_frame[self.tri_voxel]
         self.gravity = np.asarray(cache.meta.get("gravity_vector", -9.81 * self.up),
                                   dtype=np.float64).reshape(3)
         get = cache.arrays.get
@@ -119,23 +122,20 @@ class PreviewScene:
 
     # -- pieces
     def pieces_at(self, frame: int) -> PieceFrame:
-        """The alive pieces' triangles at ``frame`` with their transforms and colours."""
-        alive_piece = self.end_frame > frame
-        keep = alive_piece[self.tri_piece]
-        tri_piece = self.tri_piece[keep]
-        rotation = quaternion_matrices(self.cache.piece_orientation[frame])
-        position = self.cache.piece_position[frame].astype(np.float64)
-        albedo = self.tri_albedo[keep]
-        ignite = self.ignite_frame[self.tri_voxel[keep]]
-        burning = (ignite >= 0) & (ignite <= frame)
+        """Every piece's triangles, transforms and colours at ``frame`` (gone pieces are
+        flagged, not removed)."""
+        albedo = self.tri_albedo
+        burning = (self.tri_ignite >= 0) & (self.tri_ignite <= frame)
         if burning.any():
-            age = self.times[frame] - self.times[ignite[burning]]
+            age = self.times[frame] - self.times[self.tri_ignite[burning]]
             char = np.clip(age / CHAR_S, 0.0, 1.0)[:, None]
             albedo = albedo.copy()
             albedo[burning] = albedo[burning] * (1.0 - char) + CHAR_COLOR * char
-        return PieceFrame(local=self.tri_local[keep], normals=self.tri_normal[keep],
-                          rotation=rotation[tri_piece], position=position[tri_piece],
-                          albedo=albedo)
+        return PieceFrame(local=self.tri_local, normals=self.tri_normal, piece=self.tri_piece,
+                          albedo=albedo,
+                          rotation=quaternion_matrices(self.cache.piece_orientation[frame]),
+                          position=self.cache.piece_position[frame].astype(np.float64),
+                          alive=self.end_frame > frame)
 
     # -- particles
     def particles_at(self, frame: int) -> ParticleFrame:

@@ -138,11 +138,25 @@ def _fill_triangle(color, depth, x0, y0, w0, x1, y1, w1, x2, y2, w2, r, g, b) ->
     t2 = -EDGE_TOL_PX * math.sqrt(a2 * a2 + b2 * b2)
     for py in range(ymin, ymax + 1):
         sy = py + 0.5
-        sx = xmin + 0.5
+        # this row's span: where every edge function reaches its tolerance (widened by a
+        # pixel against rounding; the edge tests below decide)
+        lo, hi = float(xmin), float(xmax)
+        for a, bc, tol in ((a0, c0 + b0 * sy, t0), (a1, c1 + b1 * sy, t1),
+                           (a2, c2 + b2 * sy, t2)):
+            if a > 0.0:
+                lo = max(lo, (tol - bc) / a - 1.5)
+            elif a < 0.0:
+                hi = min(hi, (tol - bc) / a + 0.5)
+            elif bc < tol:
+                hi = lo - 1.0
+        if hi < lo:
+            continue
+        x_start, x_stop = int(math.floor(lo)), int(math.ceil(hi))
+        sx = x_start + 0.5
         e0 = c0 + a0 * sx + b0 * sy
         e1 = c1 + a1 * sx + b1 * sy
         e2 = c2 + a2 * sx + b2 * sy
-        for px in range(xmin, xmax + 1):
+        for px in range(x_start, x_stop + 1):
             if e0 >= t0 and e1 >= t1 and e2 >= t2:
                 if e0 >= 0.0 and e1 >= 0.0 and e2 >= 0.0:
                     z = (e0 * w0 + e1 * w1 + e2 * w2) * inv_area
@@ -157,6 +171,43 @@ def _fill_triangle(color, depth, x0, y0, w0, x1, y1, w1, x2, y2, w2, r, g, b) ->
             e0 += a0
             e1 += a1
             e2 += a2
+
+
+@nb.njit(cache=True)
+def transform_triangles(local, normals, piece, albedo, rotation, matrix, offset, alive, up,
+                        light, ambient, sky, key, out_view, out_color) -> int:
+    """Rigidly moved, flat-shaded triangles of the alive pieces, in view space.
+
+    Per triangle (T): ``local`` (T, 3, 3) m and ``normals`` (T, 3) in its piece's
+    frame, ``piece`` (T,) index, ``albedo`` (T, 3). Per piece (P): ``rotation``
+    (P, 3, 3) piece -> world, ``matrix`` (P, 3, 3) piece -> view (camera rotation
+    times piece rotation), ``offset`` (P, 3) m its origin in view space, ``alive``
+    (P,). Colour = albedo * (ambient + sky (1 + n.up) / 2 + key max(0, n.light))
+    with n the world normal. Writes the first K rows of ``out_view`` (T, 3, 3)
+    and ``out_color`` (T, 3) and returns K, the number of alive triangles.
+    """
+    k = 0
+    for t in range(local.shape[0]):
+        p = piece[t]
+        if not alive[p]:
+            continue
+        for v in range(3):
+            for i in range(3):
+                out_view[k, v, i] = (offset[p, i] + matrix[p, i, 0] * local[t, v, 0]
+                                     + matrix[p, i, 1] * local[t, v, 1]
+                                     + matrix[p, i, 2] * local[t, v, 2])
+        n_up = 0.0
+        n_light = 0.0
+        for i in range(3):
+            n = (rotation[p, i, 0] * normals[t, 0] + rotation[p, i, 1] * normals[t, 1]
+                 + rotation[p, i, 2] * normals[t, 2])
+            n_up += n * up[i]
+            n_light += n * light[i]
+        shade = ambient + sky * 0.5 * (1.0 + n_up) + key * max(n_light, 0.0)
+        for i in range(3):
+            out_color[k, i] = albedo[t, i] * shade
+        k += 1
+    return k
 
 
 @nb.njit(cache=True)
@@ -243,7 +294,12 @@ def draw_splats(color, depth, centres, radius, colors, alpha, fpx, cx, cy, near,
         inv_r2 = 1.0 / (rad * rad)
         for py in range(ymin, ymax + 1):
             dy = py + 0.5 - sy
-            for px in range(xmin, xmax + 1):
+            if dy * dy >= rad * rad:
+                continue
+            half = math.sqrt(rad * rad - dy * dy)  # the circle's span on this row
+            x0 = max(xmin, int(math.floor(sx - half)))
+            x1 = min(xmax, int(math.ceil(sx + half)))
+            for px in range(x0, x1 + 1):
                 dx = px + 0.5 - sx
                 q = (dx * dx + dy * dy) * inv_r2
                 if q >= 1.0 or inv_z <= depth[py, px]:

@@ -28,6 +28,7 @@ SKY_TOP = np.array([0.22, 0.34, 0.55])          #: linear RGB, top of the frame
 SKY_HORIZON = np.array([0.62, 0.66, 0.70])      #: linear RGB, bottom of the frame; haze
 GROUND_ALBEDO = np.array([0.13, 0.13, 0.12])
 SHOCK_TINT = np.array([0.85, 0.92, 1.0])
+MAX_SPLAT_FRACTION = 20.0  #: a particle's radius on screen is at most 1/20 of the height
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,8 @@ class Renderer:
         up = scene.up
         self.axis_u = np.roll(up, 1)
         self.axis_v = np.cross(up, self.axis_u)
+        self.view = np.empty((len(scene.tri_local), 3, 3))            # scratch, view space
+        self.shaded = np.empty((len(scene.tri_local), 3), np.float32)   # scratch, colours
         self._backdrop_key: tuple | None = None
         self._backdrop_color = self._backdrop_depth = None
 
@@ -108,17 +111,16 @@ class Renderer:
         fpx = camera.focal_px(wb)
         cx, cy = wb / 2.0, hb / 2.0
         self._backdrop(camera, fpx, cx, cy)
-        if "pieces" in s.layers:
+        if "pieces" in s.layers and len(scene.tri_local):
             p = scene.pieces_at(frame)
-            if len(p.local):
-                # view = Rc (Rp x + t - eye): one matrix and one offset per triangle
-                m = camera.rotation[None] @ p.rotation                       # (T, 3, 3)
-                offset = (p.position - camera.eye) @ camera.rotation.T        # (T, 3)
-                view = p.local @ np.swapaxes(m, 1, 2) + offset[:, None, :]    # (T, 3, 3)
-                normals = np.einsum("tij,tj->ti", p.rotation, p.normals)
-                colors = (p.albedo * shade(normals, scene.up, self.light)[:, None])
-                raster.draw_triangles(self.color, self.depth, view,
-                                      colors.astype(np.float32), fpx, cx, cy, NEAR_M)
+            # view = Rc (Rp x + t - eye): one matrix and one offset per piece
+            matrix = np.ascontiguousarray(camera.rotation[None] @ p.rotation)   # (P, 3, 3)
+            offset = (p.position - camera.eye) @ camera.rotation.T              # (P, 3)
+            count = raster.transform_triangles(
+                p.local, p.normals, p.piece, p.albedo, p.rotation, matrix, offset, p.alive,
+                scene.up, self.light, AMBIENT, SKY, KEY, self.view, self.shaded)
+            raster.draw_triangles(self.color, self.depth, self.view[:count],
+                                  self.shaded[:count], fpx, cx, cy, NEAR_M)
         if "particles" in s.layers and len(scene.particle_birth):
             q = scene.particles_at(frame)
             if len(q.position):
@@ -128,7 +130,7 @@ class Renderer:
                 raster.draw_splats(self.color, self.depth, view[order], q.radius[order],
                                    q.color[order].astype(np.float32),
                                    q.alpha[order].astype(np.float32), fpx, cx, cy, NEAR_M,
-                                   0.75 * ss, hb / 16.0)
+                                   0.75 * ss, hb / MAX_SPLAT_FRACTION)
         if "shock" in s.layers:
             centres, radius, opacity = scene.shock_at(frame)
             live = (radius > 0) & (opacity > 0)
