@@ -143,3 +143,25 @@ def damp_resting(resting, body_mass, body_inv_inertia, body_rot, body_lin, body_
         for a in range(3):
             body_lin[b, a] *= decay
             body_ang[b, a] *= decay
+
+
+@nb.njit(cache=True)
+def damage_levels(offsets, link_alive_count, voxel_yield, initial_yield, voxel_damage,
+                  voxel_alive, out) -> None:
+    """Per-voxel damage 0..1 quantised to 0..255 into ``out`` (N,) uint8.
+
+    Damage is the largest of: the fraction of the voxel's links broken, the
+    fraction of its yield worn away, and Davison-Stevens damage / 6 (six
+    links' worth); 1 for a destroyed voxel. Rounded half to even.
+    """
+    for v in range(out.shape[0]):
+        if not voxel_alive[v]:
+            out[v] = 255
+            continue
+        total = offsets[v + 1] - offsets[v]
+        damage = (total - link_alive_count[v]) / total if total > 0 else 0.0
+        y0 = initial_yield[v]
+        if math.isfinite(y0) and y0 > 0.0:
+            damage = max(damage, 1.0 - voxel_yield[v] / y0)
+        damage = min(max(damage, voxel_damage[v] / 6.0, 0.0), 1.0)
+        out[v] = np.uint8(np.rint(damage * 255.0))

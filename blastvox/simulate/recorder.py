@@ -13,9 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from blastvox.simulate.kernels import damage_levels
 from blastvox.simulate.state import State
-
-_DAMAGE_LEVELS = 255
 
 
 @dataclass
@@ -52,16 +51,9 @@ class Recorder:
         self._damage(len(self.frame_steps) - 1, state, link_alive_count)
 
     def _damage(self, frame: int, state: State, link_alive_count: np.ndarray) -> None:
-        total = np.diff(self.voxel_link_offsets)
-        lost = np.divide(total - link_alive_count, total, out=np.zeros(self.n_voxels),
-                         where=total > 0)
-        worn = 1.0 - np.divide(state.voxel_yield, self.initial_voxel_yield,
-                               out=np.ones(self.n_voxels),
-                               where=np.isfinite(self.initial_voxel_yield)
-                               & (self.initial_voxel_yield > 0))
-        damage = np.clip(np.maximum.reduce([lost, worn, state.voxel_damage / 6.0]), 0.0, 1.0)
-        damage[~state.voxel_alive] = 1.0
-        level = np.round(damage * _DAMAGE_LEVELS).astype(np.uint8)
+        level = np.empty(self.n_voxels, dtype=np.uint8)
+        damage_levels(self.voxel_link_offsets, link_alive_count, state.voxel_yield,
+                      self.initial_voxel_yield, state.voxel_damage, state.voxel_alive, level)
         changed = np.flatnonzero(level != self.damage_last)
         if changed.size:
             self.damage_events.append((np.full(changed.size, frame, np.int32),

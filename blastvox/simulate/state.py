@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from blastvox.model import VoxelModel
@@ -112,13 +113,8 @@ def build_model(model: VoxelModel) -> SimModel:
     """Derive the static simulation arrays from a VoxelModel."""
     a = model.arrays
     n = model.voxel_count
-    links = a["link_voxels"].astype(np.int64)
-    ends = np.concatenate([links[:, 0], links[:, 1]])
-    ids = np.concatenate([np.arange(len(links)), np.arange(len(links))])
-    order = np.argsort(ends, kind="stable")
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(offsets, ends + 1, 1)
-    offsets = np.cumsum(offsets)
+    links = np.ascontiguousarray(a["link_voxels"], dtype=np.int64)
+    offsets, link_ids = link_csr(links, n)
     slot = np.full(n, -1, dtype=np.int64)
     conform = a["conform_voxels"].astype(np.int64)
     slot[conform] = np.arange(len(conform))
@@ -127,26 +123,65 @@ def build_model(model: VoxelModel) -> SimModel:
     up = np.zeros(3)
     up[model.up_index] = 1.0
     vertices = np.ascontiguousarray(a["vertices"], dtype=np.float64)
-    corners = vertices[a["voxel_vertices"]]
-    radius = np.sqrt(((corners - a["voxel_centroid"][:, None, :]) ** 2).sum(-1)).max(axis=1)
+    voxel_vertices = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int64)
+    voxel_centroid = np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64)
     ground = model.meta.get("ground_height")
     return SimModel(
         vertices=vertices,
-        voxel_vertices=a["voxel_vertices"].astype(np.int64),
+        voxel_vertices=voxel_vertices,
         voxel_mass=a["voxel_mass"].astype(np.float64),
-        voxel_centroid=np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64),
+        voxel_centroid=voxel_centroid,
         voxel_inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
         link_voxels=links, link_face=a["link_face"].astype(np.int64),
         link_midpoint=np.ascontiguousarray(a["link_midpoint"], dtype=np.float64),
         link_direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64),
-        voxel_link_offsets=offsets, voxel_link_ids=ids[order].astype(np.int64),
+        voxel_link_offsets=offsets, voxel_link_ids=link_ids,
         conform_slot=slot, conform_face_area=area, conform_face_centroid=centroid,
         voxel_material=a["voxel_material"].astype(np.int64),
         voxel_object=a["voxel_object"].astype(np.int64),
         voxel_restitution=a["material_restitution"][a["voxel_material"]].astype(np.float64),
-        voxel_radius=radius,
+        voxel_radius=corner_radius(vertices, voxel_vertices, voxel_centroid),
         voxel_contact_radius=0.5 * np.cbrt(np.maximum(a["voxel_volume"], 0.0)),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground))
+
+
+@nb.njit(cache=True)
+def link_csr(link_voxels, n_voxels):
+    """Links of each voxel as CSR: offsets (N+1,) and link ids (2L,).
+
+    A voxel lists the links it is the first end of, then those it is the
+    second end of, each in link order (a counting sort, O(N + L)).
+    """
+    offsets = np.zeros(n_voxels + 1, dtype=np.int64)
+    for link in range(link_voxels.shape[0]):
+        offsets[link_voxels[link, 0] + 1] += 1
+        offsets[link_voxels[link, 1] + 1] += 1
+    for v in range(n_voxels):
+        offsets[v + 1] += offsets[v]
+    fill = offsets[:-1].copy()
+    ids = np.empty(2 * link_voxels.shape[0], dtype=np.int64)
+    for side in range(2):
+        for link in range(link_voxels.shape[0]):
+            v = link_voxels[link, side]
+            ids[fill[v]] = link
+            fill[v] += 1
+    return offsets, ids
+
+
+@nb.njit(cache=True)
+def corner_radius(vertices, voxel_vertices, voxel_centroid):
+    """Distance (N,) m from each voxel's centroid to its farthest corner."""
+    out = np.empty(voxel_vertices.shape[0])
+    for v in range(voxel_vertices.shape[0]):
+        best = 0.0
+        for c in range(8):
+            q = voxel_vertices[v, c]
+            d = ((vertices[q, 0] - voxel_centroid[v, 0]) ** 2
+                 + (vertices[q, 1] - voxel_centroid[v, 1]) ** 2
+                 + (vertices[q, 2] - voxel_centroid[v, 2]) ** 2)
+            best = max(best, d)
+        out[v] = np.sqrt(best)
+    return out
 
 
 def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray):

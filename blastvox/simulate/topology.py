@@ -1,7 +1,7 @@
 """Fragments: connected components of the alive-link graph, recomputed only where needed.
 
 After fracture marks links broken or voxels destroyed, the bodies they belong
-to are "dirty". Only dirty bodies are searched (breadth-first over alive
+to are "dirty". Only dirty bodies are searched (union-find over alive
 links). A dirty body that is still one piece is left alone; one that fell
 apart is retired and each component becomes a new body whose motion is the
 parent's rigid motion (see :mod:`blastvox.simulate.bodies`). A destroyed voxel
@@ -20,41 +20,69 @@ from blastvox.simulate.quaternion import matrix_into
 
 
 @nb.njit(cache=True)
+def _root(parent, v) -> int:
+    """Union-find root of v, halving the path on the way."""
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@nb.njit(cache=True)
 def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.ndarray,
                      link_voxels: np.ndarray, offsets: np.ndarray, link_ids: np.ndarray,
                      component: np.ndarray, order: np.ndarray) -> int:
     """Label the voxels of dirty bodies by component; return the number of components.
 
     component (N,) gets a component id (others -1); ``order`` receives the
-    voxels grouped by component (BFS order), each group starting at its lowest
-    voxel index, groups in order of that index.
+    voxels grouped by component, ascending within each group, groups in order
+    of their lowest voxel index. Union-find over the alive links in voxel
+    order (sequential memory access, unlike a breadth-first search): a larger
+    root always hangs under a smaller one, so every root is its set's lowest
+    voxel and parents only ever point down.
     """
     n = voxel_body.shape[0]
-    count = 0
-    head = 0
+    parent = order  # scratch until the grouping pass
     for v in range(n):
-        component[v] = -1
-    for seed in range(n):
-        if not dirty[voxel_body[seed]] or component[seed] >= 0:
+        parent[v] = v if dirty[voxel_body[v]] else -1
+    for v in range(n):
+        if parent[v] < 0:
             continue
-        component[seed] = count
-        order[head] = seed
-        tail = head + 1
-        while head < tail:
-            v = order[head]
-            head += 1
-            for k in range(offsets[v], offsets[v + 1]):
-                link = link_ids[k]
-                if not link_alive[link]:
-                    continue
-                w = link_voxels[link, 0]
-                if w == v:
-                    w = link_voxels[link, 1]
-                if component[w] < 0:
-                    component[w] = count
-                    order[tail] = w
-                    tail += 1
-        count += 1
+        for k in range(offsets[v], offsets[v + 1]):
+            link = link_ids[k]
+            if not link_alive[link]:
+                continue
+            w = link_voxels[link, 0]
+            if w == v:
+                w = link_voxels[link, 1]
+            if w < v:
+                continue  # each link once, from its lower voxel
+            ra = _root(parent, v)
+            rb = _root(parent, w)
+            if ra < rb:
+                parent[rb] = ra
+            elif rb < ra:
+                parent[ra] = rb
+    count = 0
+    for v in range(n):  # ascending: parent[v] < v is labelled already
+        if parent[v] < 0:
+            component[v] = -1
+        elif parent[v] == v:
+            component[v] = count
+            count += 1
+        else:
+            component[v] = component[_root(parent, v)]
+    fill = np.zeros(count + 1, dtype=np.int64)
+    for v in range(n):
+        if component[v] >= 0:
+            fill[component[v] + 1] += 1
+    for c in range(count):
+        fill[c + 1] += fill[c]
+    for v in range(n):
+        c = component[v]
+        if c >= 0:
+            order[fill[c]] = v
+            fill[c] += 1
     return count
 
 
