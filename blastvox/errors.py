@@ -36,3 +36,10 @@ class ContractError(InputError):
 
 class BudgetError(BlastvoxError):
     """A configured resource budget (voxel count, memory) would be exceeded."""
+
+
+class SimulationLimitWarning(UserWarning):
+    """A run's settings go beyond what the simulator can honour (see blastvox.simulate.limits).
+
+    Issued once per limit and run; the CLI prints it as ``blastvox: warning: <message>``.
+    """

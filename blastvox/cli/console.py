@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 
@@ -14,6 +16,31 @@ def err_console() -> Any:
     # piped (a shot build's log): one message per line, never wrapped at 80 columns
     width = None if sys.stderr.isatty() else 10_000
     return Console(stderr=True, highlight=False, width=width, soft_wrap=width is not None)
+
+
+@contextmanager
+def limit_warnings(console: Any) -> Iterator[None]:
+    """Print each :class:`~blastvox.errors.SimulationLimitWarning` raised inside as one
+    ``blastvox: warning: <message>`` line on ``console`` (stderr), each message once;
+    other warnings go to Python's usual handler."""
+    import warnings
+
+    from blastvox.errors import SimulationLimitWarning
+
+    seen: set[str] = set()
+    show = warnings.showwarning
+
+    def showwarning(message, category, filename, lineno, file=None, line=None) -> None:
+        if not issubclass(category, SimulationLimitWarning):
+            show(message, category, filename, lineno, file, line)
+        elif str(message) not in seen:
+            seen.add(str(message))
+            console.print(f"blastvox: warning: {message}", markup=False, highlight=False)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", SimulationLimitWarning)
+        warnings.showwarning = showwarning
+        yield
 
 
 class RichProgress:

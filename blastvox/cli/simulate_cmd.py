@@ -57,7 +57,7 @@ def simulate(
     """
     from dataclasses import replace
 
-    from blastvox.cli.console import err_console
+    from blastvox.cli.console import err_console, limit_warnings
     from blastvox.model import VoxelModel
     from blastvox.simulate.run import simulate as run
     from blastvox.simulate.settings import ChargeSpec, SimSettings, settings_from_scene
@@ -106,7 +106,7 @@ def simulate(
     console = err_console()
     started = time.perf_counter()
     progress = _Progress(enabled=not quiet and console.is_terminal, console=console)
-    with progress:
+    with progress, limit_warnings(console):
         cache = run(model, settings, progress=progress,
                     warn=lambda m: console.print(f"warning: {m}", markup=False))
     cache.save(output)

@@ -40,6 +40,7 @@ from blastvox.simulate.kernels import (
     settle,
     wake_on_impulse,
 )
+from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.particles import Emitter, particle_meta
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
@@ -118,6 +119,7 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     frames = settings.frame_count()
     total_steps = (frames - 1) * per_frame
     run = _Run(sm, state, charges, settings, dt)
+    limits = LimitMonitor(sm, settings, dt)  # warns once per limit the run passes
     counts = link_alive_counts(sm.voxel_link_offsets, sm.voxel_link_ids, state.link_alive)
     run.rec.frame(0, state, counts, charges.front_radius(0.0))
     for step in range(1, total_steps + 1):
@@ -126,7 +128,9 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
             counts = link_alive_counts(sm.voxel_link_offsets, sm.voxel_link_ids,
                                        state.link_alive)
             run.rec.frame(step, state, counts, charges.front_radius(step * dt))
+            limits.check(state)
             progress.update(step * dt, step, total_steps)
+    limits.finish()
     frame_time = np.arange(frames) * (per_frame * dt)
     arrays = run.rec.pack(state, sm.voxel_mass, frame_time)
     arrays.update(charge_position=charges.position.copy(), charge_tnt_kg=charges.tnt_kg.copy(),

@@ -1,0 +1,643 @@
+"""Stability at the extremes (issue 6): finite, bounded, unit, deterministic, or a warning.
+
+Every scenario runs the real :func:`blastvox.simulate.run.simulate` twice with
+the step machinery replaced by :class:`Probe`, a subclass of the simulator's own
+``_Run`` that checks the float64 state after every step (the SimCache stores
+positions and orientations as float32, so the state is where unit quaternions
+to 1e-9 can be seen). Each scenario asserts:
+
+* **finite**: no NaN or Inf in any float array of either SimCache, nor in the
+  bodies' float64 state after any step (no NaN in the yields, which are +inf
+  for unbreakable materials by design);
+* **energy**: the kinetic energy never exceeds what the blast's impulses can have
+  given (:class:`Probe` derives the bound, gravity's work included);
+* **unit quaternions**: | |q| - 1 | <= 1e-9 for every live body after every step;
+* **determinism**: the two runs' saved ``.npz`` files are byte-identical, and
+  both issue the same :class:`~blastvox.errors.SimulationLimitWarning` s, at
+  most one per limit.
+
+Where a setting is beyond what the simulator can honour
+(:mod:`blastvox.simulate.limits`), the tests check that it says so once, with
+the step that fixes it, and that it says nothing for the bundled examples.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+import subprocess
+import sys
+import tempfile
+import warnings
+from dataclasses import dataclass, replace
+from pathlib import Path
+from unittest import mock
+
+import numba as nb
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from blastvox import cache as cache_module
+from blastvox.errors import SimulationLimitWarning
+from blastvox.io.npz import write_npz
+from blastvox.materials import MaterialLibrary, material_table
+from blastvox.model import VoxelModel
+from blastvox.simulate import limits
+from blastvox.simulate import run as simrun
+from blastvox.simulate.blast import Z_MAX, Z_MIN, blast_parameters
+from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.quaternion import matrix_into
+from blastvox.simulate.settings import ChargeSpec, SimSettings
+from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+ROOT = Path(__file__).resolve().parent.parent
+UNBREAKABLE = {"link_yield_mean": float("inf"), "link_yield_var": 0.0,
+               "voxel_yield_mean": float("inf"), "voxel_yield_var": 0.0,
+               "foundation_yield": float("inf")}
+LIBRARY = MaterialLibrary.builtin().extended({"solid": {"base": "steel", **UNBREAKABLE}}, "test")
+FAR = (ChargeSpec((1e5, 0.0, 0.0), 1e-3),)  # a charge whose wave never arrives
+BASE = SimSettings(gravity=0.0, ground=False, fps=24.0, duration=0.5)
+EXAMPLES = settings(max_examples=8, deadline=None, derandomize=True)
+#: brick dusts near a charge, reinforced concrete cracks, steel breaks into fragments that fly
+MATERIALS = ("brick", "reinforced_concrete", "steel")
+QUAT_TOL = 1e-9
+ENERGY_TOL = 1e-9  # relative: round-off of the energy sums and of the rotation's iteration
+
+
+# --------------------------------------------------------------------------- models
+
+
+@functools.lru_cache(maxsize=32)
+def box(extents: tuple[float, float, float], size: float, material: str = "brick",
+        ground: float | None = None) -> VoxelModel:
+    """A voxelized box (real voxelize of a trimesh box), its lowest face at z = 0, Z up."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "box.stl"
+        trimesh.creation.box(extents=extents).apply_translation(
+            (0.0, 0.0, extents[2] / 2)).export(path)
+        return voxelize([ObjectRequest(mesh=path, voxel_size=(size,) * 3, material=material)],
+                        VoxelizeSettings(up_axis="Z", ground=ground, library=LIBRARY))
+
+
+def boxes(parts: list[tuple[tuple[float, float, float], tuple[float, float, float], float]],
+          material: str = "solid") -> VoxelModel:
+    """One object per (extents, centre, voxel size) part: bodies of any voxel size."""
+    with tempfile.TemporaryDirectory() as tmp:
+        requests = []
+        for i, (extents, centre, size) in enumerate(parts):
+            path = Path(tmp) / f"part{i}.stl"
+            trimesh.creation.box(extents=extents).apply_translation(centre).export(path)
+            requests.append(ObjectRequest(mesh=path, voxel_size=(size,) * 3, material=material))
+        return voxelize(requests, VoxelizeSettings(up_axis="Z", ground=None, library=LIBRARY))
+
+
+def grid_model(shape: tuple[int, int, int], size: float, material: str,
+               grounded: bool = False) -> VoxelModel:
+    """A block of shape[0] x shape[1] x shape[2] cubes of ``size`` m, built directly as arrays.
+
+    The VoxelModel that ``voxelize`` makes of a box, without meshes (a 1M-voxel
+    block costs a few seconds instead of ~20 s): corner c = dx + 2dy + 4dz, links
+    +x/+y/+z (faces 1, 3, 5) sorted by voxel pair, yields at the material's mean
+    (no variance), Z up; ``grounded``: ground at z = 0 and the bottom layer on
+    foundations, else no ground. ``test_grid_model_is_what_voxelize_makes`` checks
+    it against voxelize.
+    """
+    nx, ny, nz = shape
+    k, j, i = (a.ravel() for a in np.indices((nz, ny, nx)))
+    ijk = np.stack([i, j, k], axis=1)  # voxel v = i + nx (j + ny k)
+    n = len(ijk)
+    corners = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)])
+    vertex_id = np.array([1, nx + 1, (nx + 1) * (ny + 1)])  # lattice vertex (a, b, c) -> id
+    voxel_vertices = (ijk @ vertex_id)[:, None] + (corners @ vertex_id)[None, :]
+    vk, vj, vi = (a.ravel() for a in np.indices((nz + 1, ny + 1, nx + 1)))
+    vertices = np.stack([vi, vj, vk], axis=1) * size
+    table = material_table(LIBRARY, [material])
+    density = float(table["material_density"][0])
+    mass = density * size ** 3
+    inertia = np.zeros((n, 3, 3))
+    inertia[:, [0, 1, 2], [0, 1, 2]] = mass * size * size / 6.0
+    boundary = np.zeros(n, dtype=np.uint8)
+    ends = np.empty((n, 3, 2), dtype=np.int64)
+    valid = np.empty((n, 3), dtype=bool)
+    for axis, stride in enumerate((1, nx, nx * ny)):
+        dims = (nx, ny, nz)[axis]
+        boundary[ijk[:, axis] == 0] |= np.uint8(1 << (2 * axis))
+        boundary[ijk[:, axis] == dims - 1] |= np.uint8(1 << (2 * axis + 1))
+        ends[:, axis, 0] = np.arange(n)
+        ends[:, axis, 1] = np.arange(n) + stride
+        valid[:, axis] = ijk[:, axis] < dims - 1
+    # row-major: sorted by voxel a, then by b (the strides grow with the axis)
+    link_voxels = ends[valid]
+    link_face = np.broadcast_to(np.array([1, 3, 5]), (n, 3))[valid]
+    axis = (link_face - 1) // 2
+    centroid = (ijk + 0.5) * size
+    direction = np.zeros((len(link_voxels), 3))
+    direction[np.arange(len(axis)), axis] = 1.0
+    foundation = (ijk[:, 2] == 0) & grounded
+    arrays = dict(table)
+    arrays.update(
+        vertices=vertices.astype(np.float64), voxel_vertices=voxel_vertices.astype(np.int32),
+        voxel_ijk=ijk.astype(np.int32), voxel_object=np.zeros(n, np.int32),
+        voxel_material=np.zeros(n, np.int32), voxel_volume=np.full(n, size ** 3),
+        voxel_mass=np.full(n, mass), voxel_centroid=centroid, voxel_inertia=inertia,
+        voxel_boundary=boundary,
+        voxel_yield=np.full(n, float(table["material_voxel_yield_mean"][0])),
+        voxel_foundation=foundation,
+        voxel_foundation_yield=np.where(foundation, table["material_foundation_yield"][0], 0.0),
+        voxel_combustibility=np.full(n, float(table["material_combustibility"][0])),
+        link_voxels=link_voxels.astype(np.int32), link_face=link_face.astype(np.uint8),
+        link_midpoint=centroid[link_voxels[:, 0]] + 0.5 * size * direction,
+        link_direction=direction, link_area=np.full(len(link_voxels), size * size),
+        link_yield=np.full(len(link_voxels), float(table["material_link_yield_mean"][0])),
+        conform_voxels=np.zeros(0, np.int32), conform_offsets=np.zeros(1, np.int64),
+        conform_triangles=np.zeros((0, 3, 3)), conform_tag=np.zeros(0, np.uint8))
+    meta = {"up_axis": "Z", "ground_height": 0.0 if grounded else None, "seed": 0,
+            "settings": {},
+            "objects": [{"name": "block", "source": "synthetic", "voxel_count": n}],
+            "materials": [material]}
+    return VoxelModel(arrays=arrays, meta=meta)
+
+
+# --------------------------------------------------------------------------- the probe
+
+
+@nb.njit(cache=True)
+def _mechanics(body_quat, body_lin, body_ang, body_mass, body_inv_inertia, body_pos, body_live,
+               body_dust, n, up_axis, gravity, floor):
+    """(kinetic J, potential above ``floor`` J, lowest height above it m, worst ||q| - 1|)
+    of the live bodies (dust excluded from the energies): |p|^2/2m + L . omega / 2 and
+    m g (h - floor)."""
+    rot = np.empty((3, 3))
+    kinetic = potential = 0.0
+    lowest = np.inf
+    quat = 0.0
+    for b in range(n):
+        if not body_live[b]:
+            continue
+        q = body_quat[b]
+        quat = max(quat, abs(math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2) - 1.0))
+        if body_dust[b]:
+            continue
+        matrix_into(q, rot)
+        wx, wy, wz = angular_velocity(rot, body_inv_inertia[b], body_ang[b])
+        p = body_lin[b]
+        kinetic += 0.5 * (p[0] ** 2 + p[1] ** 2 + p[2] ** 2) / body_mass[b]
+        kinetic += 0.5 * (wx * body_ang[b, 0] + wy * body_ang[b, 1] + wz * body_ang[b, 2])
+        height = body_pos[b, up_axis] - floor
+        potential += gravity * body_mass[b] * height
+        lowest = min(lowest, height)
+    return kinetic, potential, lowest, quat
+
+
+class Probe(simrun._Run):
+    """The simulator's step, followed after every step by checks of its float64 state.
+
+    **The energy bound.** Let v be the generalised velocity of all bodies and
+    ||v||_M = sqrt(2 KE) its norm in the mass metric (|p|^2/m + L . I_w^-1 L summed
+    over bodies). A set of impulses g applied at once (one step's blast: linear
+    J_b and angular K_b per body) changes v by M^-1 g, so by the triangle
+    inequality sqrt(2 KE) grows by at most ||g||_{M^-1} =
+    sqrt(sum_b |J_b|^2/m_b + K_b . I_w,b^-1 K_b). Nothing else in a step adds
+    energy: splits keep every voxel's velocity (kinetic energy is additive over
+    the voxels), dust leaves with its own energy, contacts only remove approach
+    velocity or reflect it with e <= 1, drag, damping and sleep only shrink
+    momenta, and the rotation conserves L . omega / 2. With gravity g and the
+    ground at height h_g, E' = KE + g sum_b m_b (h_b - h_floor) (h_floor = h_g
+    minus the largest voxel radius, so E' >= KE while nothing sinks) obeys the
+    same inequality: semi-implicit Euler's free fall loses m g^2 dt^2 / 2 per
+    step, and a step's impulse J adds J . v_n + |J|^2/2m to E', which is at most
+    ||v_n|| ||J|| + ||J||^2 / 2. Hence after every step
+
+        KE <= E' <= (sqrt(2 E'_0) + sum over steps ||g||_{M^-1})^2 / 2,
+
+    E'_0 the initial kinetic plus potential energy. The bound is tight (equal)
+    for one step's impulse on bodies at rest, so an integrator or contact that
+    adds energy fails it. Without a ground, gravity must be 0.
+    """
+
+    runs: list[Probe] = []
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        sm, s = self.sm, self.settings
+        assert s.gravity == 0.0 or self.ground is not None, "gravity needs a ground to bound"
+        self.floor = (self.ground - float(sm.voxel_radius.max(initial=0.0))
+                      if self.ground is not None else 0.0)
+        self.energy0 = self.energy()
+        self.root = math.sqrt(2.0 * self.energy0)
+        self.work = 0.0  # sum over steps of ||g||_{M^-1}, sqrt(J)
+        self.energy_ratio = 0.0  # worst E' / bound
+        self.energy_range = [self.energy0, self.energy0]
+        self.steps = 0
+        Probe.runs.append(self)
+
+    def energy(self) -> float:
+        """E' = kinetic + g sum m (h - h_floor) of the live, non-dust bodies (J); also
+        updates the worst quaternion error."""
+        st = self.state
+        kinetic, potential, lowest, quat = _mechanics(
+            st.body_quat, st.body_lin, st.body_ang, st.body_mass, st.body_inv_inertia,
+            st.body_pos, st.body_live, st.body_dust, self.n_bodies, self.sm.up_axis,
+            float(self.settings.gravity), self.floor)
+        if self.settings.gravity:
+            assert lowest >= 0.0, "a body sank below the ground"
+        self.quat_error = max(getattr(self, "quat_error", 0.0), quat)
+        return kinetic + potential
+
+    def _blast(self, t0: float, t1: float, front_out) -> None:
+        super()._blast(t0, t1, front_out)
+        st, n = self.state, self.n_bodies
+        if not (self.impulse[:n].any() or self.angular[:n].any()):
+            return
+        hit = np.flatnonzero(self.impulse[:n].any(axis=1) | self.angular[:n].any(axis=1))
+        r, k = self.rot[hit], self.angular[hit]
+        turn = r @ (st.body_inv_inertia[hit] @ (np.swapaxes(r, 1, 2) @ k[:, :, None]))
+        norm2 = (np.sum(self.impulse[hit] ** 2, axis=1) / st.body_mass[hit]
+                 + np.sum(turn[..., 0] * k, axis=1))
+        self.work += math.sqrt(float(norm2.sum()))
+
+    def step(self, step: int, frame_next: int) -> None:
+        super().step(step, frame_next)
+        self.steps += 1
+        # NaN or Inf in any position, orientation, momentum, mass or inertia shows here
+        energy = self.energy()
+        assert math.isfinite(energy), f"step {step}: energy {energy}"
+        self.energy_range = [min(self.energy_range[0], energy), max(self.energy_range[1], energy)]
+        bound = 0.5 * (self.root + self.work) ** 2
+        if bound > 0.0:
+            self.energy_ratio = max(self.energy_ratio, energy / bound)
+        else:
+            assert energy == 0.0, f"step {step}: energy {energy} J from nothing"
+
+    def check_state(self) -> None:
+        """Every float array of the final state: finite (yields: not NaN; +inf is 'never')."""
+        st, n = self.state, self.n_bodies
+        for name in ("body_pos", "body_quat", "body_lin", "body_ang", "body_com", "body_mass",
+                     "body_inertia", "body_inv_inertia", "body_radius", "voxel_damage"):
+            values = getattr(st, name)
+            values = values[:n] if name.startswith("body_") else values
+            assert np.isfinite(values).all(), f"non-finite {name}"
+        for name in ("voxel_yield", "voxel_foundation_yield", "link_yield", "voxel_combust"):
+            assert not np.isnan(getattr(st, name)).any(), f"NaN in {name}"
+
+
+@dataclass
+class Checked:
+    """Two runs of one scenario, checked (see the module doc)."""
+
+    cache: cache_module.SimCache
+    probe: Probe
+    warnings: list[str]
+
+
+def cache_bytes(cache: cache_module.SimCache, whole: bool = True) -> bytes:
+    """The bytes :meth:`SimCache.save` writes; ``whole=False``: the same but stored, not
+    deflated, and without the embedded VoxelModel (the input, identical by construction;
+    a 1M-voxel model is 450 MB)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "sim.npz"
+        if whole:
+            cache.save(path)
+        else:
+            write_npz(path, cache.arrays, cache.meta, compress=False)
+        return path.read_bytes()
+
+
+def set_motion(motion: dict[int, tuple[tuple[float, ...], tuple[float, ...]]]):
+    """Patch the initial state: object -> (velocity m/s, angular velocity rad/s)."""
+    original = simrun.initial_state
+
+    def initial_state(model, sm):
+        state = original(model, sm)
+        for body, (v, w) in motion.items():
+            state.body_lin[body] = state.body_mass[body] * np.asarray(v, dtype=np.float64)
+            state.body_ang[body] = state.body_inertia[body] @ np.asarray(w, dtype=np.float64)
+        return state
+
+    return mock.patch.object(simrun, "initial_state", initial_state)
+
+
+def run_twice(model: VoxelModel, settings: SimSettings, motion=None, whole: bool = True,
+              energy: bool = True) -> Checked:
+    """Simulate twice under the probe; assert finite, bounded, unit and deterministic."""
+    outputs = []
+    for _ in range(2):
+        Probe.runs.clear()
+        with mock.patch.object(simrun, "_Run", Probe), set_motion(motion or {}), \
+                warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            cache = simrun.simulate(model, settings)
+        (probe,) = Probe.runs
+        probe.check_state()
+        issued = [str(w.message) for w in caught if issubclass(w.category,
+                                                                SimulationLimitWarning)]
+        outputs.append((cache, probe, issued, cache_bytes(cache, whole)))
+    (cache, probe, issued, data), (_, probe2, issued2, data2) = outputs
+    assert probe.steps > 0
+    for name, array in cache.arrays.items():
+        if array.dtype.kind in "fc":
+            assert np.isfinite(array).all(), f"non-finite values in cache array {name}"
+    orientation = cache.piece_orientation.astype(np.float64)
+    assert np.abs(np.linalg.norm(orientation, axis=-1) - 1.0).max(initial=0.0) < 1e-6
+    assert probe.quat_error <= QUAT_TOL, probe.quat_error
+    if energy:
+        assert probe.energy_ratio <= 1.0 + ENERGY_TOL, (
+            f"kinetic energy {probe.energy_ratio:.6g} x what the blast can have done")
+    assert data == data2, "two runs of the same scenario differ"
+    assert issued == issued2
+    kinds = [m.split(" per step")[0].split()[-2] for m in issued]  # "move" / "spin"
+    assert len(kinds) == len(set(kinds)), f"a limit warned more than once: {issued}"
+    return Checked(cache, probe, issued)
+
+
+def honoured(checked: Checked) -> bool:
+    return not checked.warnings
+
+
+# --------------------------------------------------------------------------- the builder
+
+
+def test_grid_model_is_what_voxelize_makes():
+    made = box((1.0, 0.75, 0.5), 0.25, material="solid")
+    grid = grid_model((4, 3, 2), 0.25, "solid")
+    order = np.lexsort(made.voxel_centroid.T)  # z slowest, x fastest, as the grid
+    corners = made.hexahedra()[order]
+    np.testing.assert_allclose(grid.hexahedra() - grid.voxel_centroid.mean(axis=0),
+                               corners - made.voxel_centroid.mean(axis=0), atol=1e-12)
+    for name in ("voxel_mass", "voxel_volume", "voxel_boundary"):
+        np.testing.assert_allclose(grid.arrays[name], made.arrays[name][order], rtol=1e-12)
+    np.testing.assert_allclose(grid.voxel_inertia, made.voxel_inertia[order], rtol=1e-9,
+                               atol=1e-12)
+    rank = np.argsort(order)  # voxelize's voxel -> grid voxel
+    np.testing.assert_array_equal(np.sort(rank[made.link_voxels], axis=1)[
+        np.lexsort(np.sort(rank[made.link_voxels], axis=1).T[::-1])], grid.link_voxels)
+    assert sorted(made.link_face.tolist()) == sorted(grid.link_face.tolist())
+    assert made.link_area.sum() == pytest.approx(grid.link_area.sum(), rel=1e-12)
+
+
+# --------------------------------------------------------------------------- charges
+
+
+def _far_enough(kg: float, distance: float) -> float:
+    """Shot length (s) that lets the wave at ``distance`` m arrive and pass."""
+    arrival = float(blast_parameters(distance, kg).arrival_time_s)
+    return min(1.0, arrival + 0.25)
+
+
+@EXAMPLES
+@given(log_kg=st.floats(-3.0, 6.0), log_z=st.floats(math.log10(Z_MIN) - 2, 3.0),
+       inside=st.booleans(), offset=st.tuples(*[st.floats(-0.45, 0.45)] * 3),
+       material=st.sampled_from(MATERIALS))
+@example(log_kg=-3.0, log_z=0.0, inside=True, offset=(0.0, 0.0, 0.0), material="steel")
+@example(log_kg=6.0, log_z=0.0, inside=True, offset=(0.3, -0.2, 0.1), material="steel")
+@example(log_kg=6.0, log_z=math.log10(Z_MIN), inside=False, offset=(0, 0, 0), material="brick")
+@example(log_kg=-3.0, log_z=3.0, inside=False, offset=(0, 0, 0), material="steel")
+def test_charge_mass_and_distance(log_kg, log_z, inside, offset, material):
+    """1 g to 1 kt, from inside a voxel (distance 0) to far beyond the reference data.
+
+    Examples: 1 g and 1 kt in a voxel, 1 kt at a face (Z = 0.0531), 1 g at Z = 1000
+    (100 m). Off the box the charge is at Z W^(1/3) from its face, at most 100 m
+    (so the wave arrives within the shot): Z > 40 for up to 34 kg.
+    """
+    model = box((1.5, 1.0, 0.5), 0.25, material=material)
+    kg = 10.0 ** log_kg
+    if inside:  # distance 0: in a voxel (its centre, or off it)
+        centre = model.voxel_centroid[5]
+        position = tuple(centre + 0.25 * np.asarray(offset))
+        duration = 0.25
+    else:  # off the -x face at Z, at most 100 m (the wave arrives within ~0.3 s)
+        distance = min(10.0 ** log_z * kg ** (1 / 3), 100.0)
+        position = (-0.75 - distance, 0.1, 0.3)
+        duration = _far_enough(kg, distance + 0.75)
+    charges = (ChargeSpec(position, kg),)
+    checked = run_twice(model, replace(BASE, duration=duration, charges=charges))
+    if not inside and distance / kg ** (1 / 3) > Z_MAX:
+        assert checked.probe.work > 0.0  # the far wave did arrive and push
+
+
+# --------------------------------------------------------------------------- voxel size
+
+
+@EXAMPLES
+@given(log_size=st.floats(-3.0, 1.0), material=st.sampled_from(MATERIALS))
+@example(log_size=-3.0, material="steel")
+@example(log_size=1.0, material="steel")
+def test_voxel_size(log_size, material):
+    """1 mm to 10 m voxels on the ground, with gravity; charge scaled with the voxel (Hopkinson).
+
+    Speeds do not scale with the voxel, so 1 mm voxels move many voxels per step at
+    dt = 1/240 s: then the motion limit warns (once), and everything else holds.
+    """
+    size = 10.0 ** log_size
+    model = box((4 * size, 2 * size, 2 * size), size, material=material, ground=-1e-3 * size)
+    kg = min(max(2.0 * (size / 0.25) ** 3, 1e-9), 1e6)
+    charges = (ChargeSpec((-5 * size, 0.0, size), kg),)
+    checked = run_twice(model, replace(BASE, gravity=9.81, ground=True, charges=charges))
+    if size >= 0.1:
+        assert honoured(checked), checked.warnings
+
+
+# --------------------------------------------------------------------------- time step
+
+
+@EXAMPLES
+@given(log_dt=st.floats(-5.0, math.log10(1 / 24)), ground=st.booleans(),
+       material=st.sampled_from(MATERIALS))
+@example(log_dt=-5.0, ground=True, material="steel")
+@example(log_dt=math.log10(1 / 24), ground=True, material="steel")
+@example(log_dt=math.log10(1 / 24), ground=False, material="brick")
+def test_time_step(log_dt, ground, material):
+    """dt from 1e-5 s to 1/24 s (far longer than the 2 ms positive phase), ground or not."""
+    dt = 10.0 ** log_dt
+    fps = min(1000.0, 1.0 / dt)  # so that dt divides the frame interval
+    duration = max(min(300 * dt, 1.0), 3.0 / fps)  # the wave arrives at 1 ms
+    model = box((1.5, 1.0, 0.5), 0.25, material=material, ground=-1e-3)
+    charges = (ChargeSpec((-1.75, 0.1, 0.3), 1.0),)
+    run_twice(model, replace(BASE, dt=dt, fps=fps, duration=duration, ground=ground,
+                             gravity=9.81 if ground else 0.0, charges=charges))
+
+
+def test_impulse_does_not_depend_on_a_step_longer_than_the_blast():
+    """A dt of 1/24 s, 18x the positive phase, gives the momentum of a dt of 1e-4 s."""
+    model = box((1.0, 1.0, 1.0), 1.0, material="solid")
+    charges = (ChargeSpec((-3.0, 0.0, 0.5), 2.0),)
+    speeds = []
+    for dt, fps, duration in ((1 / 24, 24.0, 1 / 24), (1e-4, 1000.0, 0.02)):  # both: whole wave
+        checked = run_twice(model, replace(BASE, dt=dt, fps=fps, duration=duration,
+                                           charges=charges))
+        st_ = checked.probe.state
+        speeds.append(st_.body_lin[0] / st_.body_mass[0])
+    assert float(blast_parameters(2.5, 2.0).positive_duration_s) < 1 / 24 / 10
+    assert speeds[0][0] > 0.01
+    # equal but for the cube's own motion during the wave (5e-5 m of 2.5 m: 1e-5)
+    np.testing.assert_allclose(speeds[0], speeds[1], rtol=1e-4, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- collisions
+
+
+@pytest.mark.parametrize("mover", ["light", "heavy"])
+def test_collision_with_mass_ratio_one_to_a_million(mover):
+    """A 0.1 m steel cube and a 10 m one (7.85 kg and 7.85e6 kg) collide head on.
+
+    One impulse with e = 0.5 (steel) along the line of centres: the 1-D closed
+    form to 1e-9, momentum to 1e-12 (within 0.25 s, before the slow one may sleep).
+    """
+    model = boxes([((0.1, 0.1, 0.1), (-5.2, 0.0, 0.0), 0.1),
+                   ((10.0, 10.0, 10.0), (0.0, 0.0, 0.0), 10.0)])
+    m = model.voxel_mass  # one voxel per object: object = body = voxel
+    assert m[1] / m[0] == pytest.approx(1e6, rel=1e-9)
+    moving, other = (0, 1) if mover == "light" else (1, 0)
+    v = 10.0 if mover == "light" else -1.0  # towards the other, along x
+    checked = run_twice(model, replace(BASE, duration=0.25, charges=FAR),
+                        motion={moving: ((v, 0.0, 0.0), (0.0, 0.0, 0.0))})
+    st_ = checked.probe.state
+    assert int(st_.n_bodies[0]) == 2 and checked.cache.meta["collisions"] >= 1
+    p0 = m[moving] * v
+    np.testing.assert_allclose(st_.body_lin[:2].sum(axis=0), [p0, 0.0, 0.0], rtol=1e-12,
+                               atol=1e-12 * abs(p0))
+    e, total = 0.5, m[0] + m[1]
+    expected = {other: m[moving] * (1 + e) * v / total,
+                moving: (m[moving] - e * m[other]) * v / total}
+    for body, speed in expected.items():
+        np.testing.assert_allclose(st_.body_lin[body] / m[body], [speed, 0.0, 0.0], rtol=1e-9,
+                                   atol=1e-9 * abs(v))
+    assert honoured(checked), checked.warnings
+
+
+# --------------------------------------------------------------------------- spin
+
+
+def test_body_spinning_at_a_thousand_radians_per_second_for_ten_seconds():
+    """An asymmetric 3 x 2 x 1 voxel body tumbling at 1e3 rad/s (4.2 rad per step) for 10 s.
+
+    Torque-free: L stays fixed and the kinetic energy is conserved to 1e-9 (the
+    papers' explicit rotation update doubled it within the 10 s).
+    """
+    model = box((0.75, 0.5, 0.25), 0.25, material="solid")
+    axis = np.array([0.6, 0.48, 0.64])
+    omega = 1e3 * axis / np.linalg.norm(axis)
+    checked = run_twice(model, replace(BASE, duration=10.0, charges=FAR),
+                        motion={0: ((0.0, 0.0, 0.0), tuple(omega))})
+    probe = checked.probe
+    assert probe.steps == 2400
+    low, high = probe.energy_range
+    assert high / probe.energy0 - 1.0 <= 1e-9 and 1.0 - low / probe.energy0 <= 1e-9
+    st_ = probe.state
+    np.testing.assert_array_equal(st_.body_ang[0], st_.body_inertia[0] @ omega)
+    assert honoured(checked)
+
+
+# --------------------------------------------------------------------------- scale
+
+
+def test_a_million_voxels():
+    """A 10 m reinforced-concrete block of 100^3 voxels on its foundations, 1 kg of TNT
+    1 m off a face: a crater of ~10k fragments that fall and collide, for 3 steps."""
+    model = grid_model((100, 100, 100), 0.1, "reinforced_concrete", grounded=True)
+    assert model.voxel_count == 1_000_000
+    charges = (ChargeSpec((11.0, 5.0, 5.0), 1.0),)
+    settings_ = replace(BASE, dt=1 / 240, fps=240.0, duration=3 / 240, gravity=9.81,
+                        ground=True, charges=charges)
+    checked = run_twice(model, settings_, whole=False)
+    assert checked.probe.steps == 3
+    assert checked.cache.piece_count > 1000 and checked.probe.work > 0.0
+
+
+# --------------------------------------------------------------------------- warnings
+
+
+MOTION = re.compile(r"^dt ([\d.e-]+) s lets fragments move ([\d.]+) voxels per step "
+                    r"\(limit 0\.5\), so collisions can be missed; use --dt ([\d.e-]+) or "
+                    r"smaller \(scene: \[simulation\] dt\)$")
+SPIN = re.compile(r"^dt ([\d.e-]+) s lets fragments spin ([\d.]+) rad per step "
+                  r"\(limit 40\), so their rotation no longer conserves energy; use --dt "
+                  r"([\d.e-]+) or smaller \(scene: \[simulation\] dt\)$")
+
+
+def _small_steel() -> tuple[VoxelModel, ChargeSpec]:
+    """48 steel voxels of 2 cm and 5 g of TNT 8 cm off a face: fragments at ~0.35 m/s,
+    0.7 voxels per step at dt = 1/24 s (Hopkinson-scaled from 10 kg at 1 m off 25 cm
+    voxels, which moves them 0.06 voxels per step)."""
+    return (box((0.12, 0.08, 0.04), 0.02, material="steel"),
+            ChargeSpec((-0.14, 0.008, 0.024), 10.0 * 0.08 ** 3))
+
+
+def test_fast_fragments_at_a_long_step_warn_once_and_the_advice_works():
+    model, charge = _small_steel()
+    coarse = replace(BASE, dt=1 / 24, fps=24.0, charges=(charge,))
+    checked = run_twice(model, coarse)
+    (message,) = checked.warnings
+    match = MOTION.match(message)
+    assert match, message
+    assert float(match.group(1)) == pytest.approx(1 / 24, rel=1e-2)
+    assert float(match.group(2)) > 0.5
+    advice = float(match.group(3))
+    assert advice < 1 / 24
+    fine = run_twice(model, replace(coarse, dt=advice))
+    assert honoured(fine), fine.warnings
+
+
+def test_spin_beyond_the_rotation_limit_warns_once_and_stays_bounded():
+    """1e3 rad/s at dt = 1/24 s is 42 rad per step: beyond the 40 rad the rotation conserves.
+
+    Then the energy is no longer conserved but stays bounded by L^2 / (2 I_min)
+    (|L| is), everything stays finite and unit, and the advised step honours it.
+    """
+    model = box((0.75, 0.5, 0.25), 0.25, material="solid")
+    omega = (0.0, 1e3, 20.0)
+    coarse = replace(BASE, dt=1 / 24, fps=24.0, duration=2.0, charges=FAR)
+    checked = run_twice(model, coarse, motion={0: ((0.0, 0.0, 0.0), omega)}, energy=False)
+    (message,) = checked.warnings
+    match = SPIN.match(message)
+    assert match, message
+    st_ = checked.probe.state
+    ang = st_.body_ang[0]
+    i_min = np.linalg.eigvalsh(st_.body_inertia[0]).min()
+    assert checked.probe.energy_range[1] <= ang @ ang / (2 * i_min) * (1 + 1e-12)
+    fine = run_twice(model, replace(coarse, dt=float(match.group(3))),
+                     motion={0: ((0.0, 0.0, 0.0), omega)})
+    assert honoured(fine), fine.warnings
+
+
+def test_limits_measure_what_they_say():
+    assert limits.motion_per_step(3.0, 10.0, 0.5, 0.01, 0.25) == pytest.approx(0.32)
+    assert limits.suggested_dt(1 / 24, 3.2, 0.5) == pytest.approx(0.006)
+    assert limits.suggested_dt(0.01, 1.0, 0.5) == pytest.approx(0.005)
+    inv = np.diag([1.0, 2.0, 3.0])[None]
+    assert limits.spin_per_step(np.array([[0.0, 3.0, 4.0]]), inv, 0.1)[0] == pytest.approx(1.0)
+    assert limits.voxel_size(np.array([0.01, 0.125, 0.125, 0.2])) == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("name", ["house", "logo", "building"])
+def test_bundled_examples_warn_nothing(name):
+    """The example shots, as ``blastvox run`` makes them, stay within every limit."""
+    from blastvox.scene import load_scene
+    from blastvox.simulate.settings import settings_from_scene
+    from blastvox.voxelize.requests import requests_from_scene
+    from blastvox.voxelize.requests import settings_from_scene as voxel_settings
+
+    scene = load_scene(ROOT / "examples" / name / "scene.toml")
+    model = voxelize(requests_from_scene(scene), voxel_settings(scene))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SimulationLimitWarning)
+        simrun.simulate(model, settings_from_scene(scene))
+
+
+def test_cli_prints_a_limit_warning_once_as_one_line(tmp_path):
+    model, charge = _small_steel()
+    model.save(tmp_path / "model.npz")
+    where = ",".join(repr(x) for x in charge.position)
+    run = subprocess.run([sys.executable, "-m", "blastvox", "simulate", "model.npz", "-o",
+                          "sim.npz", "--charge", f"{where}:{charge.mass_kg!r}", "--dt",
+                          repr(1 / 24), "--duration", "0.5", "--gravity", "0", "--no-ground",
+                          "-q"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    lines = run.stderr.splitlines()
+    assert len(lines) == 1, run.stderr
+    assert lines[0].startswith("blastvox: warning: dt 0.0417 s lets fragments move "), lines[0]
+    assert MOTION.match(lines[0][len("blastvox: warning: "):]), lines[0]
