@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint bench examples clean
+.PHONY: demo test lint bench examples previews clean
 
 # The Khronos glTF Validator (npm) that the export tests run; needs node and npm.
 VALIDATOR := tools/gltf-validator/node_modules/.installed
@@ -51,6 +51,17 @@ lint: $(STAMP)
 ## examples: build all bundled example shots (house, building, logo) into out/
 examples: $(STAMP)
 	for scene in examples/*/scene.toml; do $(BIN)/blastvox run $$scene || exit 1; done
+
+## previews: build the example shots, then render the README's images into docs/images/
+PREVIEW_SIZE ?= 480x270
+previews: $(STAMP)
+	mkdir -p docs/images
+	for s in house building logo; do \
+	  $(BIN)/blastvox run examples/$$s/scene.toml -q || exit 1; \
+	  $(BIN)/blastvox preview out/$$s/sim.npz -o docs/images/$$s.png --size $(PREVIEW_SIZE) -q \
+	    || exit 1; \
+	done
+	$(BIN)/blastvox blast --charge 10 --distance 1,5,20 --plot docs/images/blast.png > /dev/null
 
 ## bench: print the benchmark tables
 bench: $(STAMP)
