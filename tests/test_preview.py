@@ -73,12 +73,14 @@ def to_linear(rgb: np.ndarray) -> np.ndarray:
     return np.where(s <= 0.04045, s / 12.92, ((s + 0.055) / 1.055) ** 2.4)
 
 
-def project(points: np.ndarray, eye, target, focal_mm: float, size) -> np.ndarray:
-    """Pixel (x, y) of world points for a Z-up pinhole: 36 mm film back across the width,
-    image y down, pixel centres at +0.5. Written independently of blastvox.preview."""
+def project(points: np.ndarray, eye, target, focal_mm: float, size,
+            up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """Pixel (x, y) of world points for a pinhole kept level with ``up``: 36 mm film back
+    across the width, image y down, pixel centres at +0.5. Written independently of
+    blastvox.preview."""
     eye, target = np.asarray(eye, float), np.asarray(target, float)
     forward = (target - eye) / np.linalg.norm(target - eye)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right = np.cross(forward, up)
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)
     rel = np.asarray(points, float) - eye
@@ -132,8 +134,9 @@ def static_cache(model: VoxelModel, voxel_piece: np.ndarray, frames: int,
         "particle_position": np.zeros((0, 3)), "particle_velocity": np.zeros((0, 3)),
         "particle_size": np.zeros(0, np.float32),
     }
-    meta = {"fps": 24.0, "ground_height": -0.5, "up_axis": "Z",
-            "gravity_vector": [0.0, 0.0, -9.81]}
+    up = model.meta.get("up_axis", "Z")
+    meta = {"fps": 24.0, "ground_height": model.meta.get("ground_height"), "up_axis": up,
+            "gravity_vector": [0.0, -9.81, 0.0] if up == "Y" else [0.0, 0.0, -9.81]}
     if camera is not None:
         meta["camera"] = camera
     return SimCache(arrays=arrays, model=model, meta=meta)
@@ -241,6 +244,27 @@ def test_silhouette_matches_projected_box(known: Path, out: Path, capsys) -> Non
     # the background is the sky, not black or the box's colour
     corner = to_linear(image[-1, -1])
     assert corner[2] > corner[0]
+
+
+def test_silhouette_y_up(out: Path, capsys) -> None:
+    import trimesh
+
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    # the same box in a Y-up model, seen from +Z (the glTF front) and above
+    trimesh.creation.box(extents=BOX).export(out / "box.stl")
+    model = voxelize([ObjectRequest(mesh=out / "box.stl", voxel_size=(VOXEL,) * 3,
+                                    material="brick")], VoxelizeSettings(up_axis="Y"))
+    static_cache(model, np.zeros(model.voxel_count, np.int64), 1).save(out / "y.npz")
+    camera = "1,1.5,5:0,0,0:40"
+    image = render_known(out / "y.npz", out, capsys, "--camera", camera)
+    empty = render_known(out / "y.npz", out, capsys, "--camera", camera, "--hide",
+                         "ground,pieces", name="empty.png")
+    px = project(box_corners(), (1.0, 1.5, 5.0), (0.0, 0.0, 0.0), 40.0, SIZE,
+                 up=(0.0, 1.0, 0.0))
+    x0, y0, x1, y1 = silhouette_box(image, empty)
+    assert abs(x0 - px[:, 0].min()) <= 1.5 and abs(x1 + 1 - px[:, 0].max()) <= 1.5
+    assert abs(y0 - px[:, 1].min()) <= 1.5 and abs(y1 + 1 - px[:, 1].max()) <= 1.5
 
 
 def test_object_colour_is_the_material_colour(known: Path, out: Path, capsys) -> None:
