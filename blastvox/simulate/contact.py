@@ -152,7 +152,8 @@ def balanced(points: np.ndarray, centre: np.ndarray, tol: float = 0.0) -> bool:
 
 @nb.njit(cache=True)
 def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, vertices,
-                    voxel_vertices, voxel_restitution, offsets, members, vertex_stamp,
+                    voxel_vertices, voxel_centroid, voxel_radius, voxel_restitution, offsets,
+                    members, vertex_stamp,
                     body_mass, body_inv_inertia, body_radius, body_com, body_pos, body_rot,
                     body_lin, body_ang, body_fixed, body_live, body_dust, body_asleep, n_bodies,
                     contacts_out) -> int:
@@ -162,6 +163,8 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
     mu; rest_damping: 1/s decay of momenta in resting contact; sleep_speed: m/s
     below which a balanced body with >= 3 contacts is clamped to rest.
     contacts_out (K, 3): scratch for contact points (grows with the largest body).
+    voxel_radius (N,): centroid-to-farthest-corner distance (m), to skip voxels whose
+    corners are all out of reach.
     """
     e1 = (up_axis + 1) % 3
     e2 = (up_axis + 2) % 3
@@ -187,6 +190,13 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
         count = 0
         for k in range(offsets[b], offsets[b + 1]):
             v = members[k]
+            x = voxel_centroid[v, 0] - body_com[b, 0]
+            y = voxel_centroid[v, 1] - body_com[b, 1]
+            z = voxel_centroid[v, 2] - body_com[b, 2]
+            h = body_pos[b, up_axis] + rot[up_axis, 0] * x + rot[up_axis, 1] * y \
+                + rot[up_axis, 2] * z - ground
+            if h - voxel_radius[v] > reach:
+                continue  # every corner out of reach
             for c in range(8):
                 vid = voxel_vertices[v, c]
                 if vertex_stamp[vid] == b:

@@ -380,7 +380,8 @@ class _Run:
         offsets, members = self._boundary()
         self.ground_contacts += contact.ground_contacts(
             self.dt, self.ground, sm.up_axis, s.friction, s.rest_damping, s.sleep_speed,
-            sm.vertices, sm.voxel_vertices, sm.voxel_restitution, offsets, members,
+            sm.vertices, sm.voxel_vertices, sm.voxel_centroid, sm.voxel_radius,
+            sm.voxel_restitution, offsets, members,
             self.vertex_stamp, st.body_mass, st.body_inv_inertia, st.body_radius, st.body_com,
             st.body_pos, self.rot, st.body_lin, st.body_ang, st.body_fixed, st.body_live,
             st.body_dust, st.body_asleep, self.n_bodies, self.contacts)
