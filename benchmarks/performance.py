@@ -13,8 +13,10 @@ Prints the machine line and load average, then markdown tables:
     measured in that process: NumPy copying, step by step, the bytes the run's
     sweeps must at least read and write (the byte model is ``SWEEPS`` below: per
     voxel and per link for each kernel that sweeps them, counted per call in an
-    untimed run, plus ``BODY_BYTES`` per live body per step). The last column is
-    simulate time / bound time.
+    untimed run, plus ``BODY_BYTES`` per live body per step). The ratio is the
+    loop's time (steps and frame recording: ``simulate`` less building the run and
+    packing the cache) over the bound's; then where the largest block's run spends
+    its time, phase by phase.
 (b) Frames per second against boundary voxels, collisions on and off, laid out
     like Mazarak 1999 Table 5-1 with the paper's figures (``benchmarks/_debris.py``,
     shared with ``benchmarks/contacts.py``).
@@ -223,18 +225,28 @@ def print_phases(spent: dict[str, float], total: float) -> None:
 
 
 def count_sweeps(model: VoxelModel, settings) -> dict:
-    """One untimed ``simulate`` that counts each swept kernel's calls and the live
-    bodies of every step; returns the counts and the byte total of the model."""
+    """One untimed ``simulate`` that counts each swept kernel's calls in its loop (from
+    the first step's set-up to packing the cache) and the live bodies of every step;
+    returns the counts and the byte total of the model."""
     from blastvox.simulate import run as simrun
 
     calls = dict.fromkeys(SWEEPS, 0)
     bodies = [0, 0]  # live bodies summed over steps, steps
+    looping = [False]  # between the first step and packing the cache
 
     def counting(name: str, original: Callable) -> Callable:
         def wrapper(*args, **kwargs):
-            calls[name] += 1
+            calls[name] += looping[0]
             return original(*args, **kwargs)
         return wrapper
+
+    def flag(value: bool) -> Callable[[str, Callable], Callable]:
+        def make(name: str, original: Callable) -> Callable:
+            def wrapper(*args, **kwargs):
+                looping[0] = value
+                return original(*args, **kwargs)
+            return wrapper
+        return make
 
     def counting_step(name: str, original: Callable) -> Callable:
         def step(self, *args, **kwargs):
@@ -245,8 +257,12 @@ def count_sweeps(model: VoxelModel, settings) -> dict:
         return step
 
     homes = _homes()
+    from blastvox.simulate.recorder import Recorder
+
     with patched([(homes[name], name) for name in SWEEPS], counting) as missing, \
-            patched([(simrun._Run, "step")], counting_step):
+            patched([(simrun._Run, "step")], counting_step), \
+            patched([(simrun._Run, "__init__")], flag(True)), \
+            patched([(Recorder, "pack")], flag(False)):
         simrun.simulate(model, settings)
     n, links = model.voxel_count, len(model.arrays["link_voxels"])
     total = sum(calls[k] * (s.per_voxel * n + s.per_link * links) for k, s in SWEEPS.items())
@@ -284,11 +300,29 @@ def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) 
     model = VoxelModel.load(model_path)
     settings = settings_for(Case(f"block{cells}", cells=cells, duration=BLOCK_DURATION))
     counted = count_sweeps(model, settings)  # also compiles / loads the numba cache
-    seconds = []
+    seconds, loops = [], []
+    loop = [0.0]
+
+    def timed(name: str, original: Callable) -> Callable:
+        def wrapper(*args, **kwargs):
+            started = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                loop[0] += time.perf_counter() - started
+        return wrapper
+
+    from blastvox.simulate import run as simrun
+    from blastvox.simulate.recorder import Recorder
+
     for _ in range(repeat):
-        started = time.perf_counter()
-        cache = simulate(model, settings)
-        seconds.append(time.perf_counter() - started)
+        loop[0] = 0.0
+        with patched([(simrun._Run, "step"), (Recorder, "frame"),
+                      (simrun, "link_alive_counts")], timed):
+            started = time.perf_counter()
+            cache = simulate(model, settings)
+            seconds.append(time.perf_counter() - started)
+        loops.append(loop[0])
     steps = int(cache.meta["steps"])
     phases = None
     if profile:
@@ -300,7 +334,7 @@ def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) 
         phases = {"total": total, "spent": profiler.table(total)}
     return {"phases": phases, "voxels": model.voxel_count,
             "links": len(model.arrays["link_voxels"]), "steps": steps, "seconds": seconds,
-            "bytes": counted["bytes"],
+            "loops": loops, "bytes": counted["bytes"],
             "calls": counted["calls"], "missing": counted["missing"],
             "bound": copy_seconds(counted["bytes"], steps), "gbs": stream_gbs(),
             "pieces": cache.summary()["piece_count"]}
@@ -311,11 +345,13 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
     print("## (a) Blast + fracture + dynamics throughput against memory bandwidth\n")
     print(f"`simulate()` of the 10 m reinforced-concrete block, 1 kg TNT 1 m off its +X "
           f"face, {BLOCK_DURATION:g} s at 1/240 s, collisions off; best of {repeat} after one "
-          "counting run. Bound: NumPy copying the bytes the run's sweeps must at least read "
-          "and write (byte model in `performance.py`), step by step, in the same process.\n")
-    print("| voxels | links | steps | simulate s | voxel-steps/s | model MB/step | "
-          "bound s | simulate / bound | pieces |")
-    print("|--:|--:|--:|--:|--:|--:|--:|--:|--:|", flush=True)
+          "counting run (at least 5 up to 10^4 voxels). Loop: the steps and the frame "
+          "recording, i.e. `simulate()` less building the run and packing the cache. Bound: "
+          "NumPy copying the bytes the loop's sweeps must at least read and write (byte model "
+          "in `performance.py`), step by step, in the same process.\n")
+    print("| voxels | links | steps | simulate s | voxel-steps/s | loop s | model MB/step | "
+          "bound s | loop / bound | pieces |")
+    print("|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|", flush=True)
     results, crashed, gbs, missing = {}, False, [], set()
     sizes = [cells for cells in BLOCK_CELLS if not (quick and cells >= 100)]
     for cells in sizes:
@@ -331,18 +367,20 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
                 lines = proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"]
                 raise RuntimeError(f"worker crashed: {lines[-1]}")
             r = json.loads(proc.stdout.strip().splitlines()[-1])
-        except RuntimeError as exc:
+        except (RuntimeError, ValueError, IndexError) as exc:
             crashed = True
-            print(f"| {cells ** 3:,} | — | — | — | — | — | — | error: {exc} | — |", flush=True)
+            print(f"| {cells ** 3:,} | — | — | — | — | — | — | — | error: {exc} | — |",
+                  flush=True)
             continue
         best = min(r["seconds"])
-        results[cells] = {**r, "best": best, "ratio": best / r["bound"]}
+        loop = r["loops"][r["seconds"].index(best)]
+        results[cells] = {**r, "best": best, "loop": loop, "ratio": loop / r["bound"]}
         gbs.append(r["gbs"])
         missing.update(r["missing"])
         print(f"| {r['voxels']:,} | {r['links']:,} | {r['steps']} | {best:.3f} | "
-              f"{r['voxels'] * r['steps'] / best / 1e6:,.2f}M | "
+              f"{r['voxels'] * r['steps'] / best / 1e6:,.2f}M | {loop:.3f} | "
               f"{r['bytes'] / r['steps'] / 1e6:,.2f} | {r['bound']:.4f} | "
-              f"{best / r['bound']:,.1f}× | {r['pieces']:,} |", flush=True)
+              f"{loop / r['bound']:,.1f}× | {r['pieces']:,} |", flush=True)
     if missing:
         print(f"\nByte model: kernels not found in blastvox.simulate, so not counted: "
               f"{', '.join(sorted(missing))}.")
@@ -641,7 +679,8 @@ def targets(blocks: dict[int, dict], bullet: dict[int, dict], startup: dict | No
                 ratio = r[f"ratio_{sleep}"]
                 print(f"| {label} | {ratio:.2f} | {verdict(ratio < 1.0)} |")
     big = blocks.get(max(BLOCK_CELLS))
-    label = f"simulate within {TARGET_BOUND_RATIO:g}× of the bandwidth bound, 1M voxels"
+    label = (f"kernels (the loop) within {TARGET_BOUND_RATIO:g}× of the bandwidth bound, "
+             "1M voxels")
     if big is None:
         print(f"| {label} | not run{' (--quick)' if quick else ''} | — |")
     else:
