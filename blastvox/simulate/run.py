@@ -206,6 +206,7 @@ class _Run:
         self.initial_link_yield = state.link_yield.copy()
         self.ignite_scratch = np.zeros(sm.n_voxels, dtype=bool)
         self.burning_count = 0
+        self.ring_done = np.zeros(len(charges.tnt_kg), dtype=bool)
 
     @property
     def n_bodies(self) -> int:
@@ -474,9 +475,10 @@ class _Run:
         for c in range(len(self.charges.tnt_kg)):
             height = self.charges.position[c, axis] - self.ground
             r = front_out[c]
-            if r <= abs(height) or not self.emitter.room("dust"):
+            if self.ring_done[c] or r <= abs(height) or not self.emitter.room("dust"):
                 continue
             if self.charges.peak(c, r) < 2e3:  # below 2 kPa the wave raises no dust
+                self.ring_done[c] = True  # and the front only weakens from here
                 continue
             ring = np.sqrt(r * r - height * height)
             count = int(min(64, 4 + ring))
