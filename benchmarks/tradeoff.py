@@ -188,6 +188,20 @@ def log(message: str) -> None:
 # --------------------------------------------------------------------------- report
 
 
+def revision() -> str:
+    """The git commit of the checkout, "+ local changes" if blastvox/ differs from it."""
+    import subprocess
+
+    try:
+        sha = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, check=True,
+                             capture_output=True, text=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "blastvox"], cwd=ROOT,
+                               check=True, capture_output=True, text=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "not a git checkout"
+    return f"git {sha}" + (" + local changes in blastvox/" if dirty else "")
+
+
 def load() -> str:
     return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
 
@@ -278,7 +292,8 @@ def plot(runs: list[Run], path: Path) -> None:
     handles += [Line2D([], [], color="black", linestyle="-" if f == "yield" else "--",
                        marker="o", markerfacecolor="none", label=f"Pareto front, {f}")
                 for f in FRACTURES]
-    panels[0][2].legend(handles=handles, fontsize=8, loc="upper right")
+    panels[0][2].legend(handles=handles, fontsize=8, loc="lower right",
+                        bbox_to_anchor=(1.0, 0.07))
     panels[0][2].set_ylabel("error against the finest run")
     fig.suptitle(f"Wall {WALL[0]:g} x {WALL[1]:g} x {WALL[2]:g} m {MATERIAL}, "
                  f"{CHARGE_KG * 1000:g} g TNT at {STANDOFF:g} m, {DURATION:g} s of shot; "
@@ -302,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeat must be at least 1")
     sizes, steps = (QUICK_SIZES, QUICK_STEPS) if args.quick else (SIZES, STEPS)
 
-    header = machine(("blastvox", "numpy", "numba", "scipy"))
+    header = f"{machine(('blastvox', 'numpy', 'numba', 'scipy'))}; {revision()}"
     print(header, flush=True)
     started = time.perf_counter()
     runs = sweep(sizes, steps, args.repeat)
