@@ -481,7 +481,10 @@ class _Run:
                 self.ring_done[c] = True  # and the front only weakens from here
                 continue
             ring = np.sqrt(r * r - height * height)
-            count = int(min(64, 4 + ring))
+            # about min(64, 4 + ring) particles per 1/240 s whatever the step
+            count = int(rng.poisson(min(64.0, 4.0 + ring) * self.dt * 240.0))
+            if count == 0:
+                continue
             angle = rng.uniform(0.0, 2 * np.pi, count)
             pos = np.repeat(self.charges.position[c:c + 1], count, axis=0)
             pos[:, axis] = self.ground
