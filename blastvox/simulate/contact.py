@@ -413,17 +413,77 @@ def _place(v, b, voxel_centroid, body_com, body_pos, body_rot, pos, n) -> None:
 # A moving body with at most this many boundary voxels is hashed whole every step;
 # a bigger one only where it is inside the bounding sphere of a body it may touch.
 SMALL_BODY = 64
+_FIELD = 16384  # 14 bits per rest-cell coordinate in a rest-grid key
+
+
+@nb.njit(cache=True)
+def _rest_key(body, i, j, k) -> int:
+    """Key of rest cell (i, j, k) of a body; coordinates wrap at 2^14 (a wrapped cell
+    only adds candidates, which the distance test then rejects)."""
+    return ((body * _FIELD + (i & (_FIELD - 1))) * _FIELD + (j & (_FIELD - 1))) * _FIELD \
+        + (k & (_FIELD - 1))
+
+
+@nb.njit(cache=True)
+def rest_grid(voxel_centroid, voxel_body, members, cell):
+    """Boundary voxels hashed by (body, cell of their rest centroid).
+
+    Rest positions never change, so this is rebuilt only when the boundary does.
+    Returns (slots (M,): boundary slots sorted by key, table_key, run_start,
+    run_end) for :func:`_run_of`.
+    """
+    keys = np.empty(members.shape[0], dtype=np.int64)
+    for k in range(members.shape[0]):
+        v = members[k]
+        keys[k] = _rest_key(voxel_body[v], _cell(voxel_centroid[v, 0], cell),
+                            _cell(voxel_centroid[v, 1], cell), _cell(voxel_centroid[v, 2], cell))
+    order = np.argsort(keys, kind="quicksort")
+    table_key, run_start, run_end = cell_table(keys[order])
+    return order, table_key, run_start, run_end
+
+
+@nb.njit(cache=True)
+def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com, body_pos, body_rot,
+                    rest_slot, rest_table, rest_start, rest_end, world, near) -> int:
+    """Mark b's boundary voxels within ``reach`` (m) of body o's centre, found through
+    b's rest grid: o's centre is taken into b's rest frame. Returns how many."""
+    rot = body_rot[b]
+    dx = body_pos[o, 0] - body_pos[b, 0]
+    dy = body_pos[o, 1] - body_pos[b, 1]
+    dz = body_pos[o, 2] - body_pos[b, 2]
+    cx = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz + body_com[b, 0]
+    cy = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz + body_com[b, 1]
+    cz = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz + body_com[b, 2]
+    count = 0
+    for i in range(_cell(cx - reach, cell), _cell(cx + reach, cell) + 1):
+        for j in range(_cell(cy - reach, cell), _cell(cy + reach, cell) + 1):
+            for k in range(_cell(cz - reach, cell), _cell(cz + reach, cell) + 1):
+                lo, hi = _run_of(_rest_key(b, i, j, k), rest_table, rest_start, rest_end)
+                for s in range(lo, hi):
+                    slot = rest_slot[s]
+                    if near[slot]:
+                        continue
+                    v = members[slot]
+                    if ((voxel_centroid[v, 0] - cx) ** 2 + (voxel_centroid[v, 1] - cy) ** 2
+                            + (voxel_centroid[v, 2] - cz) ** 2) < reach * reach:
+                        near[slot] = True
+                        _place(v, b, voxel_centroid, body_com, body_pos, body_rot, world, slot)
+                        count += 1
+    return count
 
 
 @nb.njit(cache=True)
 def _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_pos, body_rot,
-                 body_fixed, body_live, body_dust, body_asleep, n_bodies, cell, world, near):
+                 body_fixed, body_live, body_dust, body_asleep, n_bodies, cell, rest_slot,
+                 rest_table, rest_start, rest_end, world, near):
     """Mark (in ``near``, by boundary slot) the voxels of moving bodies that may touch
     another body this step, with their world centres in ``world``; returns how many.
 
     Small bodies (<= SMALL_BODY boundary voxels) take part whole: the voxel hash
     is their broad phase. A bigger moving body takes part where it is within
-    ``cell`` of the bounding sphere of a live body whose sphere its own meets.
+    ``cell`` of the bounding sphere of a live body whose sphere its own meets:
+    a scan of its voxels against a big neighbour, its rest grid (:func:`rest_grid`)
+    around a small one, so a big block among thousands of chips stays cheap.
     """
     count = 0
     for b in range(n_bodies):
@@ -444,11 +504,17 @@ def _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_p
                   + (body_pos[b, 2] - body_pos[o, 2]) ** 2)
             if d2 >= (body_radius[b] + body_radius[o]) ** 2:
                 continue
+            reach = body_radius[o] + cell
+            cells = (2.0 * reach / cell + 2.0) ** 3
+            if cells < last - first:
+                count += _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com,
+                                         body_pos, body_rot, rest_slot, rest_table, rest_start,
+                                         rest_end, world, near)
+                continue
             if not placed:
                 for k in range(first, last):
                     _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, world, k)
                 placed = True
-            reach = body_radius[o] + cell
             for k in range(first, last):
                 if not near[k] and ((world[k, 0] - body_pos[o, 0]) ** 2
                                     + (world[k, 1] - body_pos[o, 1]) ** 2
@@ -464,7 +530,8 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                    body_com, body_pos, body_rot, body_lin, body_ang, body_fixed, body_live,
                    body_dust, body_asleep, n_bodies, wake_speed, rest_speed, friction,
                    voxel_density, weakening, destroyed, dirty, resting, hits_out, cell,
-                   static_vox, static_pos, static_table, static_start, static_end) -> int:
+                   static_vox, static_pos, static_table, static_start, static_end, rest_slot,
+                   rest_table, rest_start, rest_end) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.
 
     voxel_radius (N,): collision radius (m), at most cell / 2. The boundary
@@ -487,7 +554,7 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
     near = np.zeros(members.shape[0], dtype=np.bool_)
     count = _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_pos,
                          body_rot, body_fixed, body_live, body_dust, body_asleep, n_bodies, cell,
-                         world, near)
+                         rest_slot, rest_table, rest_start, rest_end, world, near)
     if count == 0:
         return 0
     slot = np.empty(count, dtype=np.int64)

@@ -190,6 +190,7 @@ class _Run:
         self.still = np.zeros(capacity, dtype=np.int64)
         self.still_steps = max(1, round(0.5 / dt))  # half a second below sleep_speed
         self.static_key = None
+        self.rest, self.rest_version = None, -1
         self.static = None
         self.broken_total = self.ground_contacts = self.collisions = 0
         self.crossed = np.zeros(sm.n_voxels, dtype=bool)
@@ -337,6 +338,15 @@ class _Run:
             self.boundary_version += 1
         return self.boundary
 
+    def _rest_grid(self):
+        """Boundary voxels by body and rest cell, rebuilt when the boundary changes."""
+        self._boundary()
+        if self.rest_version != self.boundary_version:
+            self.rest = contact.rest_grid(self.sm.voxel_centroid, self.state.voxel_body,
+                                          self.boundary[1], 2.0 * self.max_contact_radius)
+            self.rest_version = self.boundary_version
+        return self.rest
+
     def _static(self):
         """The hash of resting bodies' voxels, rebuilt when what rests changes."""
         st, sm = self.state, self.sm
@@ -366,7 +376,7 @@ class _Run:
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
             s.sleep_speed, self.rest_speed, s.friction, self.voxel_density, s.weakening,
             self.destroyed, self.dirty, self.resting, self.hits, 2.0 * self.max_contact_radius,
-            static_vox, static_pos, static_table, static_start, static_end)
+            static_vox, static_pos, static_table, static_start, static_end, *self._rest_grid())
         damp_resting(self.resting, st.body_mass, st.body_inv_inertia, self.rot, st.body_lin,
                      st.body_ang, st.body_radius, self.n_bodies, self.rest_decay,
                      4.0 * s.sleep_speed)
