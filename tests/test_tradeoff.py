@@ -71,10 +71,21 @@ def test_a_known_shift_gives_the_known_rms() -> None:
     reference = np.random.default_rng(0).normal(size=(FRAMES, 3, 3))
     shifted = reference + np.array([0.3, 0.0, 0.4])  # |shift| = 0.5 m at every frame
     assert com_rms_error(shifted, reference, scale=2.0) == pytest.approx(0.25)
-    # only the common ranks count
-    assert com_rms_error(shifted[:, :1], reference, scale=1.0) == pytest.approx(0.5)
     with pytest.raises(ValueError):
         com_rms_error(shifted[:-1], reference, scale=1.0)
+
+
+def test_a_piece_that_did_not_come_loose_stays_at_its_rest_position() -> None:
+    reference = np.zeros((FRAMES, 2, 3))
+    reference[:, 1, 2] = np.linspace(0.0, 1.0, FRAMES)  # rank 2 flies 1 m up
+    static = np.zeros((FRAMES, 1, 3))  # the run has only rank 1
+    expected = np.sqrt(np.sum(np.linspace(0.0, 1.0, FRAMES) ** 2) / (2 * FRAMES))
+    assert com_rms_error(static, reference, scale=1.0) == pytest.approx(expected)
+    assert com_rms_error(reference, static, scale=1.0) == pytest.approx(expected)
+    # two missing ranks, both flying the same way: the same RMS
+    three = np.concatenate([reference, reference[:, 1:]], axis=1)
+    expected = np.sqrt(2 * np.sum(np.linspace(0.0, 1.0, FRAMES) ** 2) / (3 * FRAMES))
+    assert com_rms_error(static, three, scale=1.0) == pytest.approx(expected)
 
 
 def test_mass_distribution_distance_in_decades() -> None:

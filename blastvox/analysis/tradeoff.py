@@ -12,7 +12,9 @@ functions of arrays, so they can be tested on synthetic inputs:
   destruction.
 * **COM**: RMS distance between the world centres of mass of the k largest
   pieces (matched by mass rank) over all output frames, divided by a scene
-  size (dimensionless).
+  size (dimensionless). Where one run has fewer than k lasting pieces, its
+  missing ranks stay at the other run's first-frame positions of those ranks
+  (a piece that did not come loose stayed where it was).
 * **mass distribution**: 1-Wasserstein distance between the mass-weighted
   distributions of log10(piece mass / kg), in decades (0.1 decade is a
   factor of 1.26 in mass). Dust voxels are pieces too.
@@ -142,16 +144,25 @@ def momentum_error(p: np.ndarray, reference: np.ndarray) -> float:
 def com_rms_error(com: np.ndarray, reference: np.ndarray, scale: float) -> float:
     """RMS distance / ``scale`` between (F, k, 3) trajectories, matched by rank.
 
-    Only the first min(k, k_ref) ranks are compared; both must have F frames.
+    Both must have F frames. If one has fewer ranks, its missing ranks are the
+    other's first-frame positions held still (the piece never came loose).
     """
     com, reference = np.asarray(com, dtype=np.float64), np.asarray(reference, dtype=np.float64)
     if com.shape[0] != reference.shape[0]:
         raise ValueError(f"frame counts differ: {com.shape[0]} and {reference.shape[0]}")
-    k = min(com.shape[1], reference.shape[1])
+    k = max(com.shape[1], reference.shape[1])
     if k == 0:
         return 0.0
-    d2 = np.sum((com[:, :k] - reference[:, :k]) ** 2, axis=-1)
+    d2 = np.sum((_pad(com, reference) - _pad(reference, com)) ** 2, axis=-1)
     return float(np.sqrt(d2.mean())) / scale
+
+
+def _pad(com: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """``com`` with the ranks only ``other`` has, at other's first-frame positions."""
+    if com.shape[1] >= other.shape[1]:
+        return com
+    rest = np.repeat(other[:1, com.shape[1]:], len(other), axis=0)
+    return np.concatenate([com, rest], axis=1)
 
 
 def log_mass_distance(masses: np.ndarray, reference: np.ndarray) -> float:
