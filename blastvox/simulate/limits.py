@@ -132,7 +132,9 @@ class LimitMonitor:
             self._rot = np.zeros((len(state.body_quat), 3, 3))
         body_rotations(state.body_quat, state.body_live, n, self._rot)
         rot = self._rot[moving]
-        omega = np.einsum("bij,bjk,blk,bl->bi", rot, inv, rot, ang)
+        # omega = R I^-1 R^T L, three small contractions (one 4-operand einsum is slow)
+        body_frame = np.einsum("blk,bl->bk", rot, ang)
+        omega = np.einsum("bij,bj->bi", rot, np.einsum("bjk,bk->bj", inv, body_frame))
         speed = np.linalg.norm(state.body_lin[moving], axis=1) / state.body_mass[moving]
         motion = motion_per_step(speed, np.linalg.norm(omega, axis=1),
                                  state.body_radius[moving], self.dt, self.size)

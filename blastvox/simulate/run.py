@@ -452,7 +452,7 @@ class _Run:
         self.emitter.emit("dust", t, pos, vel, np.repeat(size, per))
 
     def _collision_dust(self, resolved: int, t: float) -> None:
-        if not self.emitter.room("dust"):
+        if self.hits[:resolved, 3].max() <= 2.0 or not self.emitter.room("dust"):
             return
         hits = self.hits[:resolved]
         strong = hits[hits[:, 3] > 2.0]  # impacts above 2 m/s raise dust; resting contacts don't

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
@@ -124,16 +124,21 @@ class Charges:
     _z: np.ndarray
     _arrive: np.ndarray
     _leave: np.ndarray
+    _front_cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def front_radius(self, t: float, before: float = 0.0) -> np.ndarray:
         """Shock-front radius (C,) in m at time t; ``before`` for charges not yet detonated."""
-        out = np.full(len(self.time), before, dtype=np.float64)
-        for c in range(len(self.time)):
-            tau = (t - self.time[c]) / self.scale[c]
-            if tau <= 0.0:
-                continue
-            out[c] = self.scale[c] * _invert(tau, self._z, self._arrive, leading=True)
-        return out
+        cache = self._front_cache
+        if cache.get("t") != t:  # a step asks for t1, the next for the same time as t0
+            radius = np.full(len(self.time), np.nan)
+            for c in range(len(self.time)):
+                tau = (t - self.time[c]) / self.scale[c]
+                if tau > 0.0:
+                    radius[c] = self.scale[c] * _invert(tau, self._z, self._arrive,
+                                                        leading=True)
+            cache["t"], cache["radius"] = t, radius
+        radius = cache["radius"]
+        return np.where(np.isnan(radius), before, radius)
 
     def peak(self, c: int, r: float) -> float:
         """Peak incident overpressure (Pa) of charge c at distance r (m)."""
