@@ -32,7 +32,8 @@ _FACE_CORNERS = np.array(
 @nb.njit(cache=True)
 def _apply(point, weight_area, vec_area, c, t0, t1, charge_pos, charge_time, charge_scale,
            table, body_pos_b, out_p, out_l, b):
-    """Add the impulse at one point for one charge to body b's accumulators."""
+    """Add the impulse at one point for one charge to row b of the accumulators, the
+    angular part about ``body_pos_b``."""
     rx = point[0] - charge_pos[c, 0]
     ry = point[1] - charge_pos[c, 1]
     rz = point[2] - charge_pos[c, 2]
@@ -81,13 +82,21 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                    vertices, voxel_vertices, voxel_centroid, voxel_body, voxel_alive,
                    voxel_link_mask, voxel_radius, conform_slot, conform_area, conform_centroid,
                    active, body_com, body_pos, body_rot, body_fixed, body_live, body_dust,
-                   out_p, out_l) -> None:
+                   out_p, out_l, held_p, held_l) -> None:
     """Accumulate the blast impulse (N s) and angular impulse (N m s) of [t0, t1] per body.
 
     reach_out (C,): shock radius at t1 (m); reach_in (C,): radius behind which the
     whole wave (positive and negative phase) has passed by t0. Points outside
     that shell, and bodies not flagged in ``active`` (B,), are skipped without
     evaluating the blast model.
+
+    A fixed body takes no momentum, but its voxels keep what the wave gave them
+    in held_p (N, 3) (N s) and held_l (N, 3) (N m s, about the voxel's centroid):
+    a piece that breaks free later in the same wave gets it (see
+    :func:`blastvox.simulate.kernels.release_held`), so a piece's momentum does
+    not depend on how many steps the front took to cross it before its links
+    broke (without this, small steps lost the part of the wave that arrived
+    while the piece was still held, and the momentum did not converge in dt).
     """
     n_charges = charge_pos.shape[0]
     point = np.empty(3)
@@ -98,7 +107,7 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
         if not voxel_alive[v]:
             continue
         b = voxel_body[v]
-        if not active[b] or body_fixed[b] or body_dust[b] or not body_live[b]:
+        if not active[b] or body_dust[b] or not body_live[b]:
             continue
         exposed = (~voxel_link_mask[v]) & 0x3F
         slot = conform_slot[v]
@@ -106,6 +115,10 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
             continue
         rot = body_rot[b]
         _to_world(rot, body_pos[b], body_com[b], voxel_centroid[v], centre)
+        # a free body sums about its centre of mass, a fixed one's voxels each keep theirs
+        acc_p, acc_l, index, pivot = out_p, out_l, b, body_pos[b]
+        if body_fixed[b]:
+            acc_p, acc_l, index, pivot = held_p, held_l, v, centre
         for c in range(n_charges):
             if reach_out[c] <= 0.0:
                 continue
@@ -120,7 +133,7 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                     _rotate(rot, conform_area[slot, f], area)
                     _to_world(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
                     _apply(point, 1.0, area, c, t0, t1, charge_pos, charge_time,
-                           charge_scale, table, body_pos[b], out_p, out_l, b)
+                           charge_scale, table, pivot, acc_p, acc_l, index)
                 continue
             for f in range(6):
                 if not (exposed >> f) & 1:
@@ -144,4 +157,4 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                     corner = voxel_vertices[v, _FACE_CORNERS[f, k]]
                     _to_world(rot, body_pos[b], body_com[b], vertices[corner], point)
                     _apply(point, 0.25, area, c, t0, t1, charge_pos, charge_time,
-                           charge_scale, table, body_pos[b], out_p, out_l, b)
+                           charge_scale, table, pivot, acc_p, acc_l, index)

@@ -165,3 +165,40 @@ def damage_levels(offsets, link_alive_count, voxel_yield, initial_yield, voxel_d
             damage = max(damage, 1.0 - voxel_yield[v] / y0)
         damage = min(max(damage, voxel_damage[v] / 6.0, 0.0), 1.0)
         out[v] = np.uint8(np.rint(damage * 255.0))
+
+
+@nb.njit(cache=True)
+def release_held(voxel_body, voxel_alive, voxel_centroid, body_fixed, body_live, body_com,
+                 body_pos, body_rot, body_lin, body_ang, held_p, held_l) -> None:
+    """Give each freed piece the blast impulse its voxels took while they were held.
+
+    held_p, held_l (N, 3): impulse (N s) and angular impulse about the voxel
+    centroid (N m s) a voxel took while its body was fixed (see
+    :func:`blastvox.simulate.forces.blast_impulses`). A voxel whose body is now
+    free (split off, or its foundation let go) hands them to that body, about
+    its centre of mass, and is cleared.
+    """
+    for v in range(voxel_body.shape[0]):
+        if held_p[v, 0] == 0.0 and held_p[v, 1] == 0.0 and held_p[v, 2] == 0.0 \
+                and held_l[v, 0] == 0.0 and held_l[v, 1] == 0.0 and held_l[v, 2] == 0.0:
+            continue
+        b = voxel_body[v]
+        if body_fixed[b] or not body_live[b]:
+            continue
+        rot = body_rot[b]
+        x = voxel_centroid[v, 0] - body_com[b, 0]
+        y = voxel_centroid[v, 1] - body_com[b, 1]
+        z = voxel_centroid[v, 2] - body_com[b, 2]
+        rx = rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z
+        ry = rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z
+        rz = rot[2, 0] * x + rot[2, 1] * y + rot[2, 2] * z
+        px, py, pz = held_p[v, 0], held_p[v, 1], held_p[v, 2]
+        body_lin[b, 0] += px
+        body_lin[b, 1] += py
+        body_lin[b, 2] += pz
+        body_ang[b, 0] += ry * pz - rz * py + held_l[v, 0]
+        body_ang[b, 1] += rz * px - rx * pz + held_l[v, 1]
+        body_ang[b, 2] += rx * py - ry * px + held_l[v, 2]
+        for a in range(3):
+            held_p[v, a] = 0.0
+            held_l[v, a] = 0.0

@@ -37,6 +37,7 @@ from blastvox.simulate.kernels import (
     damp_resting,
     link_alive_counts,
     link_masks,
+    release_held,
     settle,
     wake_on_impulse,
 )
@@ -191,6 +192,10 @@ class _Run:
         self.still_steps = max(1, round(0.5 / dt))  # half a second below sleep_speed
         self.static_key = None
         self.rest, self.rest_version = None, -1
+        # blast impulse taken by voxels of fixed bodies during the current wave (N s, N m s)
+        self.held_p = np.zeros((sm.n_voxels, 3))
+        self.held_l = np.zeros((sm.n_voxels, 3))
+        self.holding = False
         self.static = None
         self.broken_total = self.ground_contacts = self.collisions = 0
         self.crossed = np.zeros(sm.n_voxels, dtype=bool)
@@ -277,6 +282,7 @@ class _Run:
         if released:
             topology.refresh_fixed(st.voxel_body, st.voxel_alive, st.voxel_foundation,
                                    st.body_fixed, st.body_live, st.body_lin, st.body_ang)
+            self._release_held()
 
     def _topology(self, step: int, t1: float, frame_next: int) -> None:
         """Apply this step's broken links and dusted voxels: masks, splits, records."""
@@ -298,15 +304,24 @@ class _Run:
             st.body_fixed, st.body_live, st.body_dust, st.body_parent, st.body_born,
             st.body_died, st.n_bodies, self.component, self.order)
         st.body_asleep[:self.n_bodies][self.dirty[:self.n_bodies]] = False
+        body_rotations(st.body_quat, st.body_live, self.n_bodies, self.rot)
+        self._release_held()
         body_radii(st.voxel_body, st.voxel_alive, sm.voxel_centroid, sm.voxel_radius,
                    st.body_com, st.body_radius, self.n_bodies)
         self.rec.voxels_destroyed(destroyed, t1, frame_next, st, sm.voxel_mass)
         if self.settings.dust and destroyed.size:
             self._voxel_dust(destroyed, t1)
-        body_rotations(st.body_quat, st.body_live, self.n_bodies, self.rot)
         self.boundary = None
         self.broken[:] = False
         self.destroyed[:] = False
+
+    def _release_held(self) -> None:
+        """Freed pieces take the impulse their voxels took while held (see forces)."""
+        if self.holding:
+            st = self.state
+            release_held(st.voxel_body, st.voxel_alive, self.sm.voxel_centroid, st.body_fixed,
+                         st.body_live, st.body_com, st.body_pos, self.rot, st.body_lin,
+                         st.body_ang, self.held_p, self.held_l)
 
     def _blast(self, t0: float, t1: float, front_out) -> None:
         st, sm, ch = self.state, self.sm, self.charges
@@ -316,13 +331,18 @@ class _Run:
         reach_in = ch.tail_radius(t0)
         if not bodies_in_shell(st.body_pos, st.body_radius, st.body_live, n, ch.position,
                                reach_in, front_out, self.active):
+            if self.holding:  # every wave has passed: what held voxels took is spent
+                self.held_p[:] = 0.0
+                self.held_l[:] = 0.0
+                self.holding = False
             return
         blast_impulses(t0, t1, ch.position, ch.time, ch.scale, front_out, reach_in, ch.table,
                        sm.vertices, sm.voxel_vertices, sm.voxel_centroid, st.voxel_body,
                        st.voxel_alive, st.voxel_link_mask, sm.voxel_radius, sm.conform_slot,
                        sm.conform_face_area, sm.conform_face_centroid, self.active, st.body_com,
                        st.body_pos, self.rot, st.body_fixed, st.body_live, st.body_dust,
-                       self.impulse, self.angular)
+                       self.impulse, self.angular, self.held_p, self.held_l)
+        self.holding = True
         wake_on_impulse(self.impulse, self.angular, st.body_asleep, n)
 
     def _boundary(self):
