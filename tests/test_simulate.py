@@ -252,3 +252,26 @@ def test_linear_drag_decays_speed_exponentially(tmp_path):
     t = dragged.frame_time[-1]
     assert v1 / v0 == pytest.approx(np.exp(-2.0 * t), rel=0.15)
     assert v1 < v0
+
+
+def test_shell_candidates_change_nothing(tmp_path, monkeypatch):
+    """Fracture tests only the links and voxels the rest grid flags (shell.py); flagging
+    all of them must give the same shot."""
+    from blastvox.simulate import run as run_module
+
+    model = box_model(tmp_path, (2.0, 0.5, 1.5), 0.1, material="brick", ground="auto")
+    settings = SimSettings(fps=24.0, duration=0.25,
+                           charges=(ChargeSpec((0.3, -1.0, 0.2), 0.5),
+                                    ChargeSpec((-0.5, 1.2, 0.0), 0.3, time_s=0.05)))
+    grid = simulate(model, settings)
+
+    def everything(self, grid, owner, out, front_in, front_out):
+        out[:] = True
+        return out
+
+    monkeypatch.setattr(run_module._Run, "_candidates", everything)
+    full = simulate(model, settings)
+    assert len(grid.link_break_link) > 0
+    for name in ("piece_position", "piece_orientation", "link_break_link",
+                 "voxel_destroyed_frame", "damage_value"):
+        np.testing.assert_array_equal(getattr(grid, name), getattr(full, name))

@@ -97,6 +97,22 @@ def test_jitter_keeps_faces_shared_and_volumes_positive(tmp_path):
     assert model.vertices[:, 1].min() == pytest.approx(base.vertices[:, 1].min(), abs=1e-12)
 
 
+def test_link_midpoint_is_the_centroid_of_the_shared_face(tmp_path):
+    """Each link's midpoint is the area centroid of the face its two voxels share (a
+    regression: it was once measured on the wrong voxels' faces)."""
+    path = box_file(tmp_path, (2.0, 1.0, 1.5))
+    for jitter in (0.0, 0.3):
+        model = run(path, voxel_size=(0.25,) * 3, jitter=jitter, seed=5)
+        a, f = model.link_voxels[:, 0], model.link_face.astype(np.int64)
+        corners = model.vertices[model.voxel_vertices[a][np.arange(len(a))[:, None],
+                                                         FACE_CORNERS[f]]]  # (L, 4, 3)
+        np.testing.assert_allclose(model.link_midpoint, corners.mean(axis=1),
+                                   atol=0.5 * jitter * 0.25 + 1e-12)  # quads bend
+        if jitter == 0.0:
+            centres = model.voxel_centroid[model.link_voxels].mean(axis=1)
+            np.testing.assert_allclose(model.link_midpoint, centres, atol=1e-12)
+
+
 def _outer_surface(model: VoxelModel):
     tris = hex_triangles(model.voxel_vertices.astype(np.int64))  # (N, 12, 3)
     faces = []

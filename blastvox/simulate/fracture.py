@@ -71,18 +71,20 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
 @nb.njit(cache=True)
 def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orientation,
                    weakening, link_voxels, link_midpoint, link_direction, link_alive,
-                   link_yield, voxel_body, active, body_pos, body_rot, body_com, broken,
-                   dirty) -> int:
+                   link_yield, voxel_body, active, body_pos, body_rot, body_com, candidate,
+                   broken, dirty) -> int:
     """Break or weaken links crossed by a front this step; returns the number broken.
 
-    active (B,): bodies a front's shell can touch (others are skipped); broken
-    (L,) is set True for links broken now; dirty (B,) for their bodies.
+    active (B,): bodies a front's shell can touch (others are skipped);
+    candidate (L,): links that can be in a shell (:mod:`blastvox.simulate.shell`),
+    the only ones tested; broken (L,) is set True for links broken now; dirty
+    (B,) for their bodies.
     """
     count = 0
     mid = np.empty(3)
     n_charges = charge_pos.shape[0]
     for link in range(link_voxels.shape[0]):
-        if not link_alive[link]:
+        if not candidate[link] or not link_alive[link]:
             continue
         b = voxel_body[link_voxels[link, 0]]
         if not active[b]:
@@ -123,8 +125,10 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
 def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weakening,
                     voxel_centroid, voxel_alive, voxel_yield, voxel_foundation,
                     voxel_foundation_yield, voxel_body, active, body_pos, body_rot, body_com,
-                    destroyed, dirty, crossed) -> int:
+                    candidate, destroyed, dirty, crossed) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
+
+    candidate (N,): voxels that can be in a shell, the only ones tested.
 
     Returns the number of foundation voxels that let go (the caller then
     re-checks which bodies are still fixed). destroyed (N,) marks dusted voxels;
@@ -133,7 +137,7 @@ def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weaken
     released = 0
     n_charges = charge_pos.shape[0]
     for v in range(voxel_centroid.shape[0]):
-        if not voxel_alive[v]:
+        if not candidate[v] or not voxel_alive[v]:
             continue
         b = voxel_body[v]
         if not active[b]:

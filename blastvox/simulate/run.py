@@ -45,6 +45,7 @@ from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.particles import Emitter, particle_meta
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
+from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.state import SimModel, State, build_model
 from blastvox.simulate.wave import Charges, build_charges
 
@@ -192,6 +193,11 @@ class _Run:
         self.still_steps = max(1, round(0.5 / dt))  # half a second below sleep_speed
         self.static_key = None
         self.rest, self.rest_version = None, -1
+        # fracture candidates: points of the rest grids a shell can reach this step
+        self.link_owner = np.ascontiguousarray(sm.link_voxels[:, 0])
+        self.voxel_owner = np.arange(sm.n_voxels, dtype=np.int64)
+        self.link_candidate = np.zeros(sm.n_links, dtype=bool)
+        self.voxel_candidate = np.zeros(sm.n_voxels, dtype=bool)
         # blast impulse taken by voxels of fixed bodies during the current wave (N s, N m s)
         self.held_p = np.zeros((sm.n_voxels, 3))
         self.held_l = np.zeros((sm.n_voxels, 3))
@@ -272,17 +278,31 @@ class _Run:
                 ch.position, ch.scale, front_in, front_out, ch.table, s.orientation_factor,
                 s.weakening, sm.link_voxels, sm.link_midpoint, sm.link_direction, st.link_alive,
                 st.link_yield, st.voxel_body, self.active, st.body_pos, self.rot, st.body_com,
+                self._candidates(sm.link_grid, self.link_owner, self.link_candidate, front_in,
+                                 front_out),
                 self.broken, self.dirty)
         self.broken_total += int(n)
         released = fracture.fracture_voxels(
             ch.position, ch.scale, front_in, front_out, ch.table, s.weakening,
             sm.voxel_centroid, st.voxel_alive, st.voxel_yield, st.voxel_foundation,
             st.voxel_foundation_yield, st.voxel_body, self.active, st.body_pos, self.rot,
-            st.body_com, self.destroyed, self.dirty, self.crossed)
+            st.body_com,
+            self._candidates(sm.voxel_grid, self.voxel_owner, self.voxel_candidate, front_in,
+                             front_out),
+            self.destroyed, self.dirty, self.crossed)
         if released:
             topology.refresh_fixed(st.voxel_body, st.voxel_alive, st.voxel_foundation,
                                    st.body_fixed, st.body_live, st.body_lin, st.body_ang)
             self._release_held()
+
+    def _candidates(self, grid, owner, out, front_in, front_out) -> np.ndarray:
+        """Flag the grid's points that a front's shell can reach this step (see shell)."""
+        st, ch = self.state, self.charges
+        out[:] = False
+        mark_in_shell(*grid[:2], self.sm.grid_cell, *grid[2:], owner, st.voxel_body,
+                      self.active, st.body_com, st.body_pos, self.rot, st.body_radius,
+                      ch.position, front_in, front_out, out)
+        return out
 
     def _topology(self, step: int, t1: float, frame_next: int) -> None:
         """Apply this step's broken links and dusted voxels: masks, splits, records."""

@@ -14,6 +14,7 @@ import numba as nb
 import numpy as np
 
 from blastvox.model import VoxelModel
+from blastvox.simulate.shell import dense_grid
 
 CONFORM_FACES = 7  # cell faces 0..5 plus the original surface
 
@@ -32,6 +33,8 @@ class SimModel:
     from the centroid, m; voxel_contact_radius (N,): collision sphere,
     (volume)^(1/3) / 2, m. up (3,): unit up vector (axis index up_axis);
     ground_height: m along up, or None for no ground.
+    link_grid, voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of the link
+    midpoints and voxel centroids at rest, cells of grid_cell m (about four voxels).
     """
 
     vertices: np.ndarray
@@ -56,6 +59,9 @@ class SimModel:
     up: np.ndarray
     up_axis: int
     ground_height: float | None
+    grid_cell: float
+    link_grid: tuple
+    voxel_grid: tuple
 
     @property
     def n_voxels(self) -> int:
@@ -126,6 +132,10 @@ def build_model(model: VoxelModel) -> SimModel:
     voxel_vertices = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int64)
     voxel_centroid = np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64)
     ground = model.meta.get("ground_height")
+    contact_radius = 0.5 * np.cbrt(np.maximum(a["voxel_volume"], 0.0))
+    grid_cell = 8.0 * float(np.median(contact_radius)) if n else 1.0
+    grid_cell = grid_cell if grid_cell > 0.0 else 1.0
+    link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)
     return SimModel(
         vertices=vertices,
         voxel_vertices=voxel_vertices,
@@ -133,7 +143,7 @@ def build_model(model: VoxelModel) -> SimModel:
         voxel_centroid=voxel_centroid,
         voxel_inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
         link_voxels=links, link_face=a["link_face"].astype(np.int64),
-        link_midpoint=np.ascontiguousarray(a["link_midpoint"], dtype=np.float64),
+        link_midpoint=link_midpoint,
         link_direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64),
         voxel_link_offsets=offsets, voxel_link_ids=link_ids,
         conform_slot=slot, conform_face_area=area, conform_face_centroid=centroid,
@@ -141,8 +151,10 @@ def build_model(model: VoxelModel) -> SimModel:
         voxel_object=a["voxel_object"].astype(np.int64),
         voxel_restitution=a["material_restitution"][a["voxel_material"]].astype(np.float64),
         voxel_radius=corner_radius(vertices, voxel_vertices, voxel_centroid),
-        voxel_contact_radius=0.5 * np.cbrt(np.maximum(a["voxel_volume"], 0.0)),
-        up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground))
+        voxel_contact_radius=contact_radius,
+        up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
+        grid_cell=grid_cell, link_grid=dense_grid(link_midpoint.reshape(-1, 3), grid_cell),
+        voxel_grid=dense_grid(voxel_centroid, grid_cell))
 
 
 @nb.njit(cache=True)

@@ -252,7 +252,8 @@ def _link(lat: _Lattice) -> None:
     for f in (1, 3, 5):
         a = np.flatnonzero(neighbours[:, f] >= 0)
         b = neighbours[a, f]
-        area, mid = hex_face_area_centroid(lat.positions, lat.voxel_vertices, np.full(len(a), f))
+        area, mid = hex_face_area_centroid(lat.positions, lat.voxel_vertices[a],
+                                           np.full(len(a), f))
         full_area = area.copy()
         for side, face in ((a, f), (b, f - 1)):
             conf = is_conform[side]
