@@ -40,14 +40,20 @@ def _apply(point, weight_area, vec_area, c, t0, t1, charge_pos, charge_time, cha
     r = math.sqrt(rx * rx + ry * ry + rz * rz)
     if r <= 0.0:
         return
-    ux, uy, uz = rx / r, ry / r, rz / r
+    j = point_impulse(table, r, charge_time[c], charge_scale[c], t0, t1)
+    _push(point, j, rx / r, ry / r, rz / r, weight_area, vec_area, body_pos_b, out_p, out_l, b)
+
+
+@nb.njit(cache=True)
+def _push(point, j, ux, uy, uz, weight_area, vec_area, body_pos_b, out_p, out_l, b):
+    """Add impulse j (Pa s) along the unit radius (ux, uy, uz) at ``point`` through a face
+    of vector area ``vec_area`` x ``weight_area`` (its share at this point)."""
     norm = math.sqrt(vec_area[0] ** 2 + vec_area[1] ** 2 + vec_area[2] ** 2)
     if norm <= 0.0:
         return
     facing = -(vec_area[0] * ux + vec_area[1] * uy + vec_area[2] * uz)
     if facing <= 0.0:
         return
-    j = point_impulse(table, r, charge_time[c], charge_scale[c], t0, t1)
     if j == 0.0:
         return
     mag = j * facing * weight_area
@@ -78,6 +84,23 @@ def _rotate(rot, vec, out) -> None:
 
 
 @nb.njit(cache=True)
+def _corner(vertex, slot, c, rot, pos, com, vertices, charge_pos, corner_point,
+            corner_u) -> bool:
+    """World position and unit radius of a voxel corner for charge c (False at the
+    charge's centre, where there is no direction)."""
+    _to_world(rot, pos, com, vertices[vertex], corner_point[slot])
+    rx = corner_point[slot, 0] - charge_pos[c, 0]
+    ry = corner_point[slot, 1] - charge_pos[c, 1]
+    rz = corner_point[slot, 2] - charge_pos[c, 2]
+    r = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if r <= 0.0:
+        return False
+    corner_u[slot, 0], corner_u[slot, 1], corner_u[slot, 2] = rx / r, ry / r, rz / r
+    corner_u[slot, 3] = r
+    return True
+
+
+@nb.njit(cache=True)
 def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, reach_in, table,
                    vertices, voxel_vertices, voxel_centroid, voxel_body, voxel_alive,
                    voxel_link_mask, voxel_radius, conform_slot, conform_area, conform_centroid,
@@ -103,6 +126,11 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
     area = np.empty(3)
     rest_area = np.empty(3)
     centre = np.empty(3)
+    # a cube's 8 corners serve its 6 faces: each corner's impulse is evaluated once
+    corner_point = np.empty((8, 3))
+    corner_u = np.empty((8, 4))  # unit radius and distance (m)
+    corner_j = np.empty(8)
+    corner_state = np.zeros(8, dtype=np.int64)  # 0 unknown, 1 placed, 2 impulse known, -1 at R=0
     for v in range(voxel_body.shape[0]):
         if not voxel_alive[v]:
             continue
@@ -135,6 +163,7 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                     _apply(point, 1.0, area, c, t0, t1, charge_pos, charge_time,
                            charge_scale, table, pivot, acc_p, acc_l, index)
                 continue
+            corner_state[:] = 0
             for f in range(6):
                 if not (exposed >> f) & 1:
                     continue
@@ -154,7 +183,20 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                 rest_area[2] = 0.5 * (d1x * d2y - d1y * d2x)
                 _rotate(rot, rest_area, area)
                 for k in range(4):
-                    corner = voxel_vertices[v, _FACE_CORNERS[f, k]]
-                    _to_world(rot, body_pos[b], body_com[b], vertices[corner], point)
-                    _apply(point, 0.25, area, c, t0, t1, charge_pos, charge_time,
-                           charge_scale, table, pivot, acc_p, acc_l, index)
+                    q = _FACE_CORNERS[f, k]
+                    if corner_state[q] == 0:
+                        placed = _corner(voxel_vertices[v, q], q, c, rot, body_pos[b],
+                                         body_com[b], vertices, charge_pos, corner_point,
+                                         corner_u)
+                        corner_state[q] = 1 if placed else -1
+                    if corner_state[q] < 0:
+                        continue
+                    ux, uy, uz = corner_u[q, 0], corner_u[q, 1], corner_u[q, 2]
+                    if -(area[0] * ux + area[1] * uy + area[2] * uz) <= 0.0:
+                        continue  # faces away: no need for the (costly) impulse
+                    if corner_state[q] == 1:
+                        corner_j[q] = point_impulse(table, corner_u[q, 3], charge_time[c],
+                                                    charge_scale[c], t0, t1)
+                        corner_state[q] = 2
+                    _push(corner_point[q], corner_j[q], ux, uy, uz, 0.25, area, pivot, acc_p,
+                          acc_l, index)
