@@ -102,13 +102,15 @@ def _corner(vertex, slot, c, rot, pos, com, vertices, charge_pos, corner_point,
 
 @nb.njit(cache=True)
 def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, reach_in, table,
-                   vertices, voxel_vertices, voxel_centroid, voxel_body, voxel_alive,
+                   boundary, vertices, voxel_vertices, voxel_centroid, voxel_body, voxel_alive,
                    voxel_link_mask, voxel_radius, conform_slot, conform_area, conform_centroid,
                    active, body_com, body_pos, body_rot, body_fixed, body_live, body_dust,
                    out_p, out_l, held_p, held_l) -> None:
     """Accumulate the blast impulse (N s) and angular impulse (N m s) of [t0, t1] per body.
 
-    reach_out (C,): shock radius at t1 (m); reach_in (C,): radius behind which the
+    boundary (M,): the voxels with an exposed face (the others take no pressure),
+    each body's in voxel order. reach_out (C,): shock radius at t1 (m); reach_in
+    (C,): radius behind which the
     whole wave (positive and negative phase) has passed by t0. Points outside
     that shell, and bodies not flagged in ``active`` (B,), are skipped without
     evaluating the blast model.
@@ -131,7 +133,8 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
     corner_u = np.empty((8, 4))  # unit radius and distance (m)
     corner_j = np.empty(8)
     corner_state = np.zeros(8, dtype=np.int64)  # 0 unknown, 1 placed, 2 impulse known, -1 at R=0
-    for v in range(voxel_body.shape[0]):
+    for k in range(boundary.shape[0]):
+        v = boundary[k]
         if not voxel_alive[v]:
             continue
         b = voxel_body[v]

@@ -123,12 +123,15 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     run = _Run(sm, state, charges, settings, dt)
     limits = LimitMonitor(sm, settings, dt)  # warns once per limit the run passes
     counts = link_alive_counts(sm.voxel_link_offsets, sm.voxel_link_ids, state.link_alive)
+    counted = run.links_version
     run.rec.frame(0, state, counts, charges.front_radius(0.0))
     for step in range(1, total_steps + 1):
         run.step(step, -(-step // per_frame))
         if step % per_frame == 0:
-            counts = link_alive_counts(sm.voxel_link_offsets, sm.voxel_link_ids,
-                                       state.link_alive)
+            if run.links_version != counted:  # links only change in _topology
+                counts = link_alive_counts(sm.voxel_link_offsets, sm.voxel_link_ids,
+                                           state.link_alive)
+                counted = run.links_version
             run.rec.frame(step, state, counts, charges.front_radius(step * dt))
             limits.check(state)
             progress.update(step * dt, step, total_steps)
@@ -193,6 +196,7 @@ class _Run:
         self.still_steps = max(1, round(0.5 / dt))  # half a second below sleep_speed
         self.static_key = None
         self.rest, self.rest_version = None, -1
+        self.links_version = 0  # counts topology changes (the only place links die)
         # fracture candidates: points of the rest grids a shell can reach this step
         self.link_owner = np.ascontiguousarray(sm.link_voxels[:, 0])
         self.voxel_owner = np.arange(sm.n_voxels, dtype=np.int64)
@@ -311,6 +315,7 @@ class _Run:
         broken = np.flatnonzero(self.broken)
         if not destroyed.size and not broken.size:
             return
+        self.links_version += 1
         if destroyed.size:
             fracture.kill_links_of(self.destroyed, sm.voxel_link_offsets, sm.voxel_link_ids,
                                    st.link_alive)
@@ -357,11 +362,12 @@ class _Run:
                 self.holding = False
             return
         blast_impulses(t0, t1, ch.position, ch.time, ch.scale, front_out, reach_in, ch.table,
-                       sm.vertices, sm.voxel_vertices, sm.voxel_centroid, st.voxel_body,
-                       st.voxel_alive, st.voxel_link_mask, sm.voxel_radius, sm.conform_slot,
-                       sm.conform_face_area, sm.conform_face_centroid, self.active, st.body_com,
-                       st.body_pos, self.rot, st.body_fixed, st.body_live, st.body_dust,
-                       self.impulse, self.angular, self.held_p, self.held_l)
+                       self._boundary()[1], sm.vertices, sm.voxel_vertices, sm.voxel_centroid,
+                       st.voxel_body, st.voxel_alive, st.voxel_link_mask, sm.voxel_radius,
+                       sm.conform_slot, sm.conform_face_area, sm.conform_face_centroid,
+                       self.active, st.body_com, st.body_pos, self.rot, st.body_fixed,
+                       st.body_live, st.body_dust, self.impulse, self.angular, self.held_p,
+                       self.held_l)
         self.holding = True
         wake_on_impulse(self.impulse, self.angular, st.body_asleep, n)
 
