@@ -1,7 +1,8 @@
-"""The machine line every benchmark prints above its tables."""
+"""What every benchmark shares: the machine line above its tables, pass/FAIL, --repeat."""
 
 from __future__ import annotations
 
+import argparse
 import os
 import platform
 from importlib import metadata
@@ -27,3 +28,16 @@ def _version(package: str) -> str:
         return metadata.version(package)
     except metadata.PackageNotFoundError:
         return "?"
+
+
+def verdict(ok: bool) -> str:
+    """A target's result cell."""
+    return "pass" if ok else "FAIL"
+
+
+def repeat_count(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """--repeat as given, else 3 (1 with --quick); at least 1."""
+    repeat = args.repeat if args.repeat is not None else (1 if args.quick else 3)
+    if repeat < 1:
+        parser.error("--repeat must be at least 1")
+    return repeat

@@ -63,7 +63,11 @@ from _debris import (
     runner,
     table_5_1,
 )
-from _machine import machine  # benchmarks/ is on sys.path when run as a script
+from _machine import (  # benchmarks/ is on sys.path when run as a script
+    machine,
+    repeat_count,
+    verdict,
+)
 from simulate import Case, cli, make_model, settings_for, start_up
 
 from blastvox.model import VoxelModel
@@ -657,10 +661,6 @@ def house_in_process(model_path: Path, repeat: int = 3) -> float:
 # --------------------------------------------------------------------------- report
 
 
-def verdict(ok: bool) -> str:
-    """pass or FAIL."""
-    return "pass" if ok else "FAIL"
-
 
 def targets(blocks: dict[int, dict], bullet: dict[int, dict], startup: dict | None,
             quick: bool) -> None:
@@ -704,10 +704,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--profile", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    if args.repeat is None:
-        args.repeat = 1 if args.quick else 3
-    if args.repeat < 1:
-        parser.error("--repeat must be at least 1")
+    args.repeat = repeat_count(parser, args)
     if args.worker is not None:
         print(json.dumps(throughput_worker(args.worker, args.model, args.repeat,
                                            args.profile)))

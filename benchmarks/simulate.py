@@ -44,7 +44,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from _machine import machine  # benchmarks/ is on sys.path when run as a script
+from _machine import (  # benchmarks/ is on sys.path when run as a script
+    machine,
+    repeat_count,
+    verdict,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "building" / "scene.toml"
@@ -213,9 +217,6 @@ def start_up(model: Path, directory: Path, scene: Path = SCENE, duration: float 
 # --------------------------------------------------------------------------- report
 
 
-def verdict(ok: bool) -> str:
-    return "pass" if ok else "FAIL"
-
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -225,10 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--model", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    if args.repeat is None:
-        args.repeat = 1 if args.quick else 3
-    if args.repeat < 1:
-        parser.error("--repeat must be at least 1")
+    args.repeat = repeat_count(parser, args)
     if args.worker is not None:
         print(json.dumps(run_case(CASES[args.worker], args.model, args.repeat)))
         return 0

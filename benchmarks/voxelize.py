@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from _machine import machine  # benchmarks/ is on sys.path when run as a script
+from _machine import machine, repeat_count  # benchmarks/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"
@@ -102,10 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                         "(default: 3, or 1 with --quick)")
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    if args.repeat is None:
-        args.repeat = 1 if args.quick else 3
-    if args.repeat < 1:
-        parser.error("--repeat must be at least 1")
+    args.repeat = repeat_count(parser, args)
     if args.worker is not None:
         print(json.dumps(run_case(CASES[args.worker], args.repeat)))
         return 0

@@ -32,7 +32,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.integrate import angular_velocity, world_tensor_times
 
 _FACE_CORNERS = np.array(
     [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]],
@@ -68,24 +68,10 @@ def _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega):
 
 
 @nb.njit(cache=True)
-def _inv_inertia_times(rot, inv, x, y, z):
-    """I_world^-1 (x, y, z) = R I^-1 R^T v."""
-    r0 = rot[0, 0] * x + rot[1, 0] * y + rot[2, 0] * z
-    r1 = rot[0, 1] * x + rot[1, 1] * y + rot[2, 1] * z
-    r2 = rot[0, 2] * x + rot[1, 2] * y + rot[2, 2] * z
-    s0 = inv[0, 0] * r0 + inv[0, 1] * r1 + inv[0, 2] * r2
-    s1 = inv[1, 0] * r0 + inv[1, 1] * r1 + inv[1, 2] * r2
-    s2 = inv[2, 0] * r0 + inv[2, 1] * r1 + inv[2, 2] * r2
-    return (rot[0, 0] * s0 + rot[0, 1] * s1 + rot[0, 2] * s2,
-            rot[1, 0] * s0 + rot[1, 1] * s1 + rot[1, 2] * s2,
-            rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2)
-
-
-@nb.njit(cache=True)
 def _effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
     """1/m + n . ((I^-1 (r x n)) x r): inverse mass seen by an impulse along n at r."""
     cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
-    ix, iy, iz = _inv_inertia_times(rot, inv, cx, cy, cz)
+    ix, iy, iz = world_tensor_times(rot, inv, cx, cy, cz)
     tx, ty, tz = iy * rz - iz * ry, iz * rx - ix * rz, ix * ry - iy * rx
     return inv_mass + nx * tx + ny * ty + nz * tz
 

@@ -92,19 +92,24 @@ def integrate_positions(dt: float, body_mass: np.ndarray, body_inv_inertia: np.n
 
 
 @nb.njit(cache=True)
+def world_tensor_times(rot, tensor, x, y, z):
+    """R T R^T (x, y, z), no allocation: a rest-frame tensor T (3, 3) (inertia, or its
+    inverse) applied in the world frame of a body with rotation ``rot`` (3, 3)."""
+    r0 = rot[0, 0] * x + rot[1, 0] * y + rot[2, 0] * z
+    r1 = rot[0, 1] * x + rot[1, 1] * y + rot[2, 1] * z
+    r2 = rot[0, 2] * x + rot[1, 2] * y + rot[2, 2] * z
+    s0 = tensor[0, 0] * r0 + tensor[0, 1] * r1 + tensor[0, 2] * r2
+    s1 = tensor[1, 0] * r0 + tensor[1, 1] * r1 + tensor[1, 2] * r2
+    s2 = tensor[2, 0] * r0 + tensor[2, 1] * r1 + tensor[2, 2] * r2
+    return (rot[0, 0] * s0 + rot[0, 1] * s1 + rot[0, 2] * s2,
+            rot[1, 0] * s0 + rot[1, 1] * s1 + rot[1, 2] * s2,
+            rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2)
+
+
+@nb.njit(cache=True)
 def angular_velocity(rot, inv, ang):
     """omega = R I^-1 R^T L (rad/s, world) without allocation."""
-    lx, ly, lz = ang[0], ang[1], ang[2]
-    r0 = rot[0, 0] * lx + rot[1, 0] * ly + rot[2, 0] * lz
-    r1 = rot[0, 1] * lx + rot[1, 1] * ly + rot[2, 1] * lz
-    r2 = rot[0, 2] * lx + rot[1, 2] * ly + rot[2, 2] * lz
-    s0 = inv[0, 0] * r0 + inv[0, 1] * r1 + inv[0, 2] * r2
-    s1 = inv[1, 0] * r0 + inv[1, 1] * r1 + inv[1, 2] * r2
-    s2 = inv[2, 0] * r0 + inv[2, 1] * r1 + inv[2, 2] * r2
-    wx = rot[0, 0] * s0 + rot[0, 1] * s1 + rot[0, 2] * s2
-    wy = rot[1, 0] * s0 + rot[1, 1] * s1 + rot[1, 2] * s2
-    wz = rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2
-    return wx, wy, wz
+    return world_tensor_times(rot, inv, ang[0], ang[1], ang[2])
 
 
 @nb.njit(cache=True)
@@ -113,20 +118,6 @@ def spin_rate(inv, ang) -> float:
     and |L| / I_min (inv: (3, 3) rest-frame I^-1 in 1/(kg m^2); ang: (3,) L in N m s)."""
     norm = math.sqrt(ang[0] * ang[0] + ang[1] * ang[1] + ang[2] * ang[2])
     return norm * (inv[0, 0] + inv[1, 1] + inv[2, 2]) / 3.0
-
-
-@nb.njit(cache=True)
-def _world_rate(rot, inv, lx, ly, lz):
-    """R I^-1 R^T (lx, ly, lz): :func:`angular_velocity` of a momentum given as scalars."""
-    r0 = rot[0, 0] * lx + rot[1, 0] * ly + rot[2, 0] * lz
-    r1 = rot[0, 1] * lx + rot[1, 1] * ly + rot[2, 1] * lz
-    r2 = rot[0, 2] * lx + rot[1, 2] * ly + rot[2, 2] * lz
-    s0 = inv[0, 0] * r0 + inv[0, 1] * r1 + inv[0, 2] * r2
-    s1 = inv[1, 0] * r0 + inv[1, 1] * r1 + inv[1, 2] * r2
-    s2 = inv[2, 0] * r0 + inv[2, 1] * r1 + inv[2, 2] * r2
-    return (rot[0, 0] * s0 + rot[0, 1] * s1 + rot[0, 2] * s2,
-            rot[1, 0] * s0 + rot[1, 1] * s1 + rot[1, 2] * s2,
-            rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2)
 
 
 @nb.njit(cache=True)
@@ -165,10 +156,11 @@ def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
         if sub > 0:
             quaternion.matrix_into(q, scratch)
             r = scratch
-        wx, wy, wz = _world_rate(r, inv, lx, ly, lz)
+        wx, wy, wz = world_tensor_times(r, inv, lx, ly, lz)
         for _ in range(_MAX_ITERATIONS):
             ex, ey, ez = _turn(wx, wy, wz, -h, lx, ly, lz)
-            nx, ny, nz = _world_rate(r, inv, 0.5 * (lx + ex), 0.5 * (ly + ey), 0.5 * (lz + ez))
+            nx, ny, nz = world_tensor_times(r, inv, 0.5 * (lx + ex), 0.5 * (ly + ey),
+                                            0.5 * (lz + ez))
             change = abs(nx - wx) + abs(ny - wy) + abs(nz - wz)
             wx, wy, wz = nx, ny, nz
             if change <= 1e-14 * (abs(wx) + abs(wy) + abs(wz)):

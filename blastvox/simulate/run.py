@@ -302,8 +302,9 @@ class _Run:
     def _candidates(self, grid, owner, out, front_in, front_out) -> np.ndarray:
         """Flag the grid's points that a front's shell can reach this step (see shell)."""
         st, ch = self.state, self.charges
+        origin, dims, offsets, ids = grid
         out[:] = False
-        mark_in_shell(*grid[:2], self.sm.grid_cell, *grid[2:], owner, st.voxel_body,
+        mark_in_shell(origin, dims, self.sm.grid_cell, offsets, ids, owner, st.voxel_body,
                       self.active, st.body_com, st.body_pos, self.rot, st.body_radius,
                       ch.position, front_in, front_out, out)
         return out

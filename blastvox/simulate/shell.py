@@ -57,19 +57,21 @@ def dense_grid(points, cell):
 
 
 @nb.njit(cache=True)
+def _axis_gaps(p, lo, size):
+    """Squared nearest and farthest distance (m^2) from p to [lo, lo + size] on one axis."""
+    hi = lo + size
+    near = max(lo - p, 0.0, p - hi)
+    far = max(abs(p - lo), abs(p - hi))
+    return near * near, far * far
+
+
+@nb.njit(cache=True)
 def _box_distances(x, y, z, lo0, lo1, lo2, size):
     """Nearest and farthest distance (m) from (x, y, z) to the cube at lo of edge size."""
-    near = 0.0
-    far = 0.0
-    for a in range(3):
-        p = x if a == 0 else (y if a == 1 else z)
-        lo = lo0 if a == 0 else (lo1 if a == 1 else lo2)
-        hi = lo + size
-        d = max(lo - p, 0.0, p - hi)
-        near += d * d
-        e = max(abs(p - lo), abs(p - hi))
-        far += e * e
-    return math.sqrt(near), math.sqrt(far)
+    n0, f0 = _axis_gaps(x, lo0, size)
+    n1, f1 = _axis_gaps(y, lo1, size)
+    n2, f2 = _axis_gaps(z, lo2, size)
+    return math.sqrt(n0 + n1 + n2), math.sqrt(f0 + f1 + f2)
 
 
 @nb.njit(cache=True)
@@ -85,6 +87,8 @@ def mark_in_shell(origin, dims, cell, offsets, ids, owner_voxel, voxel_body, act
     < 0 nothing passed yet. Flags are only ever set: clear ``out`` first.
     """
     n_bodies = body_radius.shape[0]
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
     for b in range(n_bodies):
         if not active[b]:
             continue
@@ -101,8 +105,6 @@ def mark_in_shell(origin, dims, cell, offsets, ids, owner_voxel, voxel_body, act
             cx = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz + body_com[b, 0]
             cy = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz + body_com[b, 1]
             cz = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz + body_com[b, 2]
-            lo = np.empty(3, dtype=np.int64)
-            hi = np.empty(3, dtype=np.int64)
             empty = False
             for a in range(3):
                 centre = cx if a == 0 else (cy if a == 1 else cz)

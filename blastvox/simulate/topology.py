@@ -15,7 +15,7 @@ import numba as nb
 import numpy as np
 
 from blastvox.simulate.bodies import aggregate, inverse_inertia
-from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.integrate import angular_velocity, world_tensor_times
 from blastvox.simulate.quaternion import matrix_into
 
 
@@ -165,15 +165,9 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
         body_lin[b, 0] = mass * (body_lin[parent, 0] / pm + wy * rz - wz * ry)
         body_lin[b, 1] = mass * (body_lin[parent, 1] / pm + wz * rx - wx * rz)
         body_lin[b, 2] = mass * (body_lin[parent, 2] / pm + wx * ry - wy * rx)
-        # I_world omega = R I (R^T omega)
-        s0 = rot[0, 0] * wx + rot[1, 0] * wy + rot[2, 0] * wz
-        s1 = rot[0, 1] * wx + rot[1, 1] * wy + rot[2, 1] * wz
-        s2 = rot[0, 2] * wx + rot[1, 2] * wy + rot[2, 2] * wz
-        i0 = inertia[0, 0] * s0 + inertia[0, 1] * s1 + inertia[0, 2] * s2
-        i1 = inertia[1, 0] * s0 + inertia[1, 1] * s1 + inertia[1, 2] * s2
-        i2 = inertia[2, 0] * s0 + inertia[2, 1] * s1 + inertia[2, 2] * s2
-        for a in range(3):
-            body_ang[b, a] = rot[a, 0] * i0 + rot[a, 1] * i1 + rot[a, 2] * i2
+        # L = I_world omega = R I R^T omega
+        lx, ly, lz = world_tensor_times(rot, inertia, wx, wy, wz)
+        body_ang[b, 0], body_ang[b, 1], body_ang[b, 2] = lx, ly, lz
     for p in range(body_mass.shape[0]):
         if pieces[p] >= 2:
             body_live[p] = False
