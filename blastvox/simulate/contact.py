@@ -33,6 +33,7 @@ import numba as nb
 import numpy as np
 
 from blastvox.simulate.integrate import angular_velocity, world_tensor_times
+from blastvox.simulate.shell import to_rest
 
 _FACE_CORNERS = np.array(
     [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]],
@@ -433,13 +434,8 @@ def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com, body_p
                     rest_slot, rest_table, rest_start, rest_end, world, near) -> int:
     """Mark b's boundary voxels within ``reach`` (m) of body o's centre, found through
     b's rest grid: o's centre is taken into b's rest frame. Returns how many."""
-    rot = body_rot[b]
-    dx = body_pos[o, 0] - body_pos[b, 0]
-    dy = body_pos[o, 1] - body_pos[b, 1]
-    dz = body_pos[o, 2] - body_pos[b, 2]
-    cx = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz + body_com[b, 0]
-    cy = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz + body_com[b, 1]
-    cz = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz + body_com[b, 2]
+    cx, cy, cz = to_rest(body_rot[b], body_pos[b], body_com[b], body_pos[o, 0],
+                         body_pos[o, 1], body_pos[o, 2])
     count = 0
     for i in range(_cell(cx - reach, cell), _cell(cx + reach, cell) + 1):
         for j in range(_cell(cy - reach, cell), _cell(cy + reach, cell) + 1):

@@ -20,6 +20,16 @@ import numpy as np
 
 
 @nb.njit(cache=True)
+def to_rest(rot, pos, com, x, y, z):
+    """A world point (m) in the rest frame of a body at ``pos`` with rotation ``rot``
+    and rest centre of mass ``com``: R^T (x - pos) + com."""
+    dx, dy, dz = x - pos[0], y - pos[1], z - pos[2]
+    return (rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz + com[0],
+            rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz + com[1],
+            rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz + com[2])
+
+
+@nb.njit(cache=True)
 def dense_grid(points, cell):
     """CSR of point indices by the cell of a dense grid over their bounding box.
 
@@ -98,13 +108,8 @@ def mark_in_shell(origin, dims, cell, offsets, ids, owner_voxel, voxel_body, act
             if outer <= 0.0:
                 continue
             inner = front_in[c]
-            # the charge in b's rest frame: R^T (x - pos) + com
-            dx = charge_pos[c, 0] - body_pos[b, 0]
-            dy = charge_pos[c, 1] - body_pos[b, 1]
-            dz = charge_pos[c, 2] - body_pos[b, 2]
-            cx = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz + body_com[b, 0]
-            cy = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz + body_com[b, 1]
-            cz = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz + body_com[b, 2]
+            cx, cy, cz = to_rest(rot, body_pos[b], body_com[b], charge_pos[c, 0],
+                                 charge_pos[c, 1], charge_pos[c, 2])
             empty = False
             for a in range(3):
                 centre = cx if a == 0 else (cy if a == 1 else cz)
