@@ -20,6 +20,7 @@ from blastvox.errors import BudgetError, MeshError
 from blastvox.materials import MaterialLibrary, material_table, perturbed
 from blastvox.model import SURFACE_BIT, VoxelModel
 from blastvox.voxelize import cells as cellsel
+from blastvox.voxelize.components import component_labels
 from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
 from blastvox.voxelize.hashing import uniform_by_key
 from blastvox.voxelize.lattice import CORNER_OFFSETS, Grid, fit_grid, hex_triangles, spacing_for
@@ -289,17 +290,6 @@ def _link(lat: _Lattice) -> None:
     lat.boundary = boundary
 
 
-def _components(link_voxels: np.ndarray, n: int) -> np.ndarray:
-    """Connected-component label (N,) of each voxel, numbered by lowest voxel index."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    graph = coo_matrix((np.ones(len(link_voxels)), (link_voxels[:, 0], link_voxels[:, 1])),
-                       shape=(n, n))
-    _, labels = connected_components(graph, directed=False)
-    return labels
-
-
 def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> VoxelModel:
     library = settings.library
     objects: list[dict] = []
@@ -319,7 +309,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
 
     for lat in lattices:
         n = len(lat.ijk)
-        labels = _components(lat.link_voxels, n)
+        labels = component_labels(lat.link_voxels, n)  # numbered by lowest voxel
         count = int(labels.max()) + 1
         for c in range(count):
             objects.append({"name": lat.name if count == 1 else f"{lat.name}.{c:03d}",
