@@ -16,6 +16,7 @@ from blastvox.analysis.tradeoff import (
     pareto_front,
     summarize,
     up_vector,
+    wasserstein_1d,
 )
 
 FRAMES = 5
@@ -96,6 +97,54 @@ def test_mass_distribution_distance_in_decades() -> None:
     # mass-weighted: 1 kg and 1 kg against one 2 kg piece is log10(2) apart
     assert log_mass_distance(np.array([1.0, 1.0]), np.array([2.0])) == pytest.approx(
         np.log10(2.0))
+
+
+def test_mass_distance_weights_by_mass() -> None:
+    # log10 masses {0, 3} weighted 1 : 1000 against {1}: the CDFs differ by 1/1001 on
+    # [0, 1) and by 1000/1001 on [1, 3), so W1 = (1 + 2 x 1000) / 1001 decades
+    got = log_mass_distance(np.array([1.0, 1000.0]), np.array([10.0]))
+    assert got == pytest.approx(2001.0 / 1001.0, rel=1e-12, abs=0.0)
+
+
+def test_wasserstein_1d_hand_computed() -> None:
+    # u: 0, 2, 5 weighted 1, 1, 2 (CDF 1/4, 1/2, 1); v: 1, 4, 4.8 equal (1/3 each).
+    # merged support 0, 1, 2, 4, 4.8, 5 and |F - G| on each interval:
+    #   1/4 x 1 + 1/12 x 1 + 1/6 x 2 + 1/6 x 0.8 + 1/2 x 0.2 = 54/60
+    u, uw, v = np.array([5.0, 0.0, 2.0]), np.array([2.0, 1.0, 1.0]), np.array([4.8, 1.0, 4.0])
+    assert wasserstein_1d(u, v, uw) == pytest.approx(0.9, rel=1e-12, abs=0.0)
+    assert wasserstein_1d(v, u, None, uw) == pytest.approx(0.9, rel=1e-12, abs=0.0)
+    # weights only matter in proportion
+    assert wasserstein_1d(u, v, uw * 7.5, np.full(3, 0.1)) == pytest.approx(0.9, rel=1e-12)
+    # two point masses: their distance; repeated values are one heavier atom
+    assert wasserstein_1d([2.5], [-1.0]) == 3.5
+    assert wasserstein_1d([0.0, 0.0, 1.0], [0.0, 1.0], None, [2.0, 1.0]) == 0.0
+    assert wasserstein_1d([0.0, 1.0], [0.0, 1.0], [3.0, 1.0], [2.0, 2.0]) == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_wasserstein_1d_of_equal_size_samples_matches_sorted_pairs(seed: int) -> None:
+    # unweighted, same size: W1 = mean |u_(i) - v_(i)| over the sorted samples
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 300))
+    u, v = rng.normal(size=n), rng.standard_cauchy(size=n)
+    if seed % 2:
+        u, v = np.round(u, 1), np.round(v, 1)  # ties
+    expected = np.mean(np.abs(np.sort(u) - np.sort(v)))
+    assert wasserstein_1d(u, v) == pytest.approx(expected, rel=1e-12, abs=1e-15)
+    # a shift by c moves it by |c| against itself
+    assert wasserstein_1d(u + 3.0, u) == pytest.approx(3.0, rel=1e-12)
+
+
+def test_wasserstein_1d_rejects_bad_samples() -> None:
+    for args in (([], [1.0]), ([1.0], [])):
+        with pytest.raises(ValueError, match="empty"):
+            wasserstein_1d(*args)
+    with pytest.raises(ValueError, match="negative"):
+        wasserstein_1d([1.0, 2.0], [1.0], [1.0, -1.0])
+    with pytest.raises(ValueError, match="total"):
+        wasserstein_1d([1.0], [1.0], [0.0])
+    with pytest.raises(ValueError, match="weights for"):
+        wasserstein_1d([1.0, 2.0], [1.0], [1.0])
 
 
 def test_compare_combines_com_mass_and_broken_links() -> None:
