@@ -78,12 +78,6 @@ def _effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
 
 
 @nb.njit(cache=True)
-def _unit(axis, component) -> float:
-    """Component ``component`` of the unit vector along ``axis``."""
-    return 1.0 if axis == component else 0.0
-
-
-@nb.njit(cache=True)
 def _apply(b, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang):
     body_lin[b, 0] += jx
     body_lin[b, 1] += jy
@@ -96,38 +90,38 @@ def _apply(b, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang):
 
 @nb.njit(cache=True)
 def _hull_contains(px, py, count, qx, qy, tol) -> bool:
-    """Is (qx, qy) inside the convex hull of the 2-D points (monotone chain)?"""
+    """Is (qx, qy) inside the convex hull of the first ``count`` 2-D points (px, py)?
+
+    Gift wrapping, O(count x hull vertices): contact sets have a handful of hull
+    vertices, and it needs no sort (a sort kernel costs seconds of compilation).
+    tol (m): how far outside an edge still counts as inside.
+    """
     if count < 3:
         return False
-    order = np.argsort(px[:count] + 1e-9 * py[:count])
-    xs = px[:count][order]
-    ys = py[:count][order]
-    hull = np.empty(2 * count, dtype=np.int64)
-    k = 0
-    for i in range(count):  # lower hull
-        while k >= 2 and ((xs[hull[k - 1]] - xs[hull[k - 2]]) * (ys[i] - ys[hull[k - 2]])
-                          - (ys[hull[k - 1]] - ys[hull[k - 2]]) * (xs[i] - xs[hull[k - 2]])) <= 0:
-            k -= 1
-        hull[k] = i
-        k += 1
-    lower = k + 1
-    for i in range(count - 2, -1, -1):  # upper hull
-        while k >= lower and ((xs[hull[k - 1]] - xs[hull[k - 2]]) * (ys[i] - ys[hull[k - 2]])
-                              - (ys[hull[k - 1]] - ys[hull[k - 2]])
-                              * (xs[i] - xs[hull[k - 2]])) <= 0:
-            k -= 1
-        hull[k] = i
-        k += 1
-    n = k - 1
-    if n < 3:
-        return False
-    for e in range(n):  # counter-clockwise: inside is left of every edge
-        a, b = hull[e], hull[e + 1]
-        ex, ey = xs[b] - xs[a], ys[b] - ys[a]
+    first = 0
+    for i in range(1, count):
+        if px[i] < px[first] or (px[i] == px[first] and py[i] < py[first]):
+            first = i
+    a = first
+    edges = 0
+    for _ in range(count):
+        # next hull vertex b: no point right of a->b (ties: the farthest), so the
+        # walk is counter-clockwise and inside is left of every edge
+        b = 1 if a == 0 else 0
+        for i in range(count):
+            cross = (px[b] - px[a]) * (py[i] - py[a]) - (py[b] - py[a]) * (px[i] - px[a])
+            if cross < 0.0 or (cross == 0.0 and (px[i] - px[a]) ** 2 + (py[i] - py[a]) ** 2
+                               > (px[b] - px[a]) ** 2 + (py[b] - py[a]) ** 2):
+                b = i
+        ex, ey = px[b] - px[a], py[b] - py[a]
         length = math.sqrt(ex * ex + ey * ey)
-        if ex * (qy - ys[a]) - ey * (qx - xs[a]) < -tol * length:
+        if length == 0.0 or ex * (qy - py[a]) - ey * (qx - px[a]) < -tol * length:
             return False
-    return True
+        edges += 1
+        a = b
+        if a == first:
+            return edges >= 3
+    return False  # no closed walk: degenerate input
 
 
 def balanced(points: np.ndarray, centre: np.ndarray, tol: float = 0.0) -> bool:
@@ -155,6 +149,10 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
     """
     e1 = (up_axis + 1) % 3
     e2 = (up_axis + 2) % 3
+    axes = np.zeros((3, 3))  # rows: the plane normal, then the tangents along e1 and e2
+    axes[0, up_axis] = 1.0
+    axes[1, e1] = 1.0
+    axes[2, e2] = 1.0
     max_contacts = contacts_out.shape[0]
     acc_n = np.zeros(max_contacts)
     acc_t = np.zeros((max_contacts, 2))
@@ -230,21 +228,21 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
                 omega = angular_velocity(rot, inv, body_ang[b])
                 vel = _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
                 rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
-                k_n = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, _unit(up_axis, 0),
-                                              _unit(up_axis, 1), _unit(up_axis, 2))
+                k_n = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, axes[0, 0],
+                                              axes[0, 1], axes[0, 2])
                 dj = (target[i] - vel[up_axis]) / k_n
                 old = acc_n[i]
                 acc_n[i] = max(old + dj, 0.0)
                 dj = acc_n[i] - old
-                _apply(b, dj * _unit(up_axis, 0), dj * _unit(up_axis, 1),
-                       dj * _unit(up_axis, 2), px, py, pz, body_pos, body_lin, body_ang)
+                _apply(b, dj * axes[0, 0], dj * axes[0, 1], dj * axes[0, 2], px, py, pz,
+                       body_pos, body_lin, body_ang)
                 # Coulomb friction on the two tangent axes, within mu * normal impulse
                 omega = angular_velocity(rot, inv, body_ang[b])
                 vel = _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
                 limit = friction * acc_n[i]
                 for t in range(2):
                     axis = e1 if t == 0 else e2
-                    tx, ty, tz = _unit(axis, 0), _unit(axis, 1), _unit(axis, 2)
+                    tx, ty, tz = axes[t + 1, 0], axes[t + 1, 1], axes[t + 1, 2]
                     k_t = _effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, tx, ty, tz)
                     old_t = acc_t[i, t]
                     acc_t[i, t] = min(max(old_t - vel[axis] / k_t, -limit), limit)
@@ -256,7 +254,7 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
         spin = math.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * body_radius[b]
         # touching: within the sag of one step of gravity, or a hair of the body's size
         touch_tol = 1e-4 * max(1.0, body_radius[b]) + 9.81 * dt * dt
-        touching = 0
+        touching = np.int64(0)  # not a literal 0: the callee would compile twice
         for i in range(count):
             if contacts_out[i, up_axis] - ground <= touch_tol:
                 touching += 1
@@ -308,52 +306,39 @@ def _slot(key, mask) -> int:
 
 
 @nb.njit(cache=True)
-def cell_table(sorted_keys):
-    """Open-addressing table of the runs of equal keys in ``sorted_keys`` (M,).
+def hash_buckets(keys):
+    """Counting sort of cell ``keys`` (M,) int64 into the buckets of a hash table.
 
-    Returns (table_key, run_start, run_end), each (T,) with T a power of two at
-    least twice the number of distinct keys; empty slots have key -1.
+    Returns (start (T+1,), entries (M,)): bucket s of the T-slot table (T a
+    power of two, at least 2 M and 16) holds the indices entries[start[s]:
+    start[s+1]] into ``keys``, in increasing order. Distinct keys can share a
+    bucket, so a lookup compares keys (:func:`_bucket`). Linear time and no
+    comparison sort, whose kernel would cost seconds of compilation.
     """
-    n = sorted_keys.shape[0]
-    distinct = 0
-    for i in range(n):
-        if i == 0 or sorted_keys[i] != sorted_keys[i - 1]:
-            distinct += 1
+    n = keys.shape[0]
     size = 16
-    while size < 2 * distinct:
+    while size < 2 * n:
         size *= 2
     mask = size - 1
-    table_key = np.full(size, -1, dtype=np.int64)
-    run_start = np.zeros(size, dtype=np.int64)
-    run_end = np.zeros(size, dtype=np.int64)
-    i = 0
-    while i < n:
-        key = sorted_keys[i]
-        j = i + 1
-        while j < n and sorted_keys[j] == key:
-            j += 1
-        s = _slot(key, mask)
-        while table_key[s] != -1:
-            s = (s + 1) & mask
-        table_key[s] = key
-        run_start[s] = i
-        run_end[s] = j
-        i = j
-    return table_key, run_start, run_end
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in range(n):
+        start[_slot(keys[i], mask) + 1] += 1
+    for s in range(size):
+        start[s + 1] += start[s]
+    fill = start[:-1].copy()
+    entries = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        s = _slot(keys[i], mask)
+        entries[fill[s]] = i
+        fill[s] += 1
+    return start, entries
 
 
 @nb.njit(cache=True)
-def _run_of(key, table_key, run_start, run_end):
-    """(start, end) of ``key``'s run in the sorted arrays, (0, 0) if absent."""
-    mask = table_key.shape[0] - 1
-    s = _slot(key, mask)
-    while True:
-        t = table_key[s]
-        if t == key:
-            return run_start[s], run_end[s]
-        if t == -1:
-            return 0, 0
-        s = (s + 1) & mask
+def _bucket(key, start):
+    """(lo, hi): the range of ``key``'s bucket in a :func:`hash_buckets` table."""
+    s = _slot(key, start.shape[0] - 2)
+    return start[s], start[s + 1]
 
 
 @nb.njit(cache=True)
@@ -361,8 +346,9 @@ def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos
                 body_live, body_dust, body_fixed, body_asleep, n_bodies, cell):
     """Spatial hash of the boundary voxels of bodies that do not move (fixed or asleep).
 
-    Returns (voxels (S,), positions (S, 3), table_key, run_start, run_end): the
-    voxels sorted by cell key, and the :func:`cell_table` of their keys.
+    Returns (voxels (S,), positions (S, 3), keys (S,), start): the voxels, their
+    world centres and cell keys in bucket order, and the :func:`hash_buckets`
+    offsets, so bucket s is the range start[s]:start[s+1] of the three arrays.
     Rebuilt only when the set of resting bodies changes.
     """
     count = 0
@@ -372,7 +358,7 @@ def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos
     vox = np.empty(count, dtype=np.int64)
     pos = np.empty((count, 3))
     keys = np.empty(count, dtype=np.int64)
-    n = 0
+    n = np.int64(0)  # not a literal 0: the callee would compile twice
     for b in range(n_bodies):
         if not (body_live[b] and not body_dust[b] and (body_fixed[b] or body_asleep[b])):
             continue
@@ -382,9 +368,8 @@ def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos
             keys[n] = _key(_cell(pos[n, 0], cell), _cell(pos[n, 1], cell),
                            _cell(pos[n, 2], cell))
             n += 1
-    order = np.argsort(keys, kind="quicksort")
-    table_key, run_start, run_end = cell_table(keys[order])
-    return vox[order], pos[order], table_key, run_start, run_end
+    start, entries = hash_buckets(keys)
+    return vox[entries], pos[entries], keys[entries], start
 
 
 @nb.njit(cache=True)
@@ -416,22 +401,21 @@ def rest_grid(voxel_centroid, voxel_body, members, cell):
     """Boundary voxels hashed by (body, cell of their rest centroid).
 
     Rest positions never change, so this is rebuilt only when the boundary does.
-    Returns (slots (M,): boundary slots sorted by key, table_key, run_start,
-    run_end) for :func:`_run_of`.
+    Returns (slots (M,), keys (M,), start): boundary slots and their keys in
+    bucket order, and the :func:`hash_buckets` offsets.
     """
     keys = np.empty(members.shape[0], dtype=np.int64)
     for k in range(members.shape[0]):
         v = members[k]
         keys[k] = _rest_key(voxel_body[v], _cell(voxel_centroid[v, 0], cell),
                             _cell(voxel_centroid[v, 1], cell), _cell(voxel_centroid[v, 2], cell))
-    order = np.argsort(keys, kind="quicksort")
-    table_key, run_start, run_end = cell_table(keys[order])
-    return order, table_key, run_start, run_end
+    start, entries = hash_buckets(keys)
+    return entries, keys[entries], start
 
 
 @nb.njit(cache=True)
 def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com, body_pos, body_rot,
-                    rest_slot, rest_table, rest_start, rest_end, world, near) -> int:
+                    rest_slot, rest_keys, rest_start, world, near) -> int:
     """Mark b's boundary voxels within ``reach`` (m) of body o's centre, found through
     b's rest grid: o's centre is taken into b's rest frame. Returns how many."""
     cx, cy, cz = to_rest(body_rot[b], body_pos[b], body_com[b], body_pos[o, 0],
@@ -440,8 +424,11 @@ def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com, body_p
     for i in range(_cell(cx - reach, cell), _cell(cx + reach, cell) + 1):
         for j in range(_cell(cy - reach, cell), _cell(cy + reach, cell) + 1):
             for k in range(_cell(cz - reach, cell), _cell(cz + reach, cell) + 1):
-                lo, hi = _run_of(_rest_key(b, i, j, k), rest_table, rest_start, rest_end)
+                key = _rest_key(b, i, j, k)
+                lo, hi = _bucket(key, rest_start)
                 for s in range(lo, hi):
+                    if rest_keys[s] != key:
+                        continue
                     slot = rest_slot[s]
                     if near[slot]:
                         continue
@@ -457,7 +444,7 @@ def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com, body_p
 @nb.njit(cache=True)
 def _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_pos, body_rot,
                  body_fixed, body_live, body_dust, body_asleep, n_bodies, cell, rest_slot,
-                 rest_table, rest_start, rest_end, world, near):
+                 rest_keys, rest_start, world, near):
     """Mark (in ``near``, by boundary slot) the voxels of moving bodies that may touch
     another body this step, with their world centres in ``world``; returns how many.
 
@@ -490,8 +477,8 @@ def _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_p
             cells = (2.0 * reach / cell + 2.0) ** 3
             if cells < last - first:
                 count += _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com,
-                                         body_pos, body_rot, rest_slot, rest_table, rest_start,
-                                         rest_end, world, near)
+                                         body_pos, body_rot, rest_slot, rest_keys, rest_start,
+                                         world, near)
                 continue
             if not placed:
                 for k in range(first, last):
@@ -512,8 +499,8 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                    body_com, body_pos, body_rot, body_lin, body_ang, body_fixed, body_live,
                    body_dust, body_asleep, n_bodies, wake_speed, rest_speed, friction,
                    voxel_density, weakening, destroyed, dirty, resting, hits_out, cell,
-                   static_vox, static_pos, static_table, static_start, static_end, rest_slot,
-                   rest_table, rest_start, rest_end) -> int:
+                   static_vox, static_pos, static_keys, static_start, rest_slot, rest_keys,
+                   rest_start) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.
 
     voxel_radius (N,): collision radius (m), at most cell / 2. The boundary
@@ -536,7 +523,7 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
     near = np.zeros(members.shape[0], dtype=np.bool_)
     count = _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_pos,
                          body_rot, body_fixed, body_live, body_dust, body_asleep, n_bodies, cell,
-                         rest_slot, rest_table, rest_start, rest_end, world, near)
+                         rest_slot, rest_keys, rest_start, world, near)
     if count == 0:
         return 0
     slot = np.empty(count, dtype=np.int64)
@@ -550,11 +537,9 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                 ijk[n, a] = _cell(world[k, a], cell)
             keys[n] = _key(ijk[n, 0], ijk[n, 1], ijk[n, 2])
             n += 1
-    sort = np.argsort(keys, kind="quicksort")
-    table_key, run_start, run_end = cell_table(keys[sort])
-    resolved = 0
-    for ii in range(n):
-        i = sort[ii]
+    start, entries = hash_buckets(keys)
+    resolved = np.int64(0)  # not a literal 0: the callee would compile twice
+    for i in range(n):
         vi = members[slot[i]]
         bi = voxel_body[vi]
         ci = world[slot[i]]
@@ -563,9 +548,11 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                 for dz in range(-1, 2):
                     key = _key(ijk[i, 0] + dx, ijk[i, 1] + dy, ijk[i, 2] + dz)
                     # moving against moving: each pair once (lower voxel first)
-                    lo, hi = _run_of(key, table_key, run_start, run_end)
+                    lo, hi = _bucket(key, start)
                     for jj in range(lo, hi):
-                        j = sort[jj]
+                        j = entries[jj]
+                        if keys[j] != key:
+                            continue
                         vj = members[slot[j]]
                         bj = voxel_body[vj]
                         if vj <= vi or bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:
@@ -580,8 +567,10 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                             rest_speed, friction, voxel_density, weakening, destroyed, dirty,
                             resting, hits_out, resolved)
                     # moving against resting
-                    lo, hi = _run_of(key, static_table, static_start, static_end)
+                    lo, hi = _bucket(key, static_start)
                     for jj in range(lo, hi):
+                        if static_keys[jj] != key:
+                            continue
                         vj = static_vox[jj]
                         bj = voxel_body[vj]
                         if bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:

@@ -412,7 +412,6 @@ class _Run:
     def _collide(self, step: int, t1: float, frame_next: int) -> None:
         st, sm, s = self.state, self.sm, self.settings
         offsets, members = self._boundary()
-        static_vox, static_pos, static_table, static_start, static_end = self._static()
         self.destroyed[:] = False
         self.dirty[:self.n_bodies] = False
         before = self.collisions
@@ -423,7 +422,7 @@ class _Run:
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
             s.sleep_speed, self.rest_speed, s.friction, self.voxel_density, s.weakening,
             self.destroyed, self.dirty, self.resting, self.hits, 2.0 * self.max_contact_radius,
-            static_vox, static_pos, static_table, static_start, static_end, *self._rest_grid())
+            *self._static(), *self._rest_grid())
         damp_resting(self.resting, st.body_mass, st.body_inv_inertia, self.rot, st.body_lin,
                      st.body_ang, st.body_radius, self.n_bodies, self.rest_decay,
                      4.0 * s.sleep_speed)
