@@ -105,7 +105,8 @@ def simulate(
 
     console = err_console()
     started = time.perf_counter()
-    progress = _Progress(enabled=not quiet and console.is_terminal, console=console)
+    progress = _Progress(enabled=not quiet and console.is_terminal, console=console,
+                         notes=not quiet)
     with progress, limit_warnings(console):
         cache = run(model, settings, progress=progress,
                     warn=lambda m: console.print(f"warning: {m}", markup=False))
@@ -122,8 +123,8 @@ def simulate(
 class _Progress:
     """Rich progress bar showing simulated time and steps per second."""
 
-    def __init__(self, enabled: bool, console) -> None:
-        self.enabled, self.console = enabled, console
+    def __init__(self, enabled: bool, console, notes: bool = True) -> None:
+        self.enabled, self.console, self.notes = enabled, console, notes
         self._bar = self._task = None
         self._start = time.perf_counter()
 
@@ -141,6 +142,11 @@ class _Progress:
     def __exit__(self, *exc) -> None:
         if self._bar is not None:
             self._bar.stop()
+
+    def note(self, line: str) -> None:
+        """A status line (first-run compilation), also when stderr is not a terminal."""
+        if self.notes:
+            self.console.print(line, markup=False, highlight=False)
 
     def update(self, sim_time: float, done: int, total: int) -> None:
         if self._bar is None:

@@ -43,6 +43,7 @@ from blastvox.simulate.kernels import (
 )
 from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.particles import Emitter, particle_meta
+from blastvox.simulate.precompile import ensure_compiled, features_of
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
 from blastvox.simulate.shell import mark_in_shell
@@ -51,9 +52,12 @@ from blastvox.simulate.wave import Charges, build_charges
 
 
 class Progress:
-    """Progress sink: ``update(sim_time_s, steps_done, total_steps)``; no-op here."""
+    """Progress sink: ``update(sim_time_s, steps_done, total_steps)`` and
+    ``note(line)`` (a one-line status, e.g. first-run compilation); no-ops here."""
 
     def update(self, sim_time: float, done: int, total: int) -> None: ...
+
+    def note(self, line: str) -> None: ...
 
 
 def initial_state(model: VoxelModel, sm: SimModel) -> State:
@@ -107,6 +111,8 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     """Run the blast simulation of ``model`` with ``settings``."""
     progress = progress or Progress()
     warn = warn or (lambda message: None)
+    combustible = bool(np.isfinite(model.arrays["voxel_combustibility"]).any())
+    ensure_compiled(features_of(settings, combustible), notify=progress.note)
     sm = build_model(model)
     state = initial_state(model, sm)
     if not settings.ground:
