@@ -137,7 +137,7 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
                     members, vertex_stamp,
                     body_mass, body_inv_inertia, body_radius, body_com, body_pos, body_rot,
                     body_lin, body_ang, body_fixed, body_live, body_dust, body_asleep, n_bodies,
-                    contacts_out) -> int:
+                    contacts_out, supported_next) -> int:
     """Resolve ground contacts of every moving body; returns the number of contact points.
 
     ground: plane height (m) along axis ``up_axis`` (0, 1, 2); friction: Coulomb
@@ -145,7 +145,8 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
     below which a balanced body with >= 3 contacts is clamped to rest.
     contacts_out (K, 3): scratch for contact points (grows with the largest body).
     voxel_radius (N,): centroid-to-farthest-corner distance (m), to skip voxels whose
-    corners are all out of reach.
+    corners are all out of reach. Bodies touching the plane are flagged in
+    ``supported_next`` (B,) (see :func:`collide_bodies`).
     """
     e1 = (up_axis + 1) % 3
     e2 = (up_axis + 2) % 3
@@ -258,6 +259,8 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
         for i in range(count):
             if contacts_out[i, up_axis] - ground <= touch_tol:
                 touching += 1
+        if touching > 0:
+            supported_next[b] = True
         if touching == 0 or speed > 4.0 * sleep_speed or spin > 4.0 * sleep_speed:
             continue
         decay = math.exp(-rest_damping * dt)
@@ -498,7 +501,8 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                    voxel_body, offsets, members, body_mass, body_inv_inertia, body_radius,
                    body_com, body_pos, body_rot, body_lin, body_ang, body_fixed, body_live,
                    body_dust, body_asleep, n_bodies, wake_speed, rest_speed, friction,
-                   voxel_density, weakening, destroyed, dirty, resting, hits_out, cell,
+                   voxel_density, weakening, destroyed, dirty, resting, up, supported,
+                   supported_next, hits_out, cell,
                    static_vox, static_pos, static_keys, static_start, rest_slot, rest_keys,
                    rest_start) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.
@@ -508,9 +512,13 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
     into a spatial hash each step; voxels of bodies at rest (fixed or asleep)
     come from ``static_*`` (:func:`static_hash`), so a big standing structure
     costs nothing per step. Contacts are resolved in hash order (deterministic)
-    with restitution and Coulomb ``friction`` (mu). Bodies in a gentle contact
-    (approach speed below ``rest_speed``, m/s) are flagged in ``resting`` (B,)
-    for resting-contact damping.
+    with restitution and Coulomb ``friction`` (mu), and rolling resistance
+    (:func:`_resist_rolling`). A gentle contact (approach speed below
+    ``rest_speed``, m/s) does not bounce, flags both bodies in ``resting`` (B,)
+    for resting-contact damping, and, where one body lies on the other (along
+    ``up`` (3,)), lets the lower one hold like the ground if it is flagged in
+    ``supported`` (B,) (last step's); the upper one is then flagged in
+    ``supported_next`` (B,).
     Impacts weaken the voxels they hit by ``weakening`` x the impact pressure
     rho v_n^2 / 2 (Pa; rho the voxel's density in kg/m^3, v_n the approach
     speed): a stone voxel shrugs off 5 m/s (33 kPa) and turns to dust at
@@ -565,7 +573,7 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                             voxel_yield, voxel_alive, body_mass, body_inv_inertia, body_pos,
                             body_rot, body_lin, body_ang, body_fixed, body_asleep, wake_speed,
                             rest_speed, friction, voxel_density, weakening, destroyed, dirty,
-                            resting, hits_out, resolved)
+                            resting, up, supported, supported_next, hits_out, resolved)
                     # moving against resting
                     lo, hi = _bucket(key, static_start)
                     for jj in range(lo, hi):
@@ -583,7 +591,7 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
                             voxel_yield, voxel_alive, body_mass, body_inv_inertia, body_pos,
                             body_rot, body_lin, body_ang, body_fixed, body_asleep, wake_speed,
                             rest_speed, friction, voxel_density, weakening, destroyed, dirty,
-                            resting, hits_out, resolved)
+                            resting, up, supported, supported_next, hits_out, resolved)
     return resolved
 
 
@@ -598,7 +606,8 @@ def _touching(ci, cj, reach) -> bool:
 def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel_yield,
                   voxel_alive, body_mass, body_inv_inertia, body_pos, body_rot, body_lin,
                   body_ang, body_fixed, body_asleep, wake_speed, rest_speed, friction,
-                  voxel_density, weakening, destroyed, dirty, resting, hits_out, index) -> int:
+                  voxel_density, weakening, destroyed, dirty, resting, up, supported,
+                  supported_next, hits_out, index) -> int:
     dx, dy, dz = cj[0] - ci[0], cj[1] - ci[1], cj[2] - ci[2]
     dist = math.sqrt(dx * dx + dy * dy + dz * dz)
     reach = voxel_radius[vi] + voxel_radius[vj]
@@ -613,7 +622,8 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
     vn = (vb[0] - va[0]) * nx + (vb[1] - va[1]) * ny + (vb[2] - va[2]) * nz
     if vn >= 0.0:
         return 0
-    if -vn < rest_speed:
+    gentle = -vn < rest_speed
+    if gentle:
         resting[bi] = True
         resting[bj] = True
     # an asleep body hit hard enough wakes; otherwise it counts as immovable
@@ -621,20 +631,44 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
         body_asleep[bi] = False
     if body_asleep[bj] and -vn > wake_speed:
         body_asleep[bj] = False
+    move_i = not (body_fixed[bi] or body_asleep[bi])
+    move_j = not (body_fixed[bj] or body_asleep[bj])
+    # shock propagation (Guendelman et al. 2003) for stacks: where one body lies on
+    # the other, the lower one, if it was supported (by the ground, a body at rest,
+    # or a supported body) last step, holds like the ground: what presses it down,
+    # its support takes. Resolving each contact once per step, a column of voxels
+    # otherwise passes its weight down one contact per step and sinks into itself
+    # for ever. A body on something that holds is supported next step.
+    # Only a lower body that is all but still (contact point slower than
+    # wake_speed) holds, so the upper one's velocity is matched to nearly zero:
+    # that can add no more than m (wake_speed)^2 / 2 to it, and usually removes.
+    lift = nx * up[0] + ny * up[1] + nz * up[2]  # > 0: bj is above bi
+    if lift > 0.5:
+        if supported[bi] and va[0] ** 2 + va[1] ** 2 + va[2] ** 2 < wake_speed ** 2:
+            move_i = False
+        if not move_i:
+            supported_next[bj] = True
+    elif lift < -0.5:
+        if supported[bj] and vb[0] ** 2 + vb[1] ** 2 + vb[2] ** 2 < wake_speed ** 2:
+            move_j = False
+        if not move_j:
+            supported_next[bi] = True
     k = 0.0
     for side in range(2):
         b = bi if side == 0 else bj
-        if body_fixed[b] or body_asleep[b]:
+        if not (move_i if side == 0 else move_j):
             continue
         k += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
                                      px - body_pos[b, 0], py - body_pos[b, 1],
                                      pz - body_pos[b, 2], nx, ny, nz)
     if k <= 0.0:
         return 0
-    e = min(voxel_restitution[vi], voxel_restitution[vj])
+    # a contact slower than a few steps of gravity is resting, not an impact: no
+    # bounce (restitution there would keep a pile hopping, as at the ground)
+    e = 0.0 if gentle else min(voxel_restitution[vi], voxel_restitution[vj])
     j = -(1.0 + e) * vn / k
     _impulse_pair(bi, bj, j * nx, j * ny, j * nz, px, py, pz, body_pos, body_lin, body_ang,
-                  body_fixed, body_asleep)
+                  move_i, move_j)
     # Coulomb friction: remove the sliding velocity at the contact, within mu * j
     wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
     wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
@@ -649,14 +683,16 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
         k_t = 0.0
         for side in range(2):
             b = bi if side == 0 else bj
-            if body_fixed[b] or body_asleep[b]:
+            if not (move_i if side == 0 else move_j):
                 continue
             k_t += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
                                            px - body_pos[b, 0], py - body_pos[b, 1],
                                            pz - body_pos[b, 2], tx, ty, tz)
         jt = min(slide / k_t, friction * j)
         _impulse_pair(bi, bj, -jt * tx, -jt * ty, -jt * tz, px, py, pz, body_pos, body_lin,
-                      body_ang, body_fixed, body_asleep)
+                      body_ang, move_i, move_j)
+    _resist_rolling(bi, bj, j * 0.5 * reach, body_rot, body_inv_inertia, body_ang, move_i,
+                    move_j)
     for side in range(2):
         v = vi if side == 0 else vj
         b = bi if side == 0 else bj
@@ -676,11 +712,50 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
 
 
 @nb.njit(cache=True)
-def _impulse_pair(bi, bj, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang, body_fixed,
-                  body_asleep) -> None:
-    """Impulse (jx, jy, jz) (N s) on bj at point p, and its opposite on bi; bodies at rest
-    (fixed or asleep) count as immovable."""
-    if not (body_fixed[bi] or body_asleep[bi]):
+def _resist_rolling(bi, bj, limit, body_rot, body_inv_inertia, body_ang, move_i,
+                    move_j) -> None:
+    """Rolling resistance: remove the relative spin of bi and bj with an opposite pair of
+    angular impulses, up to ``limit`` (N m s).
+
+    The contact spheres stand in for voxels, and a voxel, unlike a sphere, does
+    not roll: tipping a cube over an edge takes a couple of about its weight
+    times half its edge. With limit = j x (half the contact distance), debris
+    on a pile stops rolling instead of creeping down it forever. A couple
+    changes no linear momentum and, being equal and opposite, no angular
+    momentum either; it only removes relative rotation, so it never adds energy.
+    """
+    wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
+    wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
+    sx, sy, sz = wj[0] - wi[0], wj[1] - wi[1], wj[2] - wi[2]
+    spin = math.sqrt(sx * sx + sy * sy + sz * sz)
+    if spin <= 1e-12 or limit <= 0.0:
+        return
+    ux, uy, uz = sx / spin, sy / spin, sz / spin
+    k = 0.0  # spin change per unit angular impulse along u
+    for side in range(2):
+        b = bi if side == 0 else bj
+        if move_i if side == 0 else move_j:
+            ix, iy, iz = world_tensor_times(body_rot[b], body_inv_inertia[b], ux, uy, uz)
+            k += ux * ix + uy * iy + uz * iz
+    if k <= 0.0:
+        return
+    jr = min(spin / k, limit)
+    if move_i:
+        body_ang[bi, 0] += jr * ux
+        body_ang[bi, 1] += jr * uy
+        body_ang[bi, 2] += jr * uz
+    if move_j:
+        body_ang[bj, 0] -= jr * ux
+        body_ang[bj, 1] -= jr * uy
+        body_ang[bj, 2] -= jr * uz
+
+
+@nb.njit(cache=True)
+def _impulse_pair(bi, bj, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang, move_i,
+                  move_j) -> None:
+    """Impulse (jx, jy, jz) (N s) on bj at point p, and its opposite on bi; a body that
+    does not move here (fixed, asleep or holding a stack) takes none."""
+    if move_i:
         _apply(bi, -jx, -jy, -jz, px, py, pz, body_pos, body_lin, body_ang)
-    if not (body_fixed[bj] or body_asleep[bj]):
+    if move_j:
         _apply(bj, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang)

@@ -187,6 +187,9 @@ class _Run:
         self.vertex_stamp = np.full(len(sm.vertices), -1, dtype=np.int64)
         self.hits = np.zeros((4096, 4))
         self.resting = np.zeros(capacity, dtype=bool)
+        # bodies resting on the ground or on something at rest, last step and this one
+        self.supported = np.zeros(capacity, dtype=bool)
+        self.supported_next = np.zeros(capacity, dtype=bool)
         # a contact slower than one step of gravity's pull (plus sleep speed) is resting
         self.rest_speed = settings.sleep_speed + 2.0 * abs(settings.gravity) * dt
         self.rest_decay = math.exp(-settings.rest_damping * dt)
@@ -420,6 +423,7 @@ class _Run:
         offsets, members = self._boundary()
         self.destroyed[:] = False
         self.dirty[:self.n_bodies] = False
+        self._next_support()
         before = self.collisions
         self.collisions += contact.collide_bodies(
             sm.voxel_centroid, sm.voxel_contact_radius, sm.voxel_restitution, st.voxel_yield,
@@ -427,7 +431,8 @@ class _Run:
             st.body_radius, st.body_com, st.body_pos, self.rot, st.body_lin, st.body_ang,
             st.body_fixed, st.body_live, st.body_dust, st.body_asleep, self.n_bodies,
             s.sleep_speed, self.rest_speed, s.friction, self.voxel_density, s.weakening,
-            self.destroyed, self.dirty, self.resting, self.hits, 2.0 * self.max_contact_radius,
+            self.destroyed, self.dirty, self.resting, sm.up, self.supported, self.supported_next,
+            self.hits, 2.0 * self.max_contact_radius,
             *self._static(), *self._rest_grid())
         damp_resting(self.resting, st.body_mass, st.body_inv_inertia, self.rot, st.body_lin,
                      st.body_ang, st.body_radius, self.n_bodies, self.rest_decay,
@@ -438,6 +443,11 @@ class _Run:
         if self.destroyed.any():
             self._topology(step, t1, frame_next)
 
+    def _next_support(self) -> None:
+        """Last step's support flags become this step's; start the next ones empty."""
+        self.supported, self.supported_next = self.supported_next, self.supported
+        self.supported_next[:] = False
+
     def _ground(self) -> None:
         st, sm, s = self.state, self.sm, self.settings
         offsets, members = self._boundary()
@@ -447,7 +457,7 @@ class _Run:
             sm.voxel_restitution, offsets, members,
             self.vertex_stamp, st.body_mass, st.body_inv_inertia, st.body_radius, st.body_com,
             st.body_pos, self.rot, st.body_lin, st.body_ang, st.body_fixed, st.body_live,
-            st.body_dust, st.body_asleep, self.n_bodies, self.contacts)
+            st.body_dust, st.body_asleep, self.n_bodies, self.contacts, self.supported_next)
 
     # -- fire -------------------------------------------------------------------------
 
