@@ -287,7 +287,8 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
 
 @nb.njit(cache=True)
 def _moving(b, body_live, body_dust, body_fixed, body_asleep) -> bool:
-    return body_live[b] and not body_dust[b] and not body_fixed[b] and not body_asleep[b]
+    # bitwise: short-circuit branches compile ~15x slower (see integrate.moving)
+    return body_live[b] & (not (body_dust[b] | body_fixed[b] | body_asleep[b]))
 
 
 @nb.njit(cache=True)
@@ -631,8 +632,8 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
         body_asleep[bi] = False
     if body_asleep[bj] and -vn > wake_speed:
         body_asleep[bj] = False
-    move_i = not (body_fixed[bi] or body_asleep[bi])
-    move_j = not (body_fixed[bj] or body_asleep[bj])
+    move_i = not (body_fixed[bi] | body_asleep[bi])
+    move_j = not (body_fixed[bj] | body_asleep[bj])
     # shock propagation (Guendelman et al. 2003) for stacks: where one body lies on
     # the other, the lower one, if it was supported (by the ground, a body at rest,
     # or a supported body) last step, holds like the ground: what presses it down,

@@ -7,7 +7,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.integrate import angular_velocity, moving
 from blastvox.simulate.quaternion import matrix_into
 
 
@@ -81,6 +81,15 @@ def body_radii(voxel_body, voxel_alive, voxel_centroid, voxel_radius, body_com, 
                       + (voxel_centroid[v, 2] - body_com[b, 2]) ** 2) + voxel_radius[v]
         if d > body_radius[b]:
             body_radius[b] = d
+
+
+@nb.njit(cache=True)
+def any_moving(body_live, body_fixed, body_dust, body_asleep, n_bodies) -> bool:
+    """Is any body free to move (live, not fixed, not dust, awake)?"""
+    for b in range(n_bodies):
+        if moving(b, body_live, body_fixed, body_dust, body_asleep):
+            return True
+    return False
 
 
 @nb.njit(cache=True)

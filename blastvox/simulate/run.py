@@ -31,6 +31,7 @@ from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.forces import blast_impulses
 from blastvox.simulate.integrate import integrate_positions, integrate_velocities
 from blastvox.simulate.kernels import (
+    any_moving,
     bodies_in_shell,
     body_radii,
     body_rotations,
@@ -257,6 +258,10 @@ class _Run:
         if self.settings.dust and self.ground is not None:
             self._ground_ring(t1, front_out)
         self._blast(t0, t1, front_out)
+        if not any_moving(st.body_live, st.body_fixed, st.body_dust, st.body_asleep,
+                          self.n_bodies):
+            self._still_step()
+            return
         integrate_velocities(self.dt, self.gravity, self.settings.linear_drag,
                              self.settings.angular_drag, self.impulse, self.angular,
                              st.body_mass, st.body_lin, st.body_ang, st.body_fixed,
@@ -272,6 +277,18 @@ class _Run:
         integrate_positions(self.dt, st.body_mass, st.body_inv_inertia, self.rot, st.body_pos,
                             st.body_quat, st.body_lin, st.body_ang, st.body_fixed, st.body_live,
                             st.body_dust, st.body_asleep, self.n_bodies)
+
+    def _still_step(self) -> None:
+        """The rest of a step in which no body can move: the velocity, contact and
+        position kernels would only do their bookkeeping, done here (the results are
+        byte-identical to running them; a settled shot's steps cost ~10x less)."""
+        n = self.n_bodies
+        if self.settings.collisions:
+            self.destroyed[:] = False
+            self.dirty[:n] = False
+            self._next_support()
+        if self.settings.collisions or self.ground is not None:
+            self.still[:n] = 0  # settle() resets the count of every body it cannot move
 
     def _fracture(self, front_in, front_out) -> None:
         st, sm, ch, s = self.state, self.sm, self.charges, self.settings

@@ -129,16 +129,18 @@ class Charges:
     def front_radius(self, t: float, before: float = 0.0) -> np.ndarray:
         """Shock-front radius (C,) in m at time t; ``before`` for charges not yet detonated."""
         cache = self._front_cache
-        if cache.get("t") != t:  # a step asks for t1, the next for the same time as t0
-            radius = np.full(len(self.time), np.nan)
+        radius = cache.get(t)
+        if radius is None:  # a step asks for t1, the next for the same time as t0
+            radius = [math.nan] * len(self.time)
             for c in range(len(self.time)):
                 tau = (t - self.time[c]) / self.scale[c]
                 if tau > 0.0:
                     radius[c] = self.scale[c] * _invert(tau, self._z, self._arrive,
                                                         leading=True)
-            cache["t"], cache["radius"] = t, radius
-        radius = cache["radius"]
-        return np.where(np.isnan(radius), before, radius)
+            if len(cache) > 2:
+                cache.clear()
+            cache[t] = radius
+        return np.array([before if math.isnan(r) else r for r in radius])
 
     def peak(self, c: int, r: float) -> float:
         """Peak incident overpressure (Pa) of charge c at distance r (m)."""
