@@ -627,10 +627,13 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
     if gentle:
         resting[bi] = True
         resting[bj] = True
-    # an asleep body hit hard enough wakes; otherwise it counts as immovable
-    if body_asleep[bi] and -vn > wake_speed:
+    # an asleep body hit (not gently touched) wakes; otherwise it counts as
+    # immovable. Waking on gentle contacts too had debris creeping at about the
+    # sleep speed wake its resting neighbours every step, and they fell asleep
+    # again the next, for ever.
+    if body_asleep[bi] and not gentle and -vn > wake_speed:
         body_asleep[bi] = False
-    if body_asleep[bj] and -vn > wake_speed:
+    if body_asleep[bj] and not gentle and -vn > wake_speed:
         body_asleep[bj] = False
     move_i = not (body_fixed[bi] | body_asleep[bi])
     move_j = not (body_fixed[bj] | body_asleep[bj])
