@@ -135,8 +135,9 @@ def ensure_compiled(features: set[str], notify: Callable[[str], None] | None = N
     """Make sure the kernels of ``features`` are compiled, using ``processes``
     processes (default: the CPUs available) when they are not in the cache.
 
-    Probes the cache with the cheapest kernel first: if it loads, the cache is
-    warm and nothing else happens here (kernels compile lazily as usual).
+    Asks numba's cache for the cheapest kernel first (loading it, not compiling
+    it): if it is there, the cache is warm and nothing else happens here
+    (kernels load lazily as usual).
     ``notify`` receives one line when compilation starts. Returns whether it
     compiled. The environment variable BLASTVOX_PRECOMPILE=0 switches it off
     (kernels then compile one by one on first use).
@@ -148,9 +149,13 @@ def ensure_compiled(features: set[str], notify: Callable[[str], None] | None = N
     if not kernels:
         return False
     probe = min(kernels, key=lambda k: (k.seconds, k.name))
-    if not compile_kernels([probe]):
+    cached = _in_cache(probe)
+    probed = cached is None
+    if probed:  # numba cannot be asked: compile the probe to find out
+        cached = not compile_kernels([probe])
+    if cached:
         return False
-    rest = [k for k in kernels if k is not probe]
+    rest = [k for k in kernels if k is not probe] if probed else kernels
     parts = max(1, min(processes or cpu_count(), len(rest)))
     if notify is not None:
         notify(f"compiling {len(kernels)} simulation kernels on {parts} "
@@ -161,6 +166,19 @@ def ensure_compiled(features: set[str], notify: Callable[[str], None] | None = N
     for worker in workers:
         worker.wait()  # a failed worker only leaves its kernels to compile lazily
     return True
+
+
+def _in_cache(kernel: Kernel) -> bool | None:
+    """Does numba's on-disk cache (or this process) hold ``kernel``? None if numba
+    cannot be asked (its cache interface is internal and may change)."""
+    disp = dispatcher(kernel.name)
+    args = argument_types(kernel.signature)
+    if args in disp.overloads:
+        return True
+    try:
+        return disp._cache.load_overload(args, disp.targetctx) is not None
+    except Exception:  # noqa: BLE001 - any failure only means "ask by compiling"
+        return None
 
 
 def _start_worker(share: list[Kernel]) -> subprocess.Popen:
