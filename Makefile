@@ -68,7 +68,11 @@ bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	$(BIN)/python benchmarks/voxelize.py
 	$(BIN)/python benchmarks/convergence.py
+	$(BIN)/python benchmarks/simulate.py
 	$(BIN)/python benchmarks/performance.py
 
+## clean: outputs, and numba's compiled-kernel cache (it only watches each kernel's
+## own source file: after editing a helper another module inlines, clean)
 clean:
 	rm -rf out .pytest_cache
+	find blastvox -name '*.nbi' -delete -o -name '*.nbc' -delete

@@ -21,12 +21,15 @@ load), then times ``blastvox.simulate.run.simulate(model, settings)`` N times
 voxel-steps/s = voxels x steps / seconds.
 
 Start-up: ``blastvox simulate`` of the building in a subprocess with a fresh,
-empty ``NUMBA_CACHE_DIR`` (cold: includes compiling every kernel), then again
-with the same cache directory (warm); and ``blastvox --help``.
+empty ``NUMBA_CACHE_DIR`` (cold: includes compiling every kernel the run needs,
+spread over the available CPUs by blastvox.simulate.precompile), then again
+with the same cache directory (warm), with every effect on and with collisions
+and effects off; and ``blastvox --help``.
 
 Targets: >= 20M voxel-steps/s on the ~1M block; the building's 5 s shot in
 < 0.5 s warm with collisions and effects off, < 1 s with every effect on; the
-first run including compilation < 20 s; ``--help`` < 0.3 s.
+first run including compilation < 20 s (collisions and effects off, the core
+simulator of that issue); ``--help`` < 0.3 s.
 The script reports, it does not gate: it exits 0 even when a target is missed,
 and 1 only if a case crashes.
 """
@@ -214,6 +217,17 @@ def start_up(model: Path, directory: Path, scene: Path = SCENE, duration: float 
                                      for i, c in enumerate(command))}
 
 
+def core_scene(directory: Path) -> Path:
+    """The building's scene with collisions and effects off (ground on), in ``directory``."""
+    text = SCENE.read_text().replace('mesh = "building.glb"',
+                                     f'mesh = "{(SCENE.parent / "building.glb").as_posix()}"')
+    assert "[effects]" not in text
+    path = directory / "core_scene.toml"
+    path.write_text(text + "\n[effects]\ncollisions = false\nfire = false\ndust = false\n"
+                    "fireball = false\nshock_sphere = false\ncamera_shake = false\n")
+    return path
+
+
 # --------------------------------------------------------------------------- report
 
 
@@ -272,18 +286,22 @@ def main(argv: list[str] | None = None) -> int:
                   flush=True)
         try:
             startup = start_up(building, directory)
+            core_startup = start_up(building, directory, scene=core_scene(directory))
         except (RuntimeError, subprocess.CalledProcessError) as exc:
             crashed = True
-            startup = None
+            startup = core_startup = None
             print(f"\nstart-up measurement failed: {exc}")
 
     print()
     print("| start-up | wall s |")
     print("|---|--:|")
     if startup:
-        print(f"| `blastvox simulate` building, fresh NUMBA_CACHE_DIR (cold, compiles) | "
-              f"{startup['cold']:.2f} |")
-        print(f"| `blastvox simulate` building, same cache dir (warm) | {startup['warm']:.2f} |")
+        for label, run in (("every effect", startup), ("collisions and effects off",
+                                                         core_startup)):
+            print(f"| `blastvox simulate` building, {label}, fresh NUMBA_CACHE_DIR (cold, "
+                  f"compiles) | {run['cold']:.2f} |")
+            print(f"| `blastvox simulate` building, {label}, same cache dir (warm) | "
+                  f"{run['warm']:.2f} |")
         print(f"| `{startup['help_command']} --help` (best of 5) | {startup['help']:.3f} |")
 
     print()
@@ -303,8 +321,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| building 5 s of shot, every effect on, < {TARGET_BUILDING_ALL_S:g} s warm | "
               f"{building_all_s:.3f} s | {verdict(building_all_s < TARGET_BUILDING_ALL_S)} |")
     if startup:
-        print(f"| first run incl. compilation < {TARGET_COLD_S:g} s | {startup['cold']:.2f} s | "
-              f"{verdict(startup['cold'] < TARGET_COLD_S)} |")
+        print(f"| first run incl. compilation < {TARGET_COLD_S:g} s, collisions and effects "
+              f"off | {core_startup['cold']:.2f} s | "
+              f"{verdict(core_startup['cold'] < TARGET_COLD_S)} |")
+        print(f"| (every effect on: {startup['cold']:.2f} s, not a target) | | |")
         print(f"| `--help` < {TARGET_HELP_S:g} s | {startup['help']:.3f} s | "
               f"{verdict(startup['help'] < TARGET_HELP_S)} |")
     return 1 if crashed else 0

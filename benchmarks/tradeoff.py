@@ -320,7 +320,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeat must be at least 1")
     sizes, steps = (QUICK_SIZES, QUICK_STEPS) if args.quick else (SIZES, STEPS)
 
-    header = f"{machine(('blastvox', 'numpy', 'numba', 'scipy'))}; {revision()}"
+    header = f"{machine(('blastvox', 'numpy', 'numba'))}; {revision()}"
     print(header, flush=True)
     started = time.perf_counter()
     runs = sweep(sizes, steps, args.repeat)

@@ -127,20 +127,28 @@ class Charges:
     _front_cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def front_radius(self, t: float, before: float = 0.0) -> np.ndarray:
-        """Shock-front radius (C,) in m at time t; ``before`` for charges not yet detonated."""
+        """Shock-front radius (C,) in m at time t; ``before`` for charges not yet detonated.
+
+        A step asks for its t1, the next for the same time as its t0: the radii
+        of the last few (t, before) are kept (do not modify the array returned).
+        """
         cache = self._front_cache
-        radius = cache.get(t)
-        if radius is None:  # a step asks for t1, the next for the same time as t0
-            radius = [math.nan] * len(self.time)
-            for c in range(len(self.time)):
-                tau = (t - self.time[c]) / self.scale[c]
-                if tau > 0.0:
-                    radius[c] = self.scale[c] * _invert(tau, self._z, self._arrive,
-                                                        leading=True)
-            if len(cache) > 2:
-                cache.clear()
-            cache[t] = radius
-        return np.array([before if math.isnan(r) else r for r in radius])
+        out = cache.get((t, before))
+        if out is None:
+            radius = cache.get(t)
+            if radius is None:
+                if len(cache) > 8:
+                    cache.clear()
+                radius = [math.nan] * len(self.time)
+                for c in range(len(self.time)):
+                    tau = (t - self.time[c]) / self.scale[c]
+                    if tau > 0.0:
+                        radius[c] = self.scale[c] * _invert(tau, self._z, self._arrive,
+                                                            leading=True)
+                cache[t] = radius
+            out = np.array([before if math.isnan(r) else r for r in radius])
+            cache[t, before] = out
+        return out
 
     def peak(self, c: int, r: float) -> float:
         """Peak incident overpressure (Pa) of charge c at distance r (m)."""
