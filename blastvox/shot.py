@@ -57,7 +57,7 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     cache = None
     if ran or _stale(out.cache, [out.model, scene_path]):
         from blastvox.model import VoxelModel
-        from blastvox.simulate.run import simulate
+        from blastvox.simulate.run import Progress, simulate
         from blastvox.simulate.settings import settings_from_scene as sim_settings
 
         model = model or VoxelModel.load(out.model)
@@ -65,7 +65,7 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
         if not settings.charges:
             raise SceneError(f"{scene_path}: charges: the scene has no [[charges]] to simulate")
         log(f"simulate -> {out.cache}")
-        cache = simulate(model, settings, warn=warn)
+        cache = simulate(model, settings, progress=Progress(notes=log), warn=warn)
         cache.save(out.cache)
         ran.append("simulate")
     for path in exports:

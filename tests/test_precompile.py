@@ -94,3 +94,27 @@ def test_workers_fill_the_cache_a_later_process_loads(tmp_path):
 def test_a_warm_cache_compiles_nothing():
     ensure_compiled({"fire"})  # warm (in this process or on disk)
     assert ensure_compiled({"fire"}) is False
+
+
+def test_simulate_passes_the_first_run_notice_to_its_progress(monkeypatch, tmp_path):
+    # what `blastvox run` and `blastvox simulate` print while a cold cache compiles
+    import trimesh
+
+    from blastvox.simulate import run as simrun
+    from blastvox.simulate.settings import ChargeSpec, SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    def cold(features, notify=None, processes=None):
+        notify(f"compiling {sorted(features)}")
+        return True
+
+    monkeypatch.setattr(simrun, "ensure_compiled", cold)
+    mesh = tmp_path / "cube.stl"
+    trimesh.creation.box(extents=(1, 1, 1)).export(mesh)
+    model = voxelize([ObjectRequest(mesh=mesh, voxel_size=(0.5,) * 3, material="brick")],
+                     VoxelizeSettings(up_axis="Z"))
+    lines: list[str] = []
+    settings = SimSettings(duration=0.05, collisions=False,
+                           charges=(ChargeSpec((0.0, -3.0, 0.0), 1.0),))
+    simrun.simulate(model, settings, progress=simrun.Progress(notes=lines.append))
+    assert lines == ["compiling ['core', 'ground']"]

@@ -53,12 +53,18 @@ from blastvox.simulate.wave import Charges, build_charges
 
 
 class Progress:
-    """Progress sink: ``update(sim_time_s, steps_done, total_steps)`` and
-    ``note(line)`` (a one-line status, e.g. first-run compilation); no-ops here."""
+    """Progress sink: ``update(sim_time_s, steps_done, total_steps)``, a no-op here,
+    and ``note(line)``, a one-line status (first-run compilation) passed to
+    ``notes`` if given."""
+
+    def __init__(self, notes: Callable[[str], None] | None = None) -> None:
+        self._notes = notes
 
     def update(self, sim_time: float, done: int, total: int) -> None: ...
 
-    def note(self, line: str) -> None: ...
+    def note(self, line: str) -> None:
+        if self._notes is not None:
+            self._notes(line)
 
 
 def initial_state(model: VoxelModel, sm: SimModel) -> State:
