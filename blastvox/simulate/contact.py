@@ -32,7 +32,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.integrate import angular_velocity, world_tensor_times
+from blastvox.simulate.integrate import angular_velocity, moving, world_tensor_times
 from blastvox.simulate.shell import to_rest
 
 _FACE_CORNERS = np.array(
@@ -286,12 +286,6 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
 
 
 @nb.njit(cache=True)
-def _moving(b, body_live, body_dust, body_fixed, body_asleep) -> bool:
-    # bitwise: short-circuit branches compile ~15x slower (see integrate.moving)
-    return body_live[b] & (not (body_dust[b] | body_fixed[b] | body_asleep[b]))
-
-
-@nb.njit(cache=True)
 def _cell(x, cell) -> int:
     return int(math.floor(x / cell)) + 1048576
 
@@ -460,7 +454,7 @@ def _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_p
     """
     count = 0
     for b in range(n_bodies):
-        if not _moving(b, body_live, body_dust, body_fixed, body_asleep):
+        if not moving(b, body_live, body_fixed, body_dust, body_asleep):
             continue
         first, last = offsets[b], offsets[b + 1]
         if last - first <= SMALL_BODY:
@@ -657,14 +651,8 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
             move_j = False
         if not move_j:
             supported_next[bi] = True
-    k = 0.0
-    for side in range(2):
-        b = bi if side == 0 else bj
-        if not (move_i if side == 0 else move_j):
-            continue
-        k += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
-                                     px - body_pos[b, 0], py - body_pos[b, 1],
-                                     pz - body_pos[b, 2], nx, ny, nz)
+    k = _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, nx, ny, nz, body_mass,
+                           body_rot, body_inv_inertia, body_pos)
     if k <= 0.0:
         return 0
     # a contact slower than a few steps of gravity is resting, not an impact: no
@@ -684,14 +672,8 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
     slide = math.sqrt(tx * tx + ty * ty + tz * tz)
     if slide > 1e-12 and friction > 0.0:
         tx, ty, tz = tx / slide, ty / slide, tz / slide
-        k_t = 0.0
-        for side in range(2):
-            b = bi if side == 0 else bj
-            if not (move_i if side == 0 else move_j):
-                continue
-            k_t += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
-                                           px - body_pos[b, 0], py - body_pos[b, 1],
-                                           pz - body_pos[b, 2], tx, ty, tz)
+        k_t = _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, tx, ty, tz, body_mass,
+                                 body_rot, body_inv_inertia, body_pos)
         jt = min(slide / k_t, friction * j)
         _impulse_pair(bi, bj, -jt * tx, -jt * ty, -jt * tz, px, py, pz, body_pos, body_lin,
                       body_ang, move_i, move_j)
@@ -713,6 +695,22 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
         hits_out[index, 2] = pz
         hits_out[index, 3] = -vn
     return 1
+
+
+@nb.njit(cache=True)
+def _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, nx, ny, nz, body_mass, body_rot,
+                       body_inv_inertia, body_pos) -> float:
+    """Inverse mass (1/kg) the pair bi, bj shows an impulse along unit (nx, ny, nz) at
+    point p: :func:`_effective_inverse_mass` summed over the bodies that move here."""
+    k = 0.0
+    for side in range(2):
+        b = bi if side == 0 else bj
+        if not (move_i if side == 0 else move_j):
+            continue
+        k += _effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
+                                     px - body_pos[b, 0], py - body_pos[b, 1],
+                                     pz - body_pos[b, 2], nx, ny, nz)
+    return k
 
 
 @nb.njit(cache=True)

@@ -145,7 +145,8 @@ def ensure_compiled(features: set[str], notify: Callable[[str], None] | None = N
     if (os.environ.get("BLASTVOX_PRECOMPILE") == "0" or os.environ.get("NUMBA_DISABLE_JIT") == "1"
             or not MANIFEST.exists()):
         return False
-    kernels = [k for k in load_manifest() if k.feature in features]
+    manifest = load_manifest()
+    kernels = [k for k in manifest if k.feature in features]
     if not kernels:
         return False
     probe = min(kernels, key=lambda k: (k.seconds, k.name))
@@ -161,7 +162,8 @@ def ensure_compiled(features: set[str], notify: Callable[[str], None] | None = N
         notify(f"compiling {len(kernels)} simulation kernels on {parts} "
                f"process{'es' if parts > 1 else ''} (first run only)")
     shares = partition(rest, parts)
-    workers = [_start_worker(share) for share in shares[1:]]
+    index = {k: i for i, k in enumerate(manifest)}
+    workers = [_start_worker([index[k] for k in share]) for share in shares[1:]]
     compile_kernels(shares[0])
     for worker in workers:
         worker.wait()  # a failed worker only leaves its kernels to compile lazily
@@ -181,11 +183,11 @@ def _in_cache(kernel: Kernel) -> bool | None:
         return None
 
 
-def _start_worker(share: list[Kernel]) -> subprocess.Popen:
-    index = {k: i for i, k in enumerate(load_manifest())}
-    ids = ",".join(str(index[k]) for k in share)
+def _start_worker(lines: list[int]) -> subprocess.Popen:
+    """A process compiling the kernels at these indices of the manifest."""
     return subprocess.Popen([sys.executable, "-m", "blastvox.simulate.precompile", "--worker",
-                             ids], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                             ",".join(map(str, lines))], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
 
 
 # --------------------------------------------------------------------------- recording

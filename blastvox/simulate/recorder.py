@@ -156,14 +156,5 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors v (K, 3) by unit quaternions q (K, 4) (w, x, y, z)."""
     w = q[:, :1]
     u = q[:, 1:]
-    t = 2.0 * _cross(u, v)
-    return v + w * t + _cross(u, t)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise a x b of (K, 3) arrays (np.cross's axis handling costs more than this)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)

@@ -288,13 +288,10 @@ class _Run:
         """The rest of a step in which no body can move: the velocity, contact and
         position kernels would only do their bookkeeping, done here (the results are
         byte-identical to running them; a settled shot's steps cost ~10x less)."""
-        n = self.n_bodies
         if self.settings.collisions:
-            self.destroyed[:] = False
-            self.dirty[:n] = False
-            self._next_support()
+            self._begin_contacts()
         if self.settings.collisions or self.ground is not None:
-            self.still[:n] = 0  # settle() resets the count of every body it cannot move
+            self.still[:self.n_bodies] = 0  # settle() resets every body it cannot move
 
     def _fracture(self, front_in, front_out) -> None:
         st, sm, ch, s = self.state, self.sm, self.charges, self.settings
@@ -444,9 +441,7 @@ class _Run:
     def _collide(self, step: int, t1: float, frame_next: int) -> None:
         st, sm, s = self.state, self.sm, self.settings
         offsets, members = self._boundary()
-        self.destroyed[:] = False
-        self.dirty[:self.n_bodies] = False
-        self._next_support()
+        self._begin_contacts()
         before = self.collisions
         self.collisions += contact.collide_bodies(
             sm.voxel_centroid, sm.voxel_contact_radius, sm.voxel_restitution, st.voxel_yield,
@@ -466,8 +461,11 @@ class _Run:
         if self.destroyed.any():
             self._topology(step, t1, frame_next)
 
-    def _next_support(self) -> None:
-        """Last step's support flags become this step's; start the next ones empty."""
+    def _begin_contacts(self) -> None:
+        """Per-step contact bookkeeping: no voxel destroyed or body dirty yet, and last
+        step's support flags become this step's, the next ones starting empty."""
+        self.destroyed[:] = False
+        self.dirty[:self.n_bodies] = False
         self.supported, self.supported_next = self.supported_next, self.supported
         self.supported_next[:] = False
 

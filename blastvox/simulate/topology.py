@@ -31,12 +31,13 @@ def _root(parent, v) -> int:
 @nb.njit(cache=True)
 def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.ndarray,
                      link_voxels: np.ndarray, offsets: np.ndarray, link_ids: np.ndarray,
-                     component: np.ndarray, order: np.ndarray) -> int:
-    """Label the voxels of dirty bodies by component; return the number of components.
+                     component: np.ndarray, order: np.ndarray):
+    """Label the voxels of dirty bodies by component.
 
     component (N,) gets a component id (others -1); ``order`` receives the
     voxels grouped by component, ascending within each group, groups in order
-    of their lowest voxel index. Union-find over the alive links in voxel
+    of their lowest voxel index. Returns (count, start (count + 1,)): group c
+    is order[start[c]:start[c + 1]]. Union-find over the alive links in voxel
     order (sequential memory access, unlike a breadth-first search): a larger
     root always hangs under a smaller one, so every root is its set's lowest
     voxel and parents only ever point down.
@@ -72,18 +73,19 @@ def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.n
             count += 1
         else:
             component[v] = component[_root(parent, v)]
-    fill = np.zeros(count + 1, dtype=np.int64)
+    start = np.zeros(count + 1, dtype=np.int64)
     for v in range(n):
         if component[v] >= 0:
-            fill[component[v] + 1] += 1
+            start[component[v] + 1] += 1
     for c in range(count):
-        fill[c + 1] += fill[c]
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
     for v in range(n):
         c = component[v]
         if c >= 0:
             order[fill[c]] = v
             fill[c] += 1
-    return count
+    return count, start
 
 
 @nb.njit(cache=True)
@@ -94,18 +96,11 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
                  body_fixed, body_live, body_dust, body_parent, body_born, body_died,
                  n_bodies, component, order) -> int:
     """Split every dirty body that fell apart. Returns the number of new bodies."""
-    n = voxel_body.shape[0]
-    ncomp = label_components(dirty, voxel_body, link_alive, link_voxels, offsets, link_ids,
-                             component, order)
+    ncomp, start = label_components(dirty, voxel_body, link_alive, link_voxels, offsets,
+                                    link_ids, component, order)
     if ncomp == 0:
         return 0
-    # component boundaries in `order`, and how many components each parent has
-    start = np.zeros(ncomp + 1, dtype=np.int64)
-    for v in range(n):
-        if component[v] >= 0:
-            start[component[v] + 1] += 1
-    for c in range(ncomp):
-        start[c + 1] += start[c]
+    # how many components each parent has
     pieces = np.zeros(body_mass.shape[0], dtype=np.int64)
     for c in range(ncomp):
         pieces[voxel_body[order[start[c]]]] += 1
