@@ -8,6 +8,9 @@ import subprocess
 import sys
 import textwrap
 
+import numpy as np
+import pytest
+
 from blastvox.simulate.precompile import (
     FEATURES,
     Kernel,
@@ -70,13 +73,16 @@ def test_partition_balances_and_is_deterministic():
     assert partition(kernels, 1) == [sorted(kernels, key=lambda k: -k.seconds)]
 
 
-def test_workers_fill_the_cache_a_later_process_loads(tmp_path):
+@pytest.mark.parametrize("fork", [True, False], ids=["forked", "new-interpreter"])
+def test_workers_fill_the_cache_a_later_process_loads(tmp_path, fork):
     # the fire and damage kernels (a probe, then one for this process and one for
     # a worker) compiled into an empty cache: a fresh process then loads every
-    # one of them, compiling none
+    # one of them, compiling none. Workers are forked on Linux; elsewhere (or in a
+    # process with threads) they are new interpreters.
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
-    code = ("from blastvox.simulate.precompile import ensure_compiled; "
-            "print(ensure_compiled({'fire', 'damage'}, processes=2))")
+    code = ("import blastvox.simulate.precompile as p; "
+            f"p._can_fork = lambda: {fork}; "
+            "print(p.ensure_compiled({'fire', 'damage'}, processes=2))")
     first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                            env=env)
     assert first.returncode == 0, first.stderr
@@ -118,3 +124,15 @@ def test_simulate_passes_the_first_run_notice_to_its_progress(monkeypatch, tmp_p
                            charges=(ChargeSpec((0.0, -3.0, 0.0), 1.0),))
     simrun.simulate(model, settings, progress=simrun.Progress(notes=lines.append))
     assert lines == ["compiling ['core', 'ground']"]
+
+
+def test_a_helper_called_from_python_raises_instead_of_crashing():
+    # helpers have no CPython wrapper (faster first runs); numba would segfault
+    from blastvox.simulate.integrate import world_tensor_times
+    from blastvox.simulate.jit import HelperDispatcher
+
+    assert isinstance(world_tensor_times, HelperDispatcher)
+    eye = np.eye(3)
+    with pytest.raises(TypeError, match="world_tensor_times is compiled for other numba"):
+        world_tensor_times(eye, eye, 1.0, 2.0, 3.0)
+    assert world_tensor_times.py_func(eye, eye, 1.0, 2.0, 3.0) == (1.0, 2.0, 3.0)

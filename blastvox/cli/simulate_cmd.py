@@ -129,15 +129,18 @@ class _Progress:
         self._start = time.perf_counter()
 
     def __enter__(self):
-        if self.enabled:
-            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-            self._bar = Progress(TextColumn("simulating"), BarColumn(),
-                                 TextColumn("{task.fields[sim]}"), TimeRemainingColumn(),
-                                 console=self.console, transient=True)
-            self._bar.start()
-            self._task = self._bar.add_task("sim", total=1, sim="")
         return self
+
+    def _start_bar(self) -> None:
+        # on the first update, not on entry: the bar's refresh thread would keep
+        # first-run compilation from forking its workers (see simulate.precompile)
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+        self._bar = Progress(TextColumn("simulating"), BarColumn(),
+                             TextColumn("{task.fields[sim]}"), TimeRemainingColumn(),
+                             console=self.console, transient=True)
+        self._bar.start()
+        self._task = self._bar.add_task("sim", total=1, sim="")
 
     def __exit__(self, *exc) -> None:
         if self._bar is not None:
@@ -149,8 +152,10 @@ class _Progress:
             self.console.print(line, markup=False, highlight=False)
 
     def update(self, sim_time: float, done: int, total: int) -> None:
-        if self._bar is None:
+        if not self.enabled:
             return
+        if self._bar is None:
+            self._start_bar()
         rate = done / max(time.perf_counter() - self._start, 1e-9)
         self._bar.update(self._task, completed=done, total=total,
                          sim=f"t = {sim_time:.3f} s, {rate:,.0f} steps/s")

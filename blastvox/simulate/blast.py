@@ -106,6 +106,7 @@ import numba as nb
 import numpy as np
 
 from blastvox.errors import BlastvoxError
+from blastvox.simulate.jit import helper
 
 __all__ = [
     "B_MIN", "C0_M_S", "NEG_CUTOFF", "NEG_MAX_DURATION", "P0_PA", "TNT_DENSITY_KG_M3",
@@ -454,7 +455,7 @@ def blast_parameters(distance_m: Any, charge_kg: Any, explosive: str = "TNT") ->
 # --- numba scalar twins -------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@helper
 def _horner_nb(coeffs, u):
     out = coeffs[coeffs.shape[0] - 1]
     for i in range(coeffs.shape[0] - 2, -1, -1):
@@ -462,7 +463,7 @@ def _horner_nb(coeffs, u):
     return out
 
 
-@nb.njit(cache=True)
+@helper
 def reference_parameters_nb(z):
     """Scalar :func:`reference_parameters`: (Ps, ta, Td, I) per kg^(1/3) at Z >= 0."""
     zc = min(max(z, Z_MIN), Z_MAX)
@@ -492,35 +493,35 @@ def reference_parameters_nb(z):
     return ps, ta, td, imp
 
 
-@nb.njit(cache=True)
+@helper
 def _gfun_nb(x):
     if abs(x) < _SMALL:
         return _horner_nb(_G_SERIES, x)
     return (x + math.expm1(-x)) / (x * x)
 
 
-@nb.njit(cache=True)
+@helper
 def _hfun_nb(x):
     if x == 0.0:
         return 1.0
     return -math.expm1(-x) / x
 
 
-@nb.njit(cache=True)
+@helper
 def _qfun_nb(x):
     if abs(x) < _SMALL:
         return _horner_nb(_Q_SERIES, x)
     return (-math.expm1(-x) - x * math.exp(-x)) / (x * x)
 
 
-@nb.njit(cache=True)
+@helper
 def _gprime_nb(x):
     if abs(x) < _SMALL:
         return _horner_nb(_GP_SERIES, x)
     return (_hfun_nb(x) - 2.0 * _gfun_nb(x)) / x
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True)  # also called from Python (tests check it against the reference)
 def decay_coefficient_nb(ps, td, imp):
     """Scalar :func:`decay_coefficient`."""
     k = imp / (ps * td)
@@ -536,7 +537,7 @@ def decay_coefficient_nb(ps, td, imp):
     return max(b, B_MIN)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True)  # also called from Python (tests check it against the reference)
 def blast_parameters_nb(distance_m, charge_tnt_kg):
     """Scalar :func:`blast_parameters` for W kg *TNT-equivalent*: (Z, Ps, ta, Td, b, I)."""
     cube = np.cbrt(charge_tnt_kg)
@@ -546,7 +547,7 @@ def blast_parameters_nb(distance_m, charge_tnt_kg):
     return z, ps, ta * cube, td * cube, b, imp * cube
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True)  # also called from Python (tests check it against the reference)
 def negative_phase_nb(ps, b):
     """Scalar :func:`negative_phase`: (sigma, tau_end)."""
     y_end = min(X_EPS / b, NEG_MAX_DURATION)
@@ -559,7 +560,7 @@ def negative_phase_nb(ps, b):
     return sigma, 1.0 + y_end
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True)  # also called from Python (tests check it against the reference)
 def overpressure_nb(t, ta, td, ps, b):
     """Scalar :func:`overpressure`: p(t) - p0 (Pa)."""
     tau = (t - ta) / td
@@ -574,7 +575,7 @@ def overpressure_nb(t, ta, td, ps, b):
     return sigma * ps * shape
 
 
-@nb.njit(cache=True)
+@helper
 def _cumulative_nb(tau, b, sigma, tau_end):
     tp = min(max(tau, 0.0), 1.0)
     pos = tp * tp * _gfun_nb(b * tp) - tp * (tp - 1.0) * _hfun_nb(b * tp)
@@ -584,7 +585,7 @@ def _cumulative_nb(tau, b, sigma, tau_end):
     return pos - sigma * math.exp(-b) * y * y * _qfun_nb(b * y)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True)  # also called from Python (tests check it against the reference)
 def impulse_nb(t0, t1, ta, td, ps, b):
     """Scalar :func:`impulse`: exact integral of p - p0 over [t0, t1] (Pa s)."""
     tau0 = (t0 - ta) / td

@@ -33,6 +33,7 @@ import numba as nb
 import numpy as np
 
 from blastvox.simulate.integrate import angular_velocity, moving, world_tensor_times
+from blastvox.simulate.jit import helper
 from blastvox.simulate.shell import to_rest
 
 _FACE_CORNERS = np.array(
@@ -59,7 +60,7 @@ def boundary_lists(voxel_body, voxel_alive, voxel_link_mask, conform_slot, n_bod
     return count, out
 
 
-@nb.njit(cache=True)
+@helper
 def _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega):
     rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
     m = body_mass[b]
@@ -68,7 +69,7 @@ def _point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega):
             body_lin[b, 2] / m + omega[0] * ry - omega[1] * rx)
 
 
-@nb.njit(cache=True)
+@helper
 def _effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
     """1/m + n . ((I^-1 (r x n)) x r): inverse mass seen by an impulse along n at r."""
     cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
@@ -77,7 +78,7 @@ def _effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
     return inv_mass + nx * tx + ny * ty + nz * tz
 
 
-@nb.njit(cache=True)
+@helper
 def _apply(b, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang):
     body_lin[b, 0] += jx
     body_lin[b, 1] += jy
@@ -88,7 +89,7 @@ def _apply(b, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang):
     body_ang[b, 2] += rx * jy - ry * jx
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True)  # also called from Python, by balanced()
 def _hull_contains(px, py, count, qx, qy, tol) -> bool:
     """Is (qx, qy) inside the convex hull of the first ``count`` 2-D points (px, py)?
 
@@ -285,25 +286,25 @@ def ground_contacts(dt, ground, up_axis, friction, rest_damping, sleep_speed, ve
     return total
 
 
-@nb.njit(cache=True)
+@helper
 def _cell(x, cell) -> int:
     return int(math.floor(x / cell)) + 1048576
 
 
-@nb.njit(cache=True)
+@helper
 def _key(i, j, k) -> int:
     """Hash key (>= 0) of integer cell (i, j, k)."""
     return (i * 2097152 + j) * 2097152 + k
 
 
-@nb.njit(cache=True)
+@helper
 def _slot(key, mask) -> int:
     """Table slot of a cell key: fold the three 21-bit fields, then a Fibonacci mix."""
     h = (key ^ (key >> 21) ^ (key >> 42)) * -7046029254386353131  # 0x9E3779B97F4A7C15
     return (h ^ (h >> 32)) & mask  # int64 arithmetic wraps
 
 
-@nb.njit(cache=True)
+@helper
 def hash_buckets(keys):
     """Counting sort of cell ``keys`` (M,) int64 into the buckets of a hash table.
 
@@ -332,7 +333,7 @@ def hash_buckets(keys):
     return start, entries
 
 
-@nb.njit(cache=True)
+@helper
 def _bucket(key, start):
     """(lo, hi): the range of ``key``'s bucket in a :func:`hash_buckets` table."""
     s = _slot(key, start.shape[0] - 2)
@@ -370,7 +371,7 @@ def static_hash(voxel_centroid, voxel_body, offsets, members, body_com, body_pos
     return vox[entries], pos[entries], keys[entries], start
 
 
-@nb.njit(cache=True)
+@helper
 def _place(v, b, voxel_centroid, body_com, body_pos, body_rot, pos, n) -> None:
     rot = body_rot[b]
     x = voxel_centroid[v, 0] - body_com[b, 0]
@@ -386,7 +387,7 @@ SMALL_BODY = 64
 _FIELD = 16384  # 14 bits per rest-cell coordinate in a rest-grid key
 
 
-@nb.njit(cache=True)
+@helper
 def _rest_key(body, i, j, k) -> int:
     """Key of rest cell (i, j, k) of a body; coordinates wrap at 2^14 (a wrapped cell
     only adds candidates, which the distance test then rejects)."""
@@ -411,7 +412,7 @@ def rest_grid(voxel_centroid, voxel_body, members, cell):
     return entries, keys[entries], start
 
 
-@nb.njit(cache=True)
+@helper
 def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com, body_pos, body_rot,
                     rest_slot, rest_keys, rest_start, world, near) -> int:
     """Mark b's boundary voxels within ``reach`` (m) of body o's centre, found through
@@ -439,7 +440,7 @@ def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, body_com, body_p
     return count
 
 
-@nb.njit(cache=True)
+@helper
 def _near_voxels(voxel_centroid, offsets, members, body_radius, body_com, body_pos, body_rot,
                  body_fixed, body_live, body_dust, body_asleep, n_bodies, cell, rest_slot,
                  rest_keys, rest_start, world, near):
@@ -590,14 +591,14 @@ def collide_bodies(voxel_centroid, voxel_radius, voxel_restitution, voxel_yield,
     return resolved
 
 
-@nb.njit(cache=True)
+@helper
 def _touching(ci, cj, reach) -> bool:
     """Do spheres at ci and cj (3,) with radii summing to ``reach`` (m) overlap?"""
     d2 = (cj[0] - ci[0]) ** 2 + (cj[1] - ci[1]) ** 2 + (cj[2] - ci[2]) ** 2
     return d2 < reach * reach
 
 
-@nb.njit(cache=True)
+@helper
 def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel_yield,
                   voxel_alive, body_mass, body_inv_inertia, body_pos, body_rot, body_lin,
                   body_ang, body_fixed, body_asleep, wake_speed, rest_speed, friction,
@@ -697,7 +698,7 @@ def _resolve_pair(vi, vj, bi, bj, ci, cj, voxel_radius, voxel_restitution, voxel
     return 1
 
 
-@nb.njit(cache=True)
+@helper
 def _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, nx, ny, nz, body_mass, body_rot,
                        body_inv_inertia, body_pos) -> float:
     """Inverse mass (1/kg) the pair bi, bj shows an impulse along unit (nx, ny, nz) at
@@ -713,7 +714,7 @@ def _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, nx, ny, nz, body_mass
     return k
 
 
-@nb.njit(cache=True)
+@helper
 def _resist_rolling(bi, bj, limit, body_rot, body_inv_inertia, body_ang, move_i,
                     move_j) -> None:
     """Rolling resistance: remove the relative spin of bi and bj with an opposite pair of
@@ -752,7 +753,7 @@ def _resist_rolling(bi, bj, limit, body_rot, body_inv_inertia, body_ang, move_i,
         body_ang[bj, 2] -= jr * uz
 
 
-@nb.njit(cache=True)
+@helper
 def _impulse_pair(bi, bj, jx, jy, jz, px, py, pz, body_pos, body_lin, body_ang, move_i,
                   move_j) -> None:
     """Impulse (jx, jy, jz) (N s) on bj at point p, and its opposite on bi; a body that

@@ -22,6 +22,7 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.simulate.jit import helper
 from blastvox.simulate.wave import point_impulse
 
 _FACE_CORNERS = np.array(
@@ -29,7 +30,7 @@ _FACE_CORNERS = np.array(
     dtype=np.int64)
 
 
-@nb.njit(cache=True)
+@helper
 def _apply(point, weight_area, vec_area, c, t0, t1, charge_pos, charge_time, charge_scale,
            table, body_pos_b, out_p, out_l, b):
     """Add the impulse at one point for one charge to row b of the accumulators, the
@@ -44,7 +45,7 @@ def _apply(point, weight_area, vec_area, c, t0, t1, charge_pos, charge_time, cha
     _push(point, j, rx / r, ry / r, rz / r, weight_area, vec_area, body_pos_b, out_p, out_l, b)
 
 
-@nb.njit(cache=True)
+@helper
 def _push(point, j, ux, uy, uz, weight_area, vec_area, body_pos_b, out_p, out_l, b):
     """Add impulse j (Pa s) along the unit radius (ux, uy, uz) at ``point`` through a face
     of vector area ``vec_area`` x ``weight_area`` (its share at this point)."""
@@ -69,7 +70,7 @@ def _push(point, j, ux, uy, uz, weight_area, vec_area, body_pos_b, out_p, out_l,
     out_l[b, 2] += dx * fy - dy * fx
 
 
-@nb.njit(cache=True)
+@helper
 def _to_world(rot, pos, com, rest, out) -> None:
     """out = pos + rot (rest - com), no allocation."""
     x, y, z = rest[0] - com[0], rest[1] - com[1], rest[2] - com[2]
@@ -77,13 +78,13 @@ def _to_world(rot, pos, com, rest, out) -> None:
         out[a] = pos[a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
 
 
-@nb.njit(cache=True)
+@helper
 def _rotate(rot, vec, out) -> None:
     for a in range(3):
         out[a] = rot[a, 0] * vec[0] + rot[a, 1] * vec[1] + rot[a, 2] * vec[2]
 
 
-@nb.njit(cache=True)
+@helper
 def _corner(vertex, slot, c, rot, pos, com, vertices, charge_pos, corner_point,
             corner_u) -> bool:
     """World position and unit radius of a voxel corner for charge c (False at the

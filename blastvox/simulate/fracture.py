@@ -28,10 +28,11 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.simulate.jit import helper
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
 
-@nb.njit(cache=True)
+@helper
 def _world(rest, body, body_pos, body_rot, body_com, out):
     rot = body_rot[body]
     for a in range(3):
@@ -40,7 +41,7 @@ def _world(rest, body, body_pos, body_rot, body_com, out):
                   + rot[a, 2] * (rest[2] - body_com[body, 2]))
 
 
-@nb.njit(cache=True)
+@helper
 def oriented_yield(yield_pa, orientation, rot, direction, point, charge, r) -> float:
     """Yield (Pa) of a link after the orientation factor: Y (1 - k |R_hat . l_hat|).
 
@@ -56,7 +57,7 @@ def oriented_yield(yield_pa, orientation, rot, direction, point, charge, r) -> f
     return yield_pa * (1.0 - orientation * abs(cosang))
 
 
-@nb.njit(cache=True)
+@helper
 def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
     """Distance to charge c if the front crosses ``point`` this step, else -1."""
     dx = point[0] - charge_pos[c, 0]

@@ -33,6 +33,7 @@ import numba as nb
 import numpy as np
 
 from blastvox.simulate import quaternion
+from blastvox.simulate.jit import helper
 
 #: Spin (rad) of one rotation sub-step, measured as h |L| tr(I^-1) / 3 (|omega| h
 #: for a body of isotropic inertia): small enough that the fixed-point iteration
@@ -46,7 +47,7 @@ MAX_SPIN_PER_STEP = SUBSTEP_RAD * MAX_SUBSTEPS  # 40 rad
 _MAX_ITERATIONS = 60
 
 
-@nb.njit(cache=True)
+@helper
 def moving(b, body_live, body_fixed, body_dust, body_asleep) -> bool:
     """True for a body the integrator moves."""
     # bitwise, not `a and not b ...` or ifs: numba compiles this test, in the loop
@@ -93,7 +94,7 @@ def integrate_positions(dt: float, body_mass: np.ndarray, body_inv_inertia: np.n
         rotate_free(body_quat[b], body_rot[b], body_inv_inertia[b], body_ang[b], dt, scratch)
 
 
-@nb.njit(cache=True)
+@helper
 def world_tensor_times(rot, tensor, x, y, z):
     """R T R^T (x, y, z), no allocation: a rest-frame tensor T (3, 3) (inertia, or its
     inverse) applied in the world frame of a body with rotation ``rot`` (3, 3)."""
@@ -108,13 +109,13 @@ def world_tensor_times(rot, tensor, x, y, z):
             rot[2, 0] * s0 + rot[2, 1] * s1 + rot[2, 2] * s2)
 
 
-@nb.njit(cache=True)
+@helper
 def angular_velocity(rot, inv, ang):
     """omega = R I^-1 R^T L (rad/s, world) without allocation."""
     return world_tensor_times(rot, inv, ang[0], ang[1], ang[2])
 
 
-@nb.njit(cache=True)
+@helper
 def spin_rate(inv, ang) -> float:
     """|L| tr(I^-1) / 3 (rad/s): |omega| for isotropic inertia, otherwise between |omega| / 3
     and |L| / I_min (inv: (3, 3) rest-frame I^-1 in 1/(kg m^2); ang: (3,) L in N m s)."""
@@ -122,7 +123,7 @@ def spin_rate(inv, ang) -> float:
     return norm * (inv[0, 0] + inv[1, 1] + inv[2, 2]) / 3.0
 
 
-@nb.njit(cache=True)
+@helper
 def _turn(wx, wy, wz, h, vx, vy, vz):
     """(vx, vy, vz) rotated by the angle |omega| h about omega (Rodrigues), h of any sign."""
     rate = math.sqrt(wx * wx + wy * wy + wz * wz)
@@ -136,7 +137,7 @@ def _turn(wx, wy, wz, h, vx, vy, vz):
             vz * c + (ax * vy - ay * vx) * s + az * d)
 
 
-@nb.njit(cache=True)
+@helper
 def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
     """Turn unit quaternion q (w, x, y, z) by dt s of torque-free motion (see module doc).
 

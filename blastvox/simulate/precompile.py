@@ -19,6 +19,10 @@ The manifest is recorded by running reference scenes with an empty cache::
 and ``tests/test_precompile.py`` checks that it covers what the simulator
 calls, so a kernel whose arguments change cannot silently fall back to
 compiling one at a time.
+
+Workers are forked where that is safe (Linux, one thread): a forked worker
+starts compiling at once with numba and the simulator already imported, where
+a new interpreter spends about a second importing them first.
 """
 
 from __future__ import annotations
@@ -163,10 +167,10 @@ def ensure_compiled(features: set[str], notify: Callable[[str], None] | None = N
                f"process{'es' if parts > 1 else ''} (first run only)")
     shares = partition(rest, parts)
     index = {k: i for i, k in enumerate(manifest)}
-    workers = [_start_worker([index[k] for k in share]) for share in shares[1:]]
+    workers = [_start_worker([index[k] for k in share], manifest) for share in shares[1:]]
     compile_kernels(shares[0])
-    for worker in workers:
-        worker.wait()  # a failed worker only leaves its kernels to compile lazily
+    for wait in workers:
+        wait()  # a failed worker only leaves its kernels to compile lazily
     return True
 
 
@@ -183,11 +187,34 @@ def _in_cache(kernel: Kernel) -> bool | None:
         return None
 
 
-def _start_worker(lines: list[int]) -> subprocess.Popen:
-    """A process compiling the kernels at these indices of the manifest."""
-    return subprocess.Popen([sys.executable, "-m", "blastvox.simulate.precompile", "--worker",
+def _start_worker(lines: list[int], manifest: list[Kernel]) -> Callable[[], None]:
+    """A process compiling the kernels at these indices of ``manifest``; returns a
+    function that waits for it. Forked where that is safe, else a new interpreter."""
+    if _can_fork():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:  # the child: compile, then leave without running the parent's exit code
+            code = 1
+            try:
+                compile_kernels(manifest[i] for i in lines)
+                code = 0
+            finally:
+                os._exit(code)
+        return lambda: os.waitpid(pid, 0) and None
+    proc = subprocess.Popen([sys.executable, "-m", "blastvox.simulate.precompile", "--worker",
                              ",".join(map(str, lines))], stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
+    return lambda: proc.wait() and None
+
+
+def _can_fork() -> bool:
+    """fork() keeps only the calling thread, so a lock another thread holds would stay
+    locked in the child: fork only a single-threaded process, and only on Linux
+    (macOS system libraries are not fork-safe)."""
+    import threading
+
+    return sys.platform.startswith("linux") and threading.active_count() == 1
 
 
 # --------------------------------------------------------------------------- recording

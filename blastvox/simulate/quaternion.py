@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
+from blastvox.simulate.jit import helper
 
-@nb.njit(cache=True)
+
+@helper
 def matrix_into(q: np.ndarray, m: np.ndarray) -> None:
     """Write the rotation matrix of unit quaternion q into m (3, 3), no allocation."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -27,7 +28,7 @@ def matrix_into(q: np.ndarray, m: np.ndarray) -> None:
     m[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@nb.njit(cache=True)
+@helper
 def integrate(q: np.ndarray, wx: float, wy: float, wz: float, dt: float) -> None:
     """Rotate q in place by the world angular velocity (wx, wy, wz) rad/s for dt s.
 

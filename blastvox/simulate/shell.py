@@ -18,8 +18,10 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.simulate.jit import helper
 
-@nb.njit(cache=True)
+
+@helper
 def to_rest(rot, pos, com, x, y, z):
     """A world point (m) in the rest frame of a body at ``pos`` with rotation ``rot``
     and rest centre of mass ``com``: R^T (x - pos) + com."""
@@ -66,7 +68,7 @@ def dense_grid(points, cell):
     return origin, dims, offsets, ids
 
 
-@nb.njit(cache=True)
+@helper
 def _axis_gaps(p, lo, size):
     """Squared nearest and farthest distance (m^2) from p to [lo, lo + size] on one axis."""
     hi = lo + size
@@ -75,7 +77,7 @@ def _axis_gaps(p, lo, size):
     return near * near, far * far
 
 
-@nb.njit(cache=True)
+@helper
 def _box_distances(x, y, z, lo0, lo1, lo2, size):
     """Nearest and farthest distance (m) from (x, y, z) to the cube at lo of edge size."""
     n0, f0 = _axis_gaps(x, lo0, size)

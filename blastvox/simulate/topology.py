@@ -16,10 +16,11 @@ import numpy as np
 
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.integrate import angular_velocity, world_tensor_times
+from blastvox.simulate.jit import helper
 from blastvox.simulate.quaternion import matrix_into
 
 
-@nb.njit(cache=True)
+@helper
 def _root(parent, v) -> int:
     """Union-find root of v, halving the path on the way."""
     while parent[v] != v:
@@ -28,7 +29,7 @@ def _root(parent, v) -> int:
     return v
 
 
-@nb.njit(cache=True)
+@helper
 def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.ndarray,
                      link_voxels: np.ndarray, offsets: np.ndarray, link_ids: np.ndarray,
                      component: np.ndarray, order: np.ndarray):

@@ -25,6 +25,7 @@ import numpy as np
 
 from blastvox.simulate import blast
 from blastvox.simulate.blast import C0_M_S, Z_MAX, Z_MIN, impulse_nb
+from blastvox.simulate.jit import helper
 
 _GRID = 4096
 _LOG_LO = math.log10(Z_MIN)
@@ -44,7 +45,7 @@ def reference_table() -> np.ndarray:
     return table
 
 
-@nb.njit(cache=True)
+@helper
 def params_at(table: np.ndarray, r: float, scale: float):
     """(Ps Pa, ta s, Td s, b) at distance r (m) from a charge of scale W^(1/3) (kg^(1/3))."""
     z = r / scale
@@ -71,7 +72,7 @@ def peak_overpressure(table: np.ndarray, r: float, scale: float) -> float:
     return params_at(table, r, scale)[0]
 
 
-@nb.njit(cache=True)
+@helper
 def point_impulse(table: np.ndarray, r: float, t_detonation: float, scale: float,
                   t0: float, t1: float) -> float:
     """Exact integral of p - p0 (Pa s) over [t0, t1] at a fixed point r (m) from the charge."""
@@ -79,7 +80,7 @@ def point_impulse(table: np.ndarray, r: float, t_detonation: float, scale: float
     return impulse_nb(t0 - t_detonation, t1 - t_detonation, ta, td, ps, b)
 
 
-@nb.njit(cache=True)
+@helper
 def exceedance_integral(table: np.ndarray, r: float, scale: float, threshold: float) -> float:
     """Integral over the positive phase of max(p - p0 - threshold, 0) dt, Pa s.
 
