@@ -22,7 +22,9 @@ compiling one at a time.
 
 Workers are forked where that is safe (Linux, one thread): a forked worker
 starts compiling at once with numba and the simulator already imported, where
-a new interpreter spends about a second importing them first.
+a new interpreter spends about a second importing them first, and all processes
+take kernels from one queue, so none waits on a badly estimated share.
+Elsewhere workers are new interpreters, each with a fixed share.
 """
 
 from __future__ import annotations
@@ -165,13 +167,58 @@ def ensure_compiled(features: set[str], notify: Callable[[str], None] | None = N
     if notify is not None:
         notify(f"compiling {len(kernels)} simulation kernels on {parts} "
                f"process{'es' if parts > 1 else ''} (first run only)")
+    if parts > 1 and _can_fork():
+        _compile_forked(rest, parts)
+        return True
     shares = partition(rest, parts)
     index = {k: i for i, k in enumerate(manifest)}
-    workers = [_start_worker([index[k] for k in share], manifest) for share in shares[1:]]
+    workers = [_start_worker([index[k] for k in share]) for share in shares[1:]]
     compile_kernels(shares[0])
-    for wait in workers:
-        wait()  # a failed worker only leaves its kernels to compile lazily
+    for worker in workers:
+        worker.wait()  # a failed worker only leaves its kernels to compile lazily
     return True
+
+
+def _compile_forked(kernels: list[Kernel], parts: int) -> None:
+    """Compile ``kernels`` in this process and ``parts - 1`` forked ones.
+
+    All take the next kernel, longest first, from one pipe holding the kernels'
+    indices (one byte each: reads of one byte are atomic), so they finish within
+    a kernel of each other however wrong the recorded times are. A worker that
+    fails only leaves its kernel to compile lazily.
+    """
+    order = sorted(range(len(kernels)), key=lambda i: (-kernels[i].seconds, kernels[i].name,
+                                                       kernels[i].signature))
+    if len(order) > 256:  # one byte per index
+        raise ValueError(f"{len(order)} kernels: more than a one-byte queue holds")
+    read, write = os.pipe()
+    os.write(write, bytes(order))
+    os.close(write)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    children = []
+    for _ in range(parts - 1):
+        pid = os.fork()
+        if pid == 0:  # the child: compile, then leave without running the parent's exit code
+            code = 1
+            try:
+                _compile_queued(read, kernels)
+                code = 0
+            finally:
+                os._exit(code)
+        children.append(pid)
+    try:
+        _compile_queued(read, kernels)
+    finally:
+        os.close(read)
+        for pid in children:
+            os.waitpid(pid, 0)
+
+
+def _compile_queued(read: int, kernels: list[Kernel]) -> None:
+    """Compile the kernels whose indices come out of pipe ``read``, one at a time."""
+    while index := os.read(read, 1):
+        compile_kernels([kernels[index[0]]])
 
 
 def _in_cache(kernel: Kernel) -> bool | None:
@@ -187,25 +234,11 @@ def _in_cache(kernel: Kernel) -> bool | None:
         return None
 
 
-def _start_worker(lines: list[int], manifest: list[Kernel]) -> Callable[[], None]:
-    """A process compiling the kernels at these indices of ``manifest``; returns a
-    function that waits for it. Forked where that is safe, else a new interpreter."""
-    if _can_fork():
-        sys.stdout.flush()
-        sys.stderr.flush()
-        pid = os.fork()
-        if pid == 0:  # the child: compile, then leave without running the parent's exit code
-            code = 1
-            try:
-                compile_kernels(manifest[i] for i in lines)
-                code = 0
-            finally:
-                os._exit(code)
-        return lambda: os.waitpid(pid, 0) and None
-    proc = subprocess.Popen([sys.executable, "-m", "blastvox.simulate.precompile", "--worker",
+def _start_worker(lines: list[int]) -> subprocess.Popen:
+    """A new interpreter compiling the kernels at these indices of the manifest."""
+    return subprocess.Popen([sys.executable, "-m", "blastvox.simulate.precompile", "--worker",
                              ",".join(map(str, lines))], stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
-    return lambda: proc.wait() and None
 
 
 def _can_fork() -> bool:
