@@ -412,3 +412,28 @@ def test_info_rejects_broken_caches(kind: str, tmp_path: Path, runs: dict[str, R
         result = run_cli("info", target.name, *extra, cwd=tmp_path)
         assert_one_line_error(result, target.name)
         assert result.stdout == ""
+
+
+def test_progress_bar_starts_with_stepping_not_with_compilation():
+    # no refresh thread while first-run compilation may fork its workers
+    # (simulate.precompile forks only a single-threaded process), and the
+    # steps/s shown count stepping only
+    import io
+    import threading
+
+    from rich.console import Console
+
+    from blastvox.cli.simulate_cmd import _Progress
+
+    out = io.StringIO()
+    console = Console(file=out, force_terminal=True, width=100)
+    before = threading.active_count()
+    with _Progress(enabled=True, console=console) as progress:
+        progress.note("compiling 25 simulation kernels on 2 processes (first run only)")
+        assert threading.active_count() == before
+        progress.update(0.1, 24, 240)
+        assert threading.active_count() == before + 1
+        progress.update(1.0, 240, 240)
+    text = out.getvalue()
+    assert "compiling 25 simulation kernels" in text
+    assert "t = 1.000 s" in text and "steps/s" in text

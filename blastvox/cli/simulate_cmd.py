@@ -126,7 +126,7 @@ class _Progress:
     def __init__(self, enabled: bool, console, notes: bool = True) -> None:
         self.enabled, self.console, self.notes = enabled, console, notes
         self._bar = self._task = None
-        self._start = time.perf_counter()
+        self._start, self._done = 0.0, 0  # at the first update: compilation is not stepping
 
     def __enter__(self):
         return self
@@ -156,6 +156,8 @@ class _Progress:
             return
         if self._bar is None:
             self._start_bar()
-        rate = done / max(time.perf_counter() - self._start, 1e-9)
+            self._start, self._done = time.perf_counter(), done
+        elapsed = time.perf_counter() - self._start
+        rate = f", {(done - self._done) / elapsed:,.0f} steps/s" if done > self._done else ""
         self._bar.update(self._task, completed=done, total=total,
-                         sim=f"t = {sim_time:.3f} s, {rate:,.0f} steps/s")
+                         sim=f"t = {sim_time:.3f} s{rate}")
