@@ -42,18 +42,24 @@ def _world(rest, body, body_pos, body_rot, body_com, out):
 
 
 @helper
-def oriented_yield(yield_pa, orientation, rot, direction, point, charge, r) -> float:
+def oriented_yield(yield_pa, orientation, body_rot, b, link_direction, link, dx, dy, dz,
+                   r) -> float:
     """Yield (Pa) of a link after the orientation factor: Y (1 - k |R_hat . l_hat|).
 
-    rot: the body's rotation; direction: the link's rest direction; point: where
-    the wave's radius vector R = point - charge (|R| = r) is taken.
+    The link's rest direction ``link_direction[link]`` turns with body b's
+    rotation ``body_rot[b]``; (dx, dy, dz) is the wave's radius vector R (m) from
+    the charge to where it is taken, |R| = r. Indices, not row views: this runs
+    once per link a front crosses, and a view costs two reference counts.
     """
     if r <= 0.0:
         return yield_pa
     cosang = 0.0
     for a in range(3):
-        la = rot[a, 0] * direction[0] + rot[a, 1] * direction[1] + rot[a, 2] * direction[2]
-        cosang += la * (point[a] - charge[a]) / r
+        la = (body_rot[b, a, 0] * link_direction[link, 0]
+              + body_rot[b, a, 1] * link_direction[link, 1]
+              + body_rot[b, a, 2] * link_direction[link, 2])
+        ra = dx if a == 0 else (dy if a == 1 else dz)
+        cosang += la * ra / r
     return yield_pa * (1.0 - orientation * abs(cosang))
 
 
@@ -82,7 +88,6 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
     (B,) for their bodies.
     """
     count = 0
-    mid = np.empty(3)
     n_charges = charge_pos.shape[0]
     for link in range(link_voxels.shape[0]):
         if not candidate[link] or not link_alive[link]:
@@ -108,10 +113,9 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
                                                     and r2 <= front_in[c] * front_in[c]):
                 continue
             r = math.sqrt(r2)
-            mid[0], mid[1], mid[2] = mx, my, mz
             peak = peak_overpressure(table, r, charge_scale[c])
-            limit = oriented_yield(link_yield[link], orientation, body_rot[b],
-                                   link_direction[link], mid, charge_pos[c], r)
+            limit = oriented_yield(link_yield[link], orientation, body_rot, b, link_direction,
+                                   link, dx, dy, dz, r)
             if peak > limit:
                 link_alive[link] = False
                 broken[link] = True
@@ -230,7 +234,6 @@ def fracture_damage(charge_pos, charge_scale, front_in, front_out, table,
             voxel_damage[v] = min(6.0, voxel_damage[v] + damage_b * 6.0
                                   * (math.exp(min(damage_c * s, 50.0)) - 1.0))
             to_break = int(math.floor(voxel_damage[v]) - before)
-            rot = body_rot[b]
             for _ in range(to_break):
                 weakest = -1
                 weakest_limit = np.inf
@@ -238,8 +241,10 @@ def fracture_damage(charge_pos, charge_scale, front_in, front_out, table,
                     link = voxel_link_ids[k]
                     if not link_alive[link]:
                         continue
-                    limit = oriented_yield(link_yield[link], orientation, rot,
-                                           link_direction[link], centre, charge_pos[c], r)
+                    limit = oriented_yield(link_yield[link], orientation, body_rot, b,
+                                           link_direction, link, centre[0] - charge_pos[c, 0],
+                                           centre[1] - charge_pos[c, 1],
+                                           centre[2] - charge_pos[c, 2], r)
                     if limit < weakest_limit:
                         weakest_limit = limit
                         weakest = link
