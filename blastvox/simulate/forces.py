@@ -42,13 +42,15 @@ def _apply(point, weight_area, vec_area, c, t0, t1, charge_pos, charge_time, cha
     if r <= 0.0:
         return
     j = point_impulse(table, r, charge_time[c], charge_scale[c], t0, t1)
-    _push(point, j, rx / r, ry / r, rz / r, weight_area, vec_area, body_pos_b, out_p, out_l, b)
+    _push(point[0], point[1], point[2], j, rx / r, ry / r, rz / r, weight_area, vec_area,
+          body_pos_b, out_p, out_l, b)
 
 
 @helper
-def _push(point, j, ux, uy, uz, weight_area, vec_area, body_pos_b, out_p, out_l, b):
-    """Add impulse j (Pa s) along the unit radius (ux, uy, uz) at ``point`` through a face
-    of vector area ``vec_area`` x ``weight_area`` (its share at this point)."""
+def _push(px, py, pz, j, ux, uy, uz, weight_area, vec_area, body_pos_b, out_p, out_l, b):
+    """Add impulse j (Pa s) along the unit radius (ux, uy, uz) at point (px, py, pz) (m)
+    through a face of vector area ``vec_area`` x ``weight_area`` (its share at this
+    point). Scalars, not a row view: this runs for every exposed corner."""
     norm = math.sqrt(vec_area[0] ** 2 + vec_area[1] ** 2 + vec_area[2] ** 2)
     if norm <= 0.0:
         return
@@ -62,9 +64,9 @@ def _push(point, j, ux, uy, uz, weight_area, vec_area, body_pos_b, out_p, out_l,
     out_p[b, 0] += fx
     out_p[b, 1] += fy
     out_p[b, 2] += fz
-    dx = point[0] - body_pos_b[0]
-    dy = point[1] - body_pos_b[1]
-    dz = point[2] - body_pos_b[2]
+    dx = px - body_pos_b[0]
+    dy = py - body_pos_b[1]
+    dz = pz - body_pos_b[2]
     out_l[b, 0] += dy * fz - dz * fy
     out_l[b, 1] += dz * fx - dx * fz
     out_l[b, 2] += dx * fy - dy * fx
@@ -85,11 +87,17 @@ def _rotate(rot, vec, out) -> None:
 
 
 @helper
-def _corner(vertex, slot, c, rot, pos, com, vertices, charge_pos, corner_point,
-            corner_u) -> bool:
-    """World position and unit radius of a voxel corner for charge c (False at the
-    charge's centre, where there is no direction)."""
-    _to_world(rot, pos, com, vertices[vertex], corner_point[slot])
+def _corner(vertex, slot, c, body_rot, body_pos, body_com, b, vertices, charge_pos,
+            corner_point, corner_u) -> bool:
+    """World position and unit radius of a voxel corner of body b for charge c (False at
+    the charge's centre, where there is no direction). Indices, not row views: this
+    runs for every exposed corner, and a view costs two reference counts."""
+    x = vertices[vertex, 0] - body_com[b, 0]
+    y = vertices[vertex, 1] - body_com[b, 1]
+    z = vertices[vertex, 2] - body_com[b, 2]
+    for a in range(3):  # as _to_world
+        corner_point[slot, a] = (body_pos[b, a] + body_rot[b, a, 0] * x + body_rot[b, a, 1] * y
+                                 + body_rot[b, a, 2] * z)
     rx = corner_point[slot, 0] - charge_pos[c, 0]
     ry = corner_point[slot, 1] - charge_pos[c, 1]
     rz = corner_point[slot, 2] - charge_pos[c, 2]
@@ -189,8 +197,8 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                 for k in range(4):
                     q = _FACE_CORNERS[f, k]
                     if corner_state[q] == 0:
-                        placed = _corner(voxel_vertices[v, q], q, c, rot, body_pos[b],
-                                         body_com[b], vertices, charge_pos, corner_point,
+                        placed = _corner(voxel_vertices[v, q], q, c, body_rot, body_pos,
+                                         body_com, b, vertices, charge_pos, corner_point,
                                          corner_u)
                         corner_state[q] = 1 if placed else -1
                     if corner_state[q] < 0:
@@ -202,5 +210,5 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                         corner_j[q] = point_impulse(table, corner_u[q, 3], charge_time[c],
                                                     charge_scale[c], t0, t1)
                         corner_state[q] = 2
-                    _push(corner_point[q], corner_j[q], ux, uy, uz, 0.25, area, pivot, acc_p,
-                          acc_l, index)
+                    _push(corner_point[q, 0], corner_point[q, 1], corner_point[q, 2],
+                          corner_j[q], ux, uy, uz, 0.25, area, pivot, acc_p, acc_l, index)
