@@ -32,6 +32,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from importlib import import_module
@@ -198,7 +199,11 @@ def _compile_forked(kernels: list[Kernel], parts: int) -> None:
     sys.stderr.flush()
     children = []
     for _ in range(parts - 1):
-        pid = os.fork()
+        with warnings.catch_warnings():
+            # Python >= 3.12 warns when the process has other OS threads: here those
+            # are NumPy's BLAS pool (fork-safe, and the child never calls BLAS)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            pid = os.fork()
         if pid == 0:  # the child: compile, then leave without running the parent's exit code
             code = 1
             try:
@@ -243,8 +248,9 @@ def _start_worker(lines: list[int]) -> subprocess.Popen:
 
 def _can_fork() -> bool:
     """fork() keeps only the calling thread, so a lock another thread holds would stay
-    locked in the child: fork only a single-threaded process, and only on Linux
-    (macOS system libraries are not fork-safe)."""
+    locked in the child: fork only when no other Python thread runs (a progress bar's
+    refresh thread, say), and only on Linux (macOS system libraries are not
+    fork-safe)."""
     import threading
 
     return sys.platform.startswith("linux") and threading.active_count() == 1
