@@ -301,11 +301,16 @@ def stream_gbs(mib: int = 256, repeat: int = 3) -> float:
 def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) -> dict:
     """Count, then time ``simulate`` of one block; measure its bandwidth bound; with
     ``profile``, one more run timed phase by phase (called in a worker process)."""
+    from blastvox.simulate.precompile import ensure_compiled, features_of
     from blastvox.simulate.run import simulate
 
     model = VoxelModel.load(model_path)
     settings = settings_for(Case(f"block{cells}", cells=cells, duration=BLOCK_DURATION))
-    counted = count_sweeps(model, settings)  # also compiles / loads the numba cache
+    # compile a cold cache now: the counting run below wraps the kernels, and the
+    # precompiler would find wrappers where it looks for numba dispatchers
+    combustible = bool(np.isfinite(model.arrays["voxel_combustibility"]).any())
+    ensure_compiled(features_of(settings, combustible))
+    counted = count_sweeps(model, settings)  # also loads the numba cache
     seconds, loops = [], []
     loop = [0.0]
 
