@@ -308,8 +308,7 @@ def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) 
     settings = settings_for(Case(f"block{cells}", cells=cells, duration=BLOCK_DURATION))
     # compile a cold cache now: the counting run below wraps the kernels, and the
     # precompiler would find wrappers where it looks for numba dispatchers
-    combustible = bool(np.isfinite(model.arrays["voxel_combustibility"]).any())
-    ensure_compiled(features_of(settings, combustible))
+    ensure_compiled(features_of(settings, model))
     counted = count_sweeps(model, settings)  # also loads the numba cache
     seconds, loops = [], []
     loop = [0.0]
@@ -683,9 +682,7 @@ def numba_floor(model_path: Path, repeat: int = 3) -> dict:
     from blastvox.simulate.precompile import features_of
     from blastvox.simulate.settings import settings_from_scene
 
-    model = VoxelModel.load(model_path)
-    combustible = bool(np.isfinite(model.arrays["voxel_combustibility"]).any())
-    features = features_of(settings_from_scene(load_scene(HOUSE)), combustible)
+    features = features_of(settings_from_scene(load_scene(HOUSE)), VoxelModel.load(model_path))
     python = math.inf
     for _ in range(repeat + 1):  # the first one warms the file system
         started = time.perf_counter()

@@ -74,8 +74,12 @@ def load_manifest(path: Path = MANIFEST) -> list[Kernel]:
     return kernels
 
 
-def features_of(settings, combustible: bool) -> set[str]:
-    """The manifest groups a run with these SimSettings needs."""
+def features_of(settings, model) -> set[str]:
+    """The manifest groups a run of VoxelModel ``model`` with these SimSettings needs
+    (fire only if some voxel can burn)."""
+    import numpy as np
+
+    combustible = bool(np.isfinite(model.arrays["voxel_combustibility"]).any())
     needed = {"core"}
     if settings.ground:
         needed.add("ground")
@@ -122,11 +126,16 @@ def partition(kernels: list[Kernel], parts: int) -> list[list[Kernel]]:
     total compile time; part 0 (the caller's) gets the lightest load."""
     shares: list[list[Kernel]] = [[] for _ in range(parts)]
     loads = [0.0] * parts
-    for kernel in sorted(kernels, key=lambda k: (-k.seconds, k.name, k.signature)):
+    for kernel in sorted(kernels, key=_longest_first):
         i = min(range(parts), key=lambda j: (loads[j], -j))
         shares[i].append(kernel)
         loads[i] += kernel.seconds
     return shares
+
+
+def _longest_first(kernel: Kernel) -> tuple:
+    """Sort key: longest recorded compile first, then by name (deterministic)."""
+    return -kernel.seconds, kernel.name, kernel.signature
 
 
 def cpu_count() -> int:
@@ -188,8 +197,7 @@ def _compile_forked(kernels: list[Kernel], parts: int) -> None:
     a kernel of each other however wrong the recorded times are. A worker that
     fails only leaves its kernel to compile lazily.
     """
-    order = sorted(range(len(kernels)), key=lambda i: (-kernels[i].seconds, kernels[i].name,
-                                                       kernels[i].signature))
+    order = sorted(range(len(kernels)), key=lambda i: _longest_first(kernels[i]))
     if len(order) > 256:  # one byte per index
         raise ValueError(f"{len(order)} kernels: more than a one-byte queue holds")
     read, write = os.pipe()

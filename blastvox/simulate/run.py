@@ -118,8 +118,7 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     """Run the blast simulation of ``model`` with ``settings``."""
     progress = progress or Progress()
     warn = warn or (lambda message: None)
-    combustible = bool(np.isfinite(model.arrays["voxel_combustibility"]).any())
-    ensure_compiled(features_of(settings, combustible), notify=progress.note)
+    ensure_compiled(features_of(settings, model), notify=progress.note)
     sm = build_model(model)
     state = initial_state(model, sm)
     if not settings.ground:
