@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from blastvox.blast.model import blast_parameters
 from blastvox.materials import MaterialLibrary
-from blastvox.simulate.blast import blast_parameters
 from blastvox.simulate.run import simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize

@@ -36,8 +36,8 @@ TARGET_S = 0.2
 def preview_cache(pieces: int = 1000, frames: int = 120, seed: int = 1):
     """The export benchmark's cache with particles, shock opacity and a ground height."""
     from blastvox.cache import SimCache
+    from blastvox.particles import SYSTEM_NAMES, particle_meta
     from blastvox.simulate.cues import shock_opacity
-    from blastvox.simulate.particles import SYSTEM_NAMES, particle_meta
 
     cache = synthetic_cache(pieces, frames)
     a = dict(cache.arrays)

@@ -35,7 +35,7 @@ particle_size              (Q,) f4         m
 =========================  ==============  ======================================
 
 Particles are ballistic with drag; their positions at any time follow from
-the birth state in closed form (blastvox.simulate.particles.positions_at) with
+the birth state in closed form (blastvox.particles.positions_at) with
 the system parameters in ``meta["particle_systems"]`` and the model-frame
 gravity vector ``meta["gravity_vector"]``.
 """

@@ -1,4 +1,4 @@
-"""Blast-wave model (blastvox.simulate.blast) and the ``blastvox blast`` command.
+"""Blast-wave model (blastvox.blast.model) and the ``blastvox blast`` command.
 
 Reference checks use published numbers only where they are independent of our code:
 Kinney & Graham's closed forms, NAVFAC's decay table, the metric form of the same
@@ -19,8 +19,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from blastvox.blast import model as B
 from blastvox.errors import BlastvoxError
-from blastvox.simulate import blast as B
 
 FIELDS = ["distance_m", "scaled_distance", "peak_overpressure_pa", "arrival_time_s",
           "positive_duration_s", "decay_coefficient", "impulse_pa_s"]

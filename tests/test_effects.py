@@ -10,8 +10,8 @@ import pytest
 import trimesh
 
 from blastvox.materials import MaterialLibrary
+from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
 from blastvox.simulate import run as simrun
-from blastvox.simulate.particles import SYSTEM_NAMES, SYSTEMS, positions_at
 from blastvox.simulate.run import simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.simulate.state import build_model
@@ -122,7 +122,7 @@ def test_camera_shakes_only_after_the_wave_arrives(tmp_path):
     camera = ((0.0, -40.0, 2.0), (0.0, 0.0, 1.0), 35.0)
     cache = simulate(model, SimSettings(fps=100.0, duration=0.5, camera=camera,
                                         charges=(ChargeSpec((0, -2.0, 1.0), 3.0),)))
-    from blastvox.simulate.blast import blast_parameters
+    from blastvox.blast.model import blast_parameters
 
     arrival = float(blast_parameters(np.linalg.norm(np.subtract(camera[0], (0, -2, 1))),
                                      3.0).arrival_time_s)

@@ -312,7 +312,7 @@ def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
 
 @pytest.mark.parametrize("up", ["Y", "Z"])
 def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
-    from blastvox.simulate.particles import positions_at
+    from blastvox.particles import positions_at
 
     stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
     points = UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
@@ -336,7 +336,7 @@ def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
 
 
 def test_dust_is_dropped_after_its_lifetime(synthetic, tmp_path):
-    from blastvox.simulate.particles import SYSTEMS
+    from blastvox.particles import SYSTEMS
 
     life = SYSTEMS["dust"].lifetime
     arrays = dict(synthetic.arrays)

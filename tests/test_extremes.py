@@ -42,15 +42,15 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from blastvox import cache as cache_module
+from blastvox.blast.model import Z_MAX, Z_MIN, blast_parameters
 from blastvox.errors import SimulationLimitWarning
+from blastvox.geometry.quaternion import matrix_into
 from blastvox.io.npz import write_npz
 from blastvox.materials import MaterialLibrary, material_table
 from blastvox.model import VoxelModel
 from blastvox.simulate import limits
 from blastvox.simulate import run as simrun
-from blastvox.simulate.blast import Z_MAX, Z_MIN, blast_parameters
 from blastvox.simulate.integrate import angular_velocity
-from blastvox.simulate.quaternion import matrix_into
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

@@ -128,8 +128,8 @@ def test_simulate_passes_the_first_run_notice_to_its_progress(monkeypatch, tmp_p
 
 def test_a_helper_called_from_python_raises_instead_of_crashing():
     # helpers have no CPython wrapper (faster first runs); numba would segfault
+    from blastvox.jit import HelperDispatcher
     from blastvox.simulate.integrate import world_tensor_times
-    from blastvox.simulate.jit import HelperDispatcher
 
     assert isinstance(world_tensor_times, HelperDispatcher)
     eye = np.eye(3)

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 import trimesh
 
+from blastvox.blast.model import blast_parameters
+from blastvox.geometry import quaternion
 from blastvox.materials import MaterialLibrary
-from blastvox.simulate import quaternion, topology
-from blastvox.simulate.blast import blast_parameters
+from blastvox.simulate import topology
 from blastvox.simulate.run import initial_state, simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.simulate.state import build_model

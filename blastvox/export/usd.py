@@ -539,8 +539,8 @@ class _Writer:
     def _dust(self, shot: Sdf.PrimSpec) -> None:
         """One UsdGeomPoints per particle system (dust, fire, smoke, fireball) with
         time-sampled points, velocities, widths and ids, from the cache's particle
-        births evaluated in closed form (blastvox.simulate.particles)."""
-        from blastvox.simulate.particles import SYSTEM_NAMES, SYSTEMS, positions_at
+        births evaluated in closed form (blastvox.particles)."""
+        from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
 
         c = self.cache
         system = c.arrays.get("particle_system")

@@ -7,7 +7,7 @@
   voxel chars towards black over ``CHAR_S`` seconds. Pieces are gone from their
   end frame on (voxels turned to dust).
 * **Particles**: dust, fire, smoke and fireball particles at the frame time, in
-  closed form (:func:`blastvox.simulate.particles.positions_at`), with a colour
+  closed form (:func:`blastvox.particles.positions_at`), with a colour
   and opacity per system that fade with age.
 * **Shock fronts**: one sphere per charge, radius and opacity per frame.
 * **Ground**: the plane at ``meta["ground_height"]`` (none if the shot has none).
@@ -21,8 +21,8 @@ import numpy as np
 
 from blastvox.cache import SimCache
 from blastvox.export.pieces import piece_meshes
+from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
 from blastvox.preview.camera import up_vector
-from blastvox.simulate.particles import SYSTEM_NAMES, SYSTEMS, positions_at
 
 CHAR_S = 3.0                             #: s for a burning voxel to char fully
 CHAR_COLOR = np.array([0.02, 0.015, 0.012])  #: linear RGB of fully charred faces

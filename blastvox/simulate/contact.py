@@ -32,8 +32,8 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.jit import helper
 from blastvox.simulate.integrate import angular_velocity, moving, world_tensor_times
-from blastvox.simulate.jit import helper
 from blastvox.simulate.shell import to_rest
 
 _FACE_CORNERS = np.array(

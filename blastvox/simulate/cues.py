@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from blastvox.simulate import blast
+from blastvox.blast import model as blast
 
 _TAU_S = 0.25
 _FREQ_HZ = np.array([11.0, 13.0, 17.0])

@@ -22,7 +22,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.jit import helper
+from blastvox.jit import helper
 from blastvox.simulate.wave import point_impulse
 
 _FACE_CORNERS = np.array(

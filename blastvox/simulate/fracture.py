@@ -28,7 +28,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.jit import helper
+from blastvox.jit import helper
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
 

@@ -32,8 +32,8 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.simulate import quaternion
-from blastvox.simulate.jit import helper
+from blastvox.geometry import quaternion
+from blastvox.jit import helper
 
 #: Spin (rad) of one rotation sub-step, measured as h |L| tr(I^-1) / 3 (|omega| h
 #: for a body of isotropic inertia): small enough that the fixed-point iteration

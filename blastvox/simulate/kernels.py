@@ -7,8 +7,8 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.geometry.quaternion import matrix_into
 from blastvox.simulate.integrate import angular_velocity, moving
-from blastvox.simulate.quaternion import matrix_into
 
 
 @nb.njit(cache=True)

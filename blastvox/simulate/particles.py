@@ -1,18 +1,5 @@
-"""Particles: cheap ballistic points with drag and a lifetime, stored as spawn events.
-
-A particle never collides, so its motion has a closed form. With linear drag
-k (1/s) and acceleration a (gravity times the system's ``gravity_scale``;
-negative for buoyant smoke and fire):
-
-    x(t) = x0 + v0 (1 - e^(-k s)) / k + a (s - (1 - e^(-k s)) / k) / k,   s = t - t0
-
-so a SimCache stores only each particle's birth (time, position, velocity,
-lifetime, size, system) and export evaluates positions at any frame exactly
-(:func:`positions_at`). Each system has a particle budget set by the scene;
-emission beyond it is dropped (first come, first kept), and each system draws
-from its own seeded random stream, so switching one effect off leaves the
-others' particles unchanged.
-"""
+"""Particle emission during a run, within per-system budgets (the model and the
+closed-form motion are the SimCache contract's: :mod:`blastvox.particles`)."""
 
 from __future__ import annotations
 
@@ -20,30 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class SystemSpec:
-    """Behaviour of one particle system: drag (1/s), gravity_scale (-), lifetime (s), size (m)."""
-
-    drag: float
-    gravity_scale: float
-    lifetime: float
-    size: float
-
-
-SYSTEMS: dict[str, SystemSpec] = {
-    "dust": SystemSpec(drag=1.5, gravity_scale=0.3, lifetime=4.0, size=0.15),
-    "fire": SystemSpec(drag=3.0, gravity_scale=-0.4, lifetime=0.8, size=0.25),
-    "smoke": SystemSpec(drag=1.0, gravity_scale=-0.15, lifetime=4.0, size=0.6),
-    "fireball": SystemSpec(drag=4.0, gravity_scale=-0.3, lifetime=1.2, size=0.8),
-}
-SYSTEM_NAMES = tuple(SYSTEMS)
-
-
-def particle_meta() -> list[dict]:
-    """The systems as stored in a SimCache's meta (index = particle_system value)."""
-    return [{"name": n, "drag_per_s": s.drag, "gravity_scale": s.gravity_scale,
-             "lifetime_s": s.lifetime, "size_m": s.size} for n, s in SYSTEMS.items()]
+from blastvox.particles import SYSTEM_NAMES, SYSTEMS
 
 
 @dataclass
@@ -101,22 +65,3 @@ class Emitter:
                 "particle_position": np.concatenate(pos),
                 "particle_velocity": np.concatenate(vel),
                 "particle_size": np.concatenate(size).astype(np.float32)}
-
-
-def positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarray,
-                 system: np.ndarray, time: float, gravity: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Alive particles at ``time``: (indices (K,), positions (K, 3) m).
-
-    gravity: (3,) m/s^2 in the same frame as the positions.
-    """
-    lifetime = np.array([SYSTEMS[n].lifetime for n in SYSTEM_NAMES])[system]
-    age = time - birth
-    alive = np.flatnonzero((age >= 0.0) & (age < lifetime))
-    s = age[alive][:, None]
-    k = np.array([SYSTEMS[n].drag for n in SYSTEM_NAMES])[system[alive]][:, None]
-    g = np.array([SYSTEMS[n].gravity_scale for n in SYSTEM_NAMES])[system[alive]][:, None]
-    decay = -np.expm1(-k * s) / k  # (1 - e^-ks) / k
-    accel = g * np.asarray(gravity)[None, :]
-    x = position[alive] + velocity[alive] * decay + accel * (s - decay) / k
-    return alive, x

@@ -26,6 +26,7 @@ import numpy as np
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.model import VoxelModel
+from blastvox.particles import particle_meta
 from blastvox.simulate import contact, cues, fire, fracture, topology
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.forces import blast_impulses
@@ -43,7 +44,7 @@ from blastvox.simulate.kernels import (
     wake_on_impulse,
 )
 from blastvox.simulate.limits import LimitMonitor
-from blastvox.simulate.particles import Emitter, particle_meta
+from blastvox.simulate.particles import Emitter
 from blastvox.simulate.precompile import ensure_compiled, features_of
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector

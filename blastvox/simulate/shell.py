@@ -18,7 +18,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.simulate.jit import helper
+from blastvox.jit import helper
 
 
 @helper

@@ -14,10 +14,10 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from blastvox.geometry.quaternion import matrix_into
+from blastvox.jit import helper
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.integrate import angular_velocity, world_tensor_times
-from blastvox.simulate.jit import helper
-from blastvox.simulate.quaternion import matrix_into
 
 
 @helper

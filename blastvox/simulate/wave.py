@@ -1,6 +1,6 @@
 """The blast waves of a scene's charges, in the form the step kernels use.
 
-:mod:`blastvox.simulate.blast` defines the physics (Kingery-Bulmash reference
+:mod:`blastvox.blast.model` defines the physics (Kingery-Bulmash reference
 data, Hopkinson-Cranz scaling, the bounded modified Friedlander profile and its
 exact step integral). Here it is tabulated once per run on a fine logarithmic
 grid of scaled distance (Ps, ta, Td, b for 1 kg TNT; linear interpolation in
@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from blastvox.simulate import blast
-from blastvox.simulate.blast import C0_M_S, Z_MAX, Z_MIN, impulse_nb
-from blastvox.simulate.jit import helper
+from blastvox.blast import model as blast
+from blastvox.blast.model import C0_M_S, Z_MAX, Z_MIN, impulse_nb
+from blastvox.jit import helper
 
 _GRID = 4096
 _LOG_LO = math.log10(Z_MIN)

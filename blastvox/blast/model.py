@@ -106,7 +106,7 @@ import numba as nb
 import numpy as np
 
 from blastvox.errors import BlastvoxError
-from blastvox.simulate.jit import helper
+from blastvox.jit import helper
 
 __all__ = [
     "B_MIN", "C0_M_S", "NEG_CUTOFF", "NEG_MAX_DURATION", "P0_PA", "TNT_DENSITY_KG_M3",

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from blastvox.simulate.jit import helper
+from blastvox.jit import helper
 
 
 @helper
