@@ -57,7 +57,7 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     cache = None
     if ran or _stale(out.cache, [out.model, scene_path]):
         from blastvox.model import VoxelModel
-        from blastvox.simulate.run import Progress, simulate
+        from blastvox.simulate.engine import Progress, simulate
         from blastvox.simulate.settings import settings_from_scene as sim_settings
 
         model = model or VoxelModel.load(out.model)

@@ -59,7 +59,7 @@ def simulate(
 
     from blastvox.cli.console import err_console, limit_warnings
     from blastvox.model import VoxelModel
-    from blastvox.simulate.run import simulate as run
+    from blastvox.simulate.engine import simulate as run
     from blastvox.simulate.settings import ChargeSpec, SimSettings, settings_from_scene
 
     model = VoxelModel.load(model_path)

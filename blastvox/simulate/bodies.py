@@ -20,6 +20,9 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from blastvox.jit import helper
+from blastvox.simulate.integrate import world_tensor_times
+
 
 @nb.njit(cache=True)
 def aggregate(members: np.ndarray, voxel_mass: np.ndarray, voxel_centroid: np.ndarray,
@@ -80,3 +83,37 @@ def inverse_inertia(inertia: np.ndarray) -> np.ndarray:
     out[2, 1] = (b * g - a * h) * inv
     out[2, 2] = (a * e - b * d) * inv
     return out
+
+
+@helper
+def point_velocity(b, px, py, pz, bodies, omega):
+    """Velocity (m/s) of world point p (m) riding on body b spinning at omega (3,) rad/s."""
+    body_pos, body_lin, body_mass = bodies.pos, bodies.lin, bodies.mass
+    rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
+    m = body_mass[b]
+    return (body_lin[b, 0] / m + omega[1] * rz - omega[2] * ry,
+            body_lin[b, 1] / m + omega[2] * rx - omega[0] * rz,
+            body_lin[b, 2] / m + omega[0] * ry - omega[1] * rx)
+
+
+@helper
+def effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
+    """1/m + n . ((I^-1 (r x n)) x r): inverse mass seen by an impulse along n at r."""
+    cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
+    ix, iy, iz = world_tensor_times(rot, inv, cx, cy, cz)
+    tx, ty, tz = iy * rz - iz * ry, iz * rx - ix * rz, ix * ry - iy * rx
+    return inv_mass + nx * tx + ny * ty + nz * tz
+
+
+@helper
+def apply_impulse(b, jx, jy, jz, px, py, pz, bodies):
+    """Impulse (jx, jy, jz) (N s) on body b at world point p (m): momentum and angular
+    momentum about its centre of mass."""
+    body_pos, body_lin, body_ang = bodies.pos, bodies.lin, bodies.ang
+    body_lin[b, 0] += jx
+    body_lin[b, 1] += jy
+    body_lin[b, 2] += jz
+    rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
+    body_ang[b, 0] += ry * jz - rz * jy
+    body_ang[b, 1] += rz * jx - rx * jz
+    body_ang[b, 2] += rx * jy - ry * jx

@@ -6,7 +6,7 @@ overpressure is taken off the limit; below zero the voxel burns. A burning
 voxel loses ``burn_rate`` of its initial yield per second, and so do its
 links: a link worn to zero breaks, a voxel worn to zero falls to ash (dust).
 Heat spreads along alive links: an unburnt neighbour's limit drops by
-``fire_spread`` Pa/s times an orientation factor, 1 for a neighbour straight
+``spread`` Pa/s times an orientation factor, 1 for a neighbour straight
 above and ``side_factor`` for one beside or below (linearly in between), so
 fire climbs a structure faster than it spreads sideways. Ignitions found in a
 step take effect at its end, so fire advances at most one link per step.
@@ -15,6 +15,8 @@ step take effect at its end, so fire advances at most one link per step.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -22,11 +24,27 @@ import numpy as np
 from blastvox.simulate.wave import peak_overpressure
 
 
+class FireParams(NamedTuple):
+    """dt: step, s; burn_rate: fraction of the initial yields burnt away per second;
+    spread: combustibility taken from an upward neighbour per second; side_factor:
+    the share of that sideways and downwards; up (3,)."""
+
+    dt: float
+    burn_rate: float
+    spread: float
+    side_factor: float
+    up: np.ndarray
+
+
 @nb.njit(cache=True)
-def ignite_by_blast(charge_pos, front_in, front_out, scale, voxel_centroid,
-                    voxel_alive, voxel_body, active, body_pos, body_rot, body_com, combust,
-                    burning, table, charge_scale) -> int:
-    """Erode combustibility by the scaled peak of waves crossing voxel centres this step."""
+def ignite_by_blast(front, scale, voxel_centroid, voxels, bodies, active) -> int:
+    """Erode combustibility by ``scale`` x the peak of waves crossing voxel centres this
+    step; returns how many voxels caught fire."""
+    charge_pos, front_in, front_out = front.position, front.inner, front.outer
+    table, charge_scale = front.table, front.scale
+    voxel_alive, voxel_body, combust, burning = (voxels.alive, voxels.body, voxels.combust,
+                                                 voxels.burning)
+    body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
     ignited = 0
     centre = np.empty(3)
     for v in range(voxel_centroid.shape[0]):
@@ -54,11 +72,22 @@ def ignite_by_blast(charge_pos, front_in, front_out, scale, voxel_centroid,
 
 
 @nb.njit(cache=True)
-def burn(dt, burn_rate, fire_spread, side_factor, up, voxel_alive, voxel_body, voxel_yield,
-         initial_voxel_yield, combust, burning, voxel_link_offsets, voxel_link_ids, link_voxels,
-         link_direction, link_alive, link_yield, initial_link_yield, body_rot, broken,
-         destroyed, dirty, ignite_scratch) -> int:
-    """One step of burning and spreading; returns the number of burning voxels."""
+def burn(params, model_voxels, model_links, voxels, links, initial, body_rot, marks,
+         ignite_scratch) -> int:
+    """One step of burning and spreading; returns the number of burning voxels.
+
+    params: :class:`FireParams`; initial: (voxel yields (N,), link yields (L,)) at
+    the start of the run, Pa (burning takes burn_rate of them per second);
+    ignite_scratch (N,) bool work array."""
+    dt, burn_rate, fire_spread = params.dt, params.burn_rate, params.spread
+    side_factor, up = params.side_factor, params.up
+    voxel_alive, voxel_body, voxel_yield = voxels.alive, voxels.body, voxels.yield_pa
+    combust, burning = voxels.combust, voxels.burning
+    initial_voxel_yield, initial_link_yield = initial
+    voxel_link_offsets, voxel_link_ids = model_voxels.link_offsets, model_voxels.link_ids
+    link_voxels, link_direction = model_links.voxels, model_links.direction
+    link_alive, link_yield = links.alive, links.yield_pa
+    broken, destroyed, dirty = marks.broken, marks.destroyed, marks.dirty
     n_burning = 0
     for v in range(voxel_alive.shape[0]):
         ignite_scratch[v] = False
@@ -107,3 +136,54 @@ def burn(dt, burn_rate, fire_spread, side_factor, up, voxel_alive, voxel_body, v
         if ignite_scratch[v]:
             burning[v] = True
     return n_burning
+
+
+@dataclass
+class Fire:
+    """What fire remembers over a run: ignite_frame (N,) int32, the first output frame
+    at which each voxel burns (-1 never); burning, voxels burning now; initial:
+    (voxel yields (N,), link yields (L,)) Pa at the start; scratch (N,) bool."""
+
+    ignite_frame: np.ndarray
+    initial: tuple[np.ndarray, np.ndarray]
+    scratch: np.ndarray
+    burning: int = 0
+
+    @classmethod
+    def start(cls, state) -> Fire:
+        n = len(state.voxels.alive)
+        return cls(np.full(n, -1, dtype=np.int32),
+                   (state.voxels.yield_pa.copy(), state.links.yield_pa.copy()),
+                   np.zeros(n, dtype=bool))
+
+
+def ignite_phase(model, state, fire: Fire, front, settings, frame_next: int) -> None:
+    """Phase: waves crossing combustible voxels this step may set them alight.
+
+    Reads the front and the bodies' poses; writes voxels.combust and burning, and
+    the ignition frames."""
+    burning = state.voxels.burning
+    was = burning.copy()
+    n = ignite_by_blast(front, settings.fire_pressure_scale, model.voxels.centroid,
+                        state.voxels, state.bodies, state.marks.active)
+    if n:
+        fire.ignite_frame[burning & ~was] = frame_next
+        fire.burning += int(n)
+
+
+def burn_phase(model, state, fire: Fire, settings, dt: float, frame_next: int) -> None:
+    """Phase: one step of burning and spreading (see the module docstring).
+
+    Writes voxels (yield, alive, combust, burning), links (yield, alive) and
+    marks (broken, destroyed, dirty; cleared first): a caller then splits."""
+    s, marks = settings, state.marks
+    burning = state.voxels.burning
+    was = burning.copy()
+    marks.broken[:] = False
+    marks.destroyed[:] = False
+    marks.dirty[:state.n_bodies] = False
+    params = FireParams(dt, s.burn_rate, s.fire_spread, s.fire_side_factor, model.up)
+    fire.burning = burn(params, model.voxels, model.links, state.voxels, state.links,
+                        fire.initial, state.bodies.rot, marks, fire.scratch)
+    fire.ignite_frame[burning & ~was] = frame_next
+    state.counters.broken_links += int(marks.broken.sum())

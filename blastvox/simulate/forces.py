@@ -23,6 +23,9 @@ import numba as nb
 import numpy as np
 
 from blastvox.jit import helper
+from blastvox.simulate.boundary import boundary_of
+from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
+from blastvox.simulate.state import Front
 from blastvox.simulate.wave import point_impulse
 
 _FACE_CORNERS = np.array(
@@ -31,26 +34,30 @@ _FACE_CORNERS = np.array(
 
 
 @helper
-def _apply(point, weight_area, vec_area, c, t0, t1, charge_pos, charge_time, charge_scale,
-           table, body_pos_b, out_p, out_l, b):
-    """Add the impulse at one point for one charge to row b of the accumulators, the
-    angular part about ``body_pos_b``."""
+def _apply(point, weight_area, vec_area, c, t0, t1, front, pivot, out_p, out_l, b):
+    """Add the impulse at one point for one charge of ``front`` to row b of the
+    accumulators, the angular part about ``pivot`` (3,) m."""
+    charge_pos = front.position
     rx = point[0] - charge_pos[c, 0]
     ry = point[1] - charge_pos[c, 1]
     rz = point[2] - charge_pos[c, 2]
     r = math.sqrt(rx * rx + ry * ry + rz * rz)
     if r <= 0.0:
         return
-    j = point_impulse(table, r, charge_time[c], charge_scale[c], t0, t1)
-    _push(point[0], point[1], point[2], j, rx / r, ry / r, rz / r, weight_area, vec_area,
-          body_pos_b, out_p, out_l, b)
+    j = point_impulse(front.table, r, front.time[c], front.scale[c], t0, t1)
+    _push((point[0], point[1], point[2]), j, (rx / r, ry / r, rz / r), weight_area, vec_area,
+          pivot, out_p, out_l, b)
 
 
 @helper
-def _push(px, py, pz, j, ux, uy, uz, weight_area, vec_area, body_pos_b, out_p, out_l, b):
-    """Add impulse j (Pa s) along the unit radius (ux, uy, uz) at point (px, py, pz) (m)
-    through a face of vector area ``vec_area`` x ``weight_area`` (its share at this
-    point). Scalars, not a row view: this runs for every exposed corner."""
+def _push(p, j, u, weight_area, vec_area, pivot, out_p, out_l, b):
+    """Add impulse j (Pa s) along the unit radius u = (ux, uy, uz) at point p = (px, py,
+    pz) (m) through a face of vector area ``vec_area`` x ``weight_area`` (its share at
+    this point), the angular part about ``pivot``. Tuples of scalars, not row views:
+    this runs for every exposed corner."""
+    px, py, pz = p
+    ux, uy, uz = u
+    body_pos_b = pivot
     norm = math.sqrt(vec_area[0] ** 2 + vec_area[1] ** 2 + vec_area[2] ** 2)
     if norm <= 0.0:
         return
@@ -87,11 +94,11 @@ def _rotate(rot, vec, out) -> None:
 
 
 @helper
-def _corner(vertex, slot, c, body_rot, body_pos, body_com, b, vertices, charge_pos,
-            corner_point, corner_u) -> bool:
+def _corner(vertex, slot, c, bodies, b, vertices, charge_pos, corner_point, corner_u) -> bool:
     """World position and unit radius of a voxel corner of body b for charge c (False at
     the charge's centre, where there is no direction). Indices, not row views: this
     runs for every exposed corner, and a view costs two reference counts."""
+    body_rot, body_pos, body_com = bodies.rot, bodies.pos, bodies.com
     x = vertices[vertex, 0] - body_com[b, 0]
     y = vertices[vertex, 1] - body_com[b, 1]
     z = vertices[vertex, 2] - body_com[b, 2]
@@ -110,16 +117,13 @@ def _corner(vertex, slot, c, body_rot, body_pos, body_com, b, vertices, charge_p
 
 
 @nb.njit(cache=True)
-def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, reach_in, table,
-                   boundary, vertices, voxel_vertices, voxel_centroid, voxel_body, voxel_alive,
-                   voxel_link_mask, voxel_radius, conform_slot, conform_area, conform_centroid,
-                   active, body_com, body_pos, body_rot, body_fixed, body_live, body_dust,
-                   out_p, out_l, held_p, held_l) -> None:
+def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, active,
+                   loads) -> None:
     """Accumulate the blast impulse (N s) and angular impulse (N m s) of [t0, t1] per body.
 
-    boundary (M,): the voxels with an exposed face (the others take no pressure),
-    each body's in voxel order. reach_out (C,): shock radius at t1 (m); reach_in
-    (C,): radius behind which the
+    Into loads.impulse and loads.angular (B, 3). boundary (M,): the voxels with an
+    exposed face (the others take no pressure), each body's in voxel order.
+    front.outer (C,): shock radius at t1 (m); reach_in (C,): radius behind which the
     whole wave (positive and negative phase) has passed by t0. Points outside
     that shell, and bodies not flagged in ``active`` (B,), are skipped without
     evaluating the blast model.
@@ -132,6 +136,17 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
     broke (without this, small steps lost the part of the wave that arrived
     while the piece was still held, and the momentum did not converge in dt).
     """
+    charge_pos, charge_time, charge_scale, table = (front.position, front.time, front.scale,
+                                                    front.table)
+    reach_out = front.outer
+    vertices, voxel_vertices, voxel_centroid = (geometry.vertices, geometry.corners,
+                                                geometry.centroid)
+    voxel_radius, conform_slot = geometry.radius, geometry.conform_slot
+    conform_area, conform_centroid = geometry.conform_area, geometry.conform_centroid
+    voxel_body, voxel_alive, voxel_link_mask = voxels.body, voxels.alive, voxels.link_mask
+    body_com, body_pos, body_rot = bodies.com, bodies.pos, bodies.rot
+    body_fixed, body_live, body_dust = bodies.fixed, bodies.live, bodies.dust
+    out_p, out_l, held_p, held_l = loads.impulse, loads.angular, loads.held_p, loads.held_l
     n_charges = charge_pos.shape[0]
     point = np.empty(3)
     area = np.empty(3)
@@ -172,8 +187,7 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                         continue
                     _rotate(rot, conform_area[slot, f], area)
                     _to_world(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
-                    _apply(point, 1.0, area, c, t0, t1, charge_pos, charge_time,
-                           charge_scale, table, pivot, acc_p, acc_l, index)
+                    _apply(point, 1.0, area, c, t0, t1, front, pivot, acc_p, acc_l, index)
                 continue
             corner_state[:] = 0
             for f in range(6):
@@ -197,9 +211,8 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                 for k in range(4):
                     q = _FACE_CORNERS[f, k]
                     if corner_state[q] == 0:
-                        placed = _corner(voxel_vertices[v, q], q, c, body_rot, body_pos,
-                                         body_com, b, vertices, charge_pos, corner_point,
-                                         corner_u)
+                        placed = _corner(voxel_vertices[v, q], q, c, bodies, b, vertices,
+                                         charge_pos, corner_point, corner_u)
                         corner_state[q] = 1 if placed else -1
                     if corner_state[q] < 0:
                         continue
@@ -210,5 +223,33 @@ def blast_impulses(t0, t1, charge_pos, charge_time, charge_scale, reach_out, rea
                         corner_j[q] = point_impulse(table, corner_u[q, 3], charge_time[c],
                                                     charge_scale[c], t0, t1)
                         corner_state[q] = 2
-                    _push(corner_point[q, 0], corner_point[q, 1], corner_point[q, 2],
-                          corner_j[q], ux, uy, uz, 0.25, area, pivot, acc_p, acc_l, index)
+                    _push((corner_point[q, 0], corner_point[q, 1], corner_point[q, 2]),
+                          corner_j[q], (ux, uy, uz), 0.25, area, pivot, acc_p, acc_l, index)
+
+
+def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarray) -> None:
+    """Phase: this step's blast impulse on every body the waves still load.
+
+    Reads the bodies' poses and the boundary; writes loads.impulse and
+    loads.angular (zeroed first; (B, 3)), the voxels' held impulses while a wave
+    loads fixed bodies (cleared once every wave has passed), marks.active and
+    wakes pushed sleepers. charges: the run's
+    :class:`~blastvox.simulate.wave.Charges`; front_out (C,): front radii at t1, m.
+    """
+    bodies, loads = state.bodies, state.loads
+    n = state.n_bodies
+    loads.impulse[:n] = 0.0
+    loads.angular[:n] = 0.0
+    reach_in = charges.tail_radius(t0)
+    if not bodies_in_shell(bodies, charges.position, reach_in, front_out, state.marks.active):
+        if state.holding:  # every wave has passed: what held voxels took is spent
+            loads.held_p[:] = 0.0
+            loads.held_l[:] = 0.0
+            state.holding = False
+        return
+    front = Front(charges.position, charges.time, charges.scale, charges.table, reach_in,
+                  front_out)
+    blast_impulses(front, reach_in, t0, t1, boundary_of(model, state)[1], model.voxels,
+                   state.voxels, bodies, state.marks.active, loads)
+    state.holding = True
+    wake_on_impulse(loads, bodies)

@@ -24,12 +24,27 @@ Damage model (Davison & Stevens, Mazarak 1999 §2.2, §3.3): see
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
 from blastvox.jit import helper
+from blastvox.simulate.kernels import release_held
+from blastvox.simulate.shell import mark_in_shell
+from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
+
+
+class FractureParams(NamedTuple):
+    """orientation: k of the orientation factor (0..1); weakening: fraction of a
+    peak that wears a link's or voxel's yield; damage_b, damage_c: the
+    Davison-Stevens B (-) and C (1/(Pa s))."""
+
+    orientation: float
+    weakening: float
+    damage_b: float
+    damage_c: float
 
 
 @helper
@@ -76,17 +91,23 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
 
 
 @nb.njit(cache=True)
-def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orientation,
-                   weakening, link_voxels, link_midpoint, link_direction, link_alive,
-                   link_yield, voxel_body, active, body_pos, body_rot, body_com, candidate,
-                   broken, dirty) -> int:
+def fracture_links(front, params, geometry, links, voxels, bodies, candidate, marks) -> int:
     """Break or weaken links crossed by a front this step; returns the number broken.
 
-    active (B,): bodies a front's shell can touch (others are skipped);
-    candidate (L,): links that can be in a shell (:mod:`blastvox.simulate.shell`),
-    the only ones tested; broken (L,) is set True for links broken now; dirty
-    (B,) for their bodies.
+    geometry: the model's LinkGeometry. marks.active (B,): bodies a front's
+    shell can touch (others are skipped); candidate (L,): links that can be in
+    a shell (:mod:`blastvox.simulate.shell`), the only ones tested;
+    marks.broken (L,) is set True for links broken now, marks.dirty (B,) for
+    their bodies.
     """
+    charge_pos, charge_scale, table = front.position, front.scale, front.table
+    front_in, front_out = front.inner, front.outer
+    orientation, weakening = params.orientation, params.weakening
+    link_voxels, link_midpoint, link_direction = (geometry.voxels, geometry.midpoint,
+                                                  geometry.direction)
+    link_alive, link_yield, voxel_body = links.alive, links.yield_pa, voxels.body
+    body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
+    active, broken, dirty = marks.active, marks.broken, marks.dirty
     count = 0
     n_charges = charge_pos.shape[0]
     for link in range(link_voxels.shape[0]):
@@ -127,18 +148,21 @@ def fracture_links(charge_pos, charge_scale, front_in, front_out, table, orienta
 
 
 @nb.njit(cache=True)
-def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weakening,
-                    voxel_centroid, voxel_alive, voxel_yield, voxel_foundation,
-                    voxel_foundation_yield, voxel_body, active, body_pos, body_rot, body_com,
-                    candidate, destroyed, dirty, crossed) -> int:
+def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, marks) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
     candidate (N,): voxels that can be in a shell, the only ones tested.
 
     Returns the number of foundation voxels that let go (the caller then
-    re-checks which bodies are still fixed). destroyed (N,) marks dusted voxels;
-    crossed (N,) marks every voxel a front crossed this step (for dust cues).
+    re-checks which bodies are still fixed). marks.destroyed (N,) marks dusted
+    voxels; marks.crossed (N,) every voxel a front crossed this step (for dust cues).
     """
+    charge_pos, charge_scale, table = front.position, front.scale, front.table
+    front_in, front_out, weakening = front.inner, front.outer, params.weakening
+    voxel_alive, voxel_yield, voxel_body = voxels.alive, voxels.yield_pa, voxels.body
+    voxel_foundation, voxel_foundation_yield = voxels.foundation, voxels.foundation_pa
+    body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
+    active, destroyed, dirty, crossed = marks.active, marks.destroyed, marks.dirty, marks.crossed
     released = 0
     n_charges = charge_pos.shape[0]
     for v in range(voxel_centroid.shape[0]):
@@ -181,21 +205,8 @@ def fracture_voxels(charge_pos, charge_scale, front_in, front_out, table, weaken
 
 
 @nb.njit(cache=True)
-def kill_links_of(destroyed, voxel_link_offsets, voxel_link_ids, link_alive) -> None:
-    """A dusted voxel's links vanish with it (not counted as breaks)."""
-    for v in range(destroyed.shape[0]):
-        if not destroyed[v]:
-            continue
-        for k in range(voxel_link_offsets[v], voxel_link_offsets[v + 1]):
-            link_alive[voxel_link_ids[k]] = False
-
-
-@nb.njit(cache=True)
-def fracture_damage(charge_pos, charge_scale, front_in, front_out, table,
-                    damage_b, damage_c, orientation, voxel_centroid, voxel_alive, voxel_damage,
-                    voxel_link_offsets, voxel_link_ids, link_voxels, link_direction, link_alive,
-                    link_yield, voxel_body, active, body_pos, body_rot, body_com, broken,
-                    dirty) -> int:
+def fracture_damage(front, params, geometry, link_geometry, links, voxels, bodies,
+                    marks) -> int:
     """Davison-Stevens compound damage accumulation (Mazarak 1999 eqs. 2.2, 3.2).
 
     When a wave reaches a voxel, its damage grows by
@@ -205,6 +216,16 @@ def fracture_damage(charge_pos, charge_scale, front_in, front_out, table,
     the voxel should have lost; the weakest remaining ones (orientation-adjusted
     yield) break. Returns the number of links broken.
     """
+    charge_pos, charge_scale, table = front.position, front.scale, front.table
+    front_in, front_out = front.inner, front.outer
+    damage_b, damage_c, orientation = params.damage_b, params.damage_c, params.orientation
+    voxel_centroid, voxel_link_offsets, voxel_link_ids = (geometry.centroid,
+                                                          geometry.link_offsets, geometry.link_ids)
+    link_direction = link_geometry.direction
+    voxel_alive, voxel_damage, voxel_body = voxels.alive, voxels.damage, voxels.body
+    link_alive, link_yield = links.alive, links.yield_pa
+    body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
+    active, broken, dirty = marks.active, marks.broken, marks.dirty
     count = 0
     centre = np.empty(3)
     for v in range(voxel_centroid.shape[0]):
@@ -255,3 +276,44 @@ def fracture_damage(charge_pos, charge_scale, front_in, front_out, table,
                 dirty[b] = True
                 count += 1
     return count
+
+
+def fracture_phase(model, state, front, settings) -> None:
+    """Phase: links and voxels the fronts cross this step break, dust or weaken.
+
+    Reads the front (a :class:`~blastvox.simulate.state.Front`), the bodies'
+    poses and marks.active; writes links (alive, yield), voxels (alive, yield,
+    foundation, damage), marks (broken, destroyed, crossed, dirty; cleared
+    first) and, when a foundation lets go, bodies.fixed and the held impulses.
+    ``settings``: the run's SimSettings (fracture model and its constants).
+    """
+    marks, s = state.marks, settings
+    marks.broken[:] = False
+    marks.destroyed[:] = False
+    marks.crossed[:] = False
+    marks.dirty[:state.n_bodies] = False
+    params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c)
+    if s.fracture == "damage":
+        n = fracture_damage(front, params, model.voxels, model.links, state.links,
+                            state.voxels, state.bodies, marks)
+    else:
+        n = fracture_links(front, params, model.links, state.links, state.voxels, state.bodies,
+                           _candidates(model, state, model.link_grid, state.scratch.link_owner,
+                                       state.scratch.link_candidate, front), marks)
+    state.counters.broken_links += int(n)
+    released = fracture_voxels(
+        front, params, model.voxels.centroid, state.voxels, state.bodies,
+        _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
+                    state.scratch.voxel_candidate, front), marks)
+    if released:
+        refresh_fixed(state.voxels, state.bodies)
+        if state.holding:
+            release_held(model.voxels, state.voxels, state.bodies, state.loads)
+
+
+def _candidates(model, state, grid, owner, out, front) -> np.ndarray:
+    """Flag the grid's points that a front's shell can reach this step (see shell)."""
+    out[:] = False
+    mark_in_shell(grid, model.grid_cell, owner, state.voxels.body, state.marks.active,
+                  state.bodies, front, out)
+    return out

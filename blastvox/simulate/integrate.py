@@ -57,11 +57,13 @@ def moving(b, body_live, body_fixed, body_dust, body_asleep) -> bool:
 
 @nb.njit(cache=True)
 def integrate_velocities(dt: float, gravity: np.ndarray, linear_drag: float,
-                         angular_drag: float, impulse: np.ndarray, angular_impulse: np.ndarray,
-                         body_mass: np.ndarray, body_lin: np.ndarray, body_ang: np.ndarray,
-                         body_fixed: np.ndarray, body_live: np.ndarray, body_dust: np.ndarray,
-                         body_asleep: np.ndarray, n_bodies: int) -> None:
-    """Momenta after this step's blast impulse (N s, N m s; (B, 3)), gravity (m/s^2) and drag."""
+                         angular_drag: float, loads, bodies) -> None:
+    """Momenta after this step's blast impulse (loads.impulse, loads.angular: N s, N m s;
+    (B, 3)), gravity (3,) m/s^2 and drag (1/s)."""
+    impulse, angular_impulse = loads.impulse, loads.angular
+    body_mass, body_lin, body_ang = bodies.mass, bodies.lin, bodies.ang
+    body_fixed, body_live, body_dust = bodies.fixed, bodies.live, bodies.dust
+    body_asleep, n_bodies = bodies.asleep, bodies.count[0]
     lin_decay = math.exp(-linear_drag * dt)
     ang_decay = math.exp(-angular_drag * dt)
     for b in range(n_bodies):
@@ -74,16 +76,16 @@ def integrate_velocities(dt: float, gravity: np.ndarray, linear_drag: float,
 
 
 @nb.njit(cache=True)
-def integrate_positions(dt: float, body_mass: np.ndarray, body_inv_inertia: np.ndarray,
-                        body_rot: np.ndarray, body_pos: np.ndarray, body_quat: np.ndarray,
-                        body_lin: np.ndarray, body_ang: np.ndarray, body_fixed: np.ndarray,
-                        body_live: np.ndarray, body_dust: np.ndarray, body_asleep: np.ndarray,
-                        n_bodies: int) -> None:
+def integrate_positions(dt: float, bodies) -> None:
     """Move bodies by their current velocities for ``dt`` seconds.
 
-    body_inv_inertia: (B, 3, 3) rest-frame I^-1; body_rot: (B, 3, 3) rotation
-    matrices of the current quaternions.
+    Reads bodies.inv_inertia (B, 3, 3) rest-frame I^-1 and bodies.rot (B, 3, 3),
+    the rotation matrices of the current quaternions; writes pos and quat.
     """
+    body_mass, body_inv_inertia, body_rot = bodies.mass, bodies.inv_inertia, bodies.rot
+    body_pos, body_quat, body_lin, body_ang = bodies.pos, bodies.quat, bodies.lin, bodies.ang
+    body_fixed, body_live, body_dust = bodies.fixed, bodies.live, bodies.dust
+    body_asleep, n_bodies = bodies.asleep, bodies.count[0]
     scratch = np.empty((3, 3))
     for b in range(n_bodies):
         if not moving(b, body_live, body_fixed, body_dust, body_asleep):

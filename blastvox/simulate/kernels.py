@@ -12,16 +12,21 @@ from blastvox.simulate.integrate import angular_velocity, moving
 
 
 @nb.njit(cache=True)
-def body_rotations(body_quat, body_live, n_bodies, out) -> None:
-    """Rotation matrices (B, 3, 3) of the live bodies' quaternions."""
+def body_rotations(bodies) -> None:
+    """Refresh ``bodies.rot`` (B, 3, 3) from the live bodies' quaternions."""
+    body_quat, body_live, n_bodies, out = bodies.quat, bodies.live, bodies.count[0], bodies.rot
     for b in range(n_bodies):
         if body_live[b]:
             matrix_into(body_quat[b], out[b])
 
 
 @nb.njit(cache=True)
-def link_masks(link_voxels, link_face, link_alive, voxel_link_mask) -> None:
-    """Bit f of voxel_link_mask[v] set iff an alive link leaves voxel v across face f."""
+def link_masks(geometry, links, voxels) -> None:
+    """Bit f of voxels.link_mask[v] set iff an alive link leaves voxel v across face f.
+
+    geometry: the model's :class:`~blastvox.simulate.model.LinkGeometry`."""
+    link_voxels, link_face = geometry.voxels, geometry.face
+    link_alive, voxel_link_mask = links.alive, voxels.link_mask
     voxel_link_mask[:] = 0
     for link in range(link_voxels.shape[0]):
         if link_alive[link]:
@@ -43,15 +48,16 @@ def link_alive_counts(offsets, link_ids, link_alive) -> np.ndarray:
 
 
 @nb.njit(cache=True)
-def bodies_in_shell(body_pos, body_radius, body_live, n_bodies, charge_pos, inner, outer,
-                    out) -> bool:
-    """Flag (B,) the live bodies whose bounding sphere meets a charge's shell (inner, outer].
+def bodies_in_shell(bodies, charge_pos, inner, outer, out) -> bool:
+    """Flag in ``out`` (B,) the live bodies whose bounding sphere meets a charge's shell
+    (inner, outer] (C,) m about charge_pos (C, 3).
 
     Returns whether any body does. Kernels then skip every voxel and link of
     unflagged bodies, so a step costs nothing once the waves have passed.
     """
+    body_pos, body_radius, body_live = bodies.pos, bodies.radius, bodies.live
     found = False
-    for b in range(n_bodies):
+    for b in range(bodies.count[0]):
         out[b] = False
         if not body_live[b]:
             continue
@@ -69,9 +75,10 @@ def bodies_in_shell(body_pos, body_radius, body_live, n_bodies, charge_pos, inne
 
 
 @nb.njit(cache=True)
-def body_radii(voxel_body, voxel_alive, voxel_centroid, voxel_radius, body_com, body_radius,
-               n_bodies) -> None:
-    """Radius (m) of a sphere about each body's centre of mass holding all its voxels."""
+def body_radii(geometry, voxels, bodies) -> None:
+    """bodies.radius: a sphere (m) about each body's centre of mass holding all its voxels."""
+    voxel_body, voxel_centroid, voxel_radius = voxels.body, geometry.centroid, geometry.radius
+    body_com, body_radius, n_bodies = bodies.com, bodies.radius, bodies.count[0]
     for b in range(n_bodies):
         body_radius[b] = 0.0
     for v in range(voxel_body.shape[0]):
@@ -84,17 +91,19 @@ def body_radii(voxel_body, voxel_alive, voxel_centroid, voxel_radius, body_com, 
 
 
 @nb.njit(cache=True)
-def any_moving(body_live, body_fixed, body_dust, body_asleep, n_bodies) -> bool:
+def any_moving(bodies) -> bool:
     """Is any body free to move (live, not fixed, not dust, awake)?"""
-    for b in range(n_bodies):
-        if moving(b, body_live, body_fixed, body_dust, body_asleep):
+    for b in range(bodies.count[0]):
+        if moving(b, bodies.live, bodies.fixed, bodies.dust, bodies.asleep):
             return True
     return False
 
 
 @nb.njit(cache=True)
-def wake_on_impulse(impulse, angular, body_asleep, n_bodies) -> None:
-    """A sleeping body that the blast pushes wakes up."""
+def wake_on_impulse(loads, bodies) -> None:
+    """A sleeping body that the blast pushes (loads.impulse, loads.angular) wakes up."""
+    impulse, angular, body_asleep, n_bodies = (loads.impulse, loads.angular, bodies.asleep,
+                                               bodies.count[0])
     for b in range(n_bodies):
         if body_asleep[b] and (impulse[b, 0] != 0.0 or impulse[b, 1] != 0.0
                                or impulse[b, 2] != 0.0 or angular[b, 0] != 0.0
@@ -103,12 +112,15 @@ def wake_on_impulse(impulse, angular, body_asleep, n_bodies) -> None:
 
 
 @nb.njit(cache=True)
-def settle(body_mass, body_inv_inertia, body_rot, body_lin, body_ang, body_radius, body_fixed,
-           body_live, body_dust, body_asleep, body_still, n_bodies, sleep_speed,
-           still_steps) -> None:
+def settle(bodies, sleep_speed, still_steps) -> None:
     """Put to sleep bodies that have stayed slower than ``sleep_speed`` (m/s, at their
     rim) for ``still_steps`` steps in a row: debris resting on other debris or leaning
     on a structure (the ground contact clamps balanced bodies sooner)."""
+    body_mass, body_inv_inertia, body_rot = bodies.mass, bodies.inv_inertia, bodies.rot
+    body_lin, body_ang, body_radius = bodies.lin, bodies.ang, bodies.radius
+    body_fixed = bodies.fixed
+    body_live, body_dust, body_asleep = bodies.live, bodies.dust, bodies.asleep
+    body_still, n_bodies = bodies.still, bodies.count[0]
     for b in range(n_bodies):
         if not body_live[b] or body_fixed[b] or body_dust[b] or body_asleep[b]:
             body_still[b] = 0
@@ -130,8 +142,7 @@ def settle(body_mass, body_inv_inertia, body_rot, body_lin, body_ang, body_radiu
 
 
 @nb.njit(cache=True)
-def damp_resting(resting, body_mass, body_inv_inertia, body_rot, body_lin, body_ang,
-                 body_radius, n_bodies, decay, limit) -> None:
+def damp_resting(contacts, bodies, decay, limit) -> None:
     """Resting-contact damping between fragments (as the ground's, Martins 2001 §5.2).
 
     Bodies flagged in ``resting`` (B,) (a gentle contact this step) that move
@@ -139,6 +150,9 @@ def damp_resting(resting, body_mass, body_inv_inertia, body_rot, body_lin, body_
     1 - ``decay`` of their momenta; the flags are cleared. Only ever removes
     energy, and lets piles settle and sleep instead of jittering.
     """
+    resting, body_mass, body_inv_inertia = contacts.resting, bodies.mass, bodies.inv_inertia
+    body_rot, body_lin, body_ang, body_radius = bodies.rot, bodies.lin, bodies.ang, bodies.radius
+    n_bodies = bodies.count[0]
     for b in range(n_bodies):
         if not resting[b]:
             continue
@@ -177,8 +191,7 @@ def damage_levels(offsets, link_alive_count, voxel_yield, initial_yield, voxel_d
 
 
 @nb.njit(cache=True)
-def release_held(voxel_body, voxel_alive, voxel_centroid, body_fixed, body_live, body_com,
-                 body_pos, body_rot, body_lin, body_ang, held_p, held_l) -> None:
+def release_held(geometry, voxels, bodies, loads) -> None:
     """Give each freed piece the blast impulse its voxels took while they were held.
 
     held_p, held_l (N, 3): impulse (N s) and angular impulse about the voxel
@@ -187,6 +200,10 @@ def release_held(voxel_body, voxel_alive, voxel_centroid, body_fixed, body_live,
     free (split off, or its foundation let go) hands them to that body, about
     its centre of mass, and is cleared.
     """
+    voxel_body, voxel_centroid, held_p, held_l = (voxels.body, geometry.centroid, loads.held_p,
+                                                  loads.held_l)
+    body_fixed, body_live, body_com = bodies.fixed, bodies.live, bodies.com
+    body_rot, body_lin, body_ang = bodies.rot, bodies.lin, bodies.ang
     for v in range(voxel_body.shape[0]):
         if held_p[v, 0] == 0.0 and held_p[v, 1] == 0.0 and held_p[v, 2] == 0.0 \
                 and held_l[v, 0] == 0.0 and held_l[v, 1] == 0.0 and held_l[v, 2] == 0.0:

@@ -39,8 +39,9 @@ import numpy as np
 from blastvox.errors import SimulationLimitWarning
 from blastvox.simulate.integrate import MAX_SPIN_PER_STEP
 from blastvox.simulate.kernels import body_rotations
+from blastvox.simulate.model import SimModel
 from blastvox.simulate.settings import SimSettings
-from blastvox.simulate.state import SimModel, State
+from blastvox.simulate.state import State
 
 #: Voxels a fragment's surface may move per step when fragments collide.
 MOTION_LIMIT_VOXELS = 0.5
@@ -110,7 +111,7 @@ class LimitMonitor:
 
     def __init__(self, sm: SimModel, settings: SimSettings, dt: float) -> None:
         self.dt = dt
-        self.size = voxel_size(sm.voxel_contact_radius)
+        self.size = voxel_size(sm.voxels.contact_radius)
         self.collisions = settings.collisions
         self.motion = 0.0  # worst voxels per step seen
         self.spin = 0.0  # worst rad per step seen
@@ -118,26 +119,27 @@ class LimitMonitor:
 
     def check(self, state: State) -> None:
         """Record the worst motion and spin per step of the moving bodies now."""
-        n = int(state.n_bodies[0])
-        live = state.body_live[:n] & ~state.body_dust[:n]
-        moving = np.flatnonzero(live & ~state.body_fixed[:n] & ~state.body_asleep[:n])
+        n = state.n_bodies
+        live = state.bodies.live[:n] & ~state.bodies.dust[:n]
+        moving = np.flatnonzero(live & ~state.bodies.fixed[:n] & ~state.bodies.asleep[:n])
         if not moving.size:
             return
-        ang = state.body_ang[moving]
-        inv = state.body_inv_inertia[moving]
+        ang = state.bodies.ang[moving]
+        inv = state.bodies.inv_inertia[moving]
         self.spin = max(self.spin, float(spin_per_step(ang, inv, self.dt).max()))
         if not self.collisions or np.count_nonzero(live) < 2 or self.size <= 0.0:
             return
         if len(self._rot) < n:
-            self._rot = np.zeros((len(state.body_quat), 3, 3))
-        body_rotations(state.body_quat, state.body_live, n, self._rot)
+            self._rot = np.zeros((len(state.bodies.quat), 3, 3))
+        # into the monitor's own matrices: the step's (bodies.rot) are its own business
+        body_rotations(state.bodies._replace(rot=self._rot))
         rot = self._rot[moving]
         # omega = R I^-1 R^T L, three small contractions (one 4-operand einsum is slow)
         body_frame = np.einsum("blk,bl->bk", rot, ang)
         omega = np.einsum("bij,bj->bi", rot, np.einsum("bjk,bk->bj", inv, body_frame))
-        speed = np.linalg.norm(state.body_lin[moving], axis=1) / state.body_mass[moving]
+        speed = np.linalg.norm(state.bodies.lin[moving], axis=1) / state.bodies.mass[moving]
         motion = motion_per_step(speed, np.linalg.norm(omega, axis=1),
-                                 state.body_radius[moving], self.dt, self.size)
+                                 state.bodies.radius[moving], self.dt, self.size)
         self.motion = max(self.motion, float(motion.max()))
 
     def messages(self) -> list[str]:

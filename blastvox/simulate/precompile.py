@@ -342,7 +342,7 @@ def reference_runs(tmp: Path) -> list[tuple[str, Callable[[], None]]]:
     import trimesh
 
     from blastvox.scene import load_scene
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, settings_from_scene
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
     from blastvox.voxelize.requests import requests_from_scene

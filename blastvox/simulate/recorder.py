@@ -42,18 +42,19 @@ class Recorder:
     def frame(self, step: int, state: State, link_alive_count: np.ndarray,
               radii: np.ndarray) -> None:
         """Record the live bodies and the damage after ``step``."""
-        n = int(state.n_bodies[0])
-        live = np.flatnonzero(state.body_live[:n])
+        n = state.n_bodies
+        live = np.flatnonzero(state.bodies.live[:n])
         self.frame_steps.append(step)
-        self.frame_bodies.append((live, state.body_pos[live].copy(), state.body_quat[live].copy(),
-                                  state.body_com[live].copy()))
+        bodies = state.bodies
+        self.frame_bodies.append((live, bodies.pos[live].copy(), bodies.quat[live].copy(),
+                                  bodies.com[live].copy()))
         self.shock_radius.append(np.asarray(radii, dtype=np.float64).copy())
         self._damage(len(self.frame_steps) - 1, state, link_alive_count)
 
     def _damage(self, frame: int, state: State, link_alive_count: np.ndarray) -> None:
         level = np.empty(self.n_voxels, dtype=np.uint8)
-        damage_levels(self.voxel_link_offsets, link_alive_count, state.voxel_yield,
-                      self.initial_voxel_yield, state.voxel_damage, state.voxel_alive, level)
+        damage_levels(self.voxel_link_offsets, link_alive_count, state.voxels.yield_pa,
+                      self.initial_voxel_yield, state.voxels.damage, state.voxels.alive, level)
         changed = np.flatnonzero(level != self.damage_last)
         if changed.size:
             self.damage_events.append((np.full(changed.size, frame, np.int32),
@@ -69,33 +70,33 @@ class Recorder:
         """Dust emitters: each destroyed voxel's body (already split off) carries its momentum."""
         if not voxels.size:
             return
-        bodies = state.voxel_body[voxels]
+        bodies = state.voxels.body[voxels]
         self.destroyed_frame[voxels] = frame
-        velocity = state.body_lin[bodies] / state.body_mass[bodies][:, None]
+        velocity = state.bodies.lin[bodies] / state.bodies.mass[bodies][:, None]
         self.dust.append((voxels.astype(np.int32), time, voxel_mass[voxels].copy(),
-                          state.body_pos[bodies].copy(), velocity))
+                          state.bodies.pos[bodies].copy(), velocity))
 
     def pack(self, state: State, voxel_mass: np.ndarray, frame_time: np.ndarray) -> dict:
         """The SimCache arrays (see :mod:`blastvox.cache`)."""
-        n = int(state.n_bodies[0])
-        final = np.flatnonzero(state.body_live[:n])
+        n = state.n_bodies
+        final = np.flatnonzero(state.bodies.live[:n])
         # pieces numbered by their lowest voxel, so ids are stable and meaningful
         first_voxel = np.full(n, np.iinfo(np.int64).max)
-        np.minimum.at(first_voxel, state.voxel_body, np.arange(self.n_voxels))
+        np.minimum.at(first_voxel, state.voxels.body, np.arange(self.n_voxels))
         final = final[np.argsort(first_voxel[final], kind="stable")]
         piece_of_body = np.full(n, -1, dtype=np.int64)
         piece_of_body[final] = np.arange(len(final))
-        voxel_piece = piece_of_body[state.voxel_body].astype(np.int32)
-        pivot = state.body_com[final].copy()
+        voxel_piece = piece_of_body[state.voxels.body].astype(np.int32)
+        pivot = state.bodies.com[final].copy()
         positions, orientations = self._piece_transforms(state, final, pivot, n)
         end = np.full(len(final), len(frame_time), dtype=np.int32)
-        dust_piece = state.body_dust[final]
+        dust_piece = state.bodies.dust[final]
         if dust_piece.any():
-            members = np.flatnonzero(state.body_dust[state.voxel_body])
+            members = np.flatnonzero(state.bodies.dust[state.voxels.body])
             end[voxel_piece[members]] = self.destroyed_frame[members]
         return {
             "frame_time": frame_time, "voxel_piece": voxel_piece, "piece_pivot": pivot,
-            "piece_mass": state.body_mass[final].copy(),
+            "piece_mass": state.bodies.mass[final].copy(),
             "piece_position": positions.astype(np.float32),
             "piece_orientation": orientations.astype(np.float32),
             "piece_end_frame": end, "voxel_destroyed_frame": self.destroyed_frame,
@@ -108,7 +109,7 @@ class Recorder:
         frames = len(self.frame_steps)
         positions = np.zeros((frames, len(final), 3))
         orientations = np.zeros((frames, len(final), 4))
-        born, died, parent = state.body_born[:n], state.body_died[:n], state.body_parent[:n]
+        born, died, parent = state.bodies.born[:n], state.bodies.died[:n], state.bodies.parent[:n]
         slot = np.full(n, -1, dtype=np.int64)
         for f, (step, (ids, pos, quat, com)) in enumerate(zip(self.frame_steps,
                                                               self.frame_bodies, strict=True)):

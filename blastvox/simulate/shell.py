@@ -87,17 +87,19 @@ def _box_distances(x, y, z, lo0, lo1, lo2, size):
 
 
 @nb.njit(cache=True)
-def mark_in_shell(origin, dims, cell, offsets, ids, owner_voxel, voxel_body, active, body_com,
-                  body_pos, body_rot, body_radius, charge_pos, front_in, front_out,
-                  out) -> None:
+def mark_in_shell(grid, cell, owner_voxel, voxel_body, active, bodies, front, out) -> None:
     """Flag in ``out`` (P,) the grid points of active bodies whose cell meets a shell.
 
+    grid: (origin, dims, offsets, ids), a :func:`dense_grid` of cell ``cell`` (m);
     owner_voxel (P,): voxel whose body a point moves with. A point is flagged
     when its cell meets, in the rest frame of its body, both the body's rest
     sphere (centre of mass, radius body_radius) and the shell (front_in,
     front_out] (m) of some charge; front_out <= 0 means not detonated, front_in
     < 0 nothing passed yet. Flags are only ever set: clear ``out`` first.
     """
+    origin, dims, offsets, ids = grid
+    body_com, body_pos, body_rot, body_radius = bodies.com, bodies.pos, bodies.rot, bodies.radius
+    charge_pos, front_in, front_out = front.position, front.inner, front.outer
     n_bodies = body_radius.shape[0]
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)

@@ -1,214 +1,223 @@
-"""The simulator's immutable model and mutable state, as flat arrays.
+"""The simulator's mutable state: everything a step changes, as flat arrays.
 
-Like MuJoCo's mjModel/mjData or Warp's Model/State: :class:`SimModel` is built
-once from a VoxelModel and the scene and never changes during a run;
-:class:`State` holds everything a step changes. Kernels take the arrays they
-need explicitly; no per-voxel Python objects exist anywhere.
+Like MuJoCo's mjData or Warp's State. The arrays are grouped into a few
+NamedTuples that numba kernels take as single arguments (a kernel reads the
+fields it needs; see ``benchmarks/containers.py`` for why NamedTuples rather
+than jitclasses or structrefs). :class:`State` holds the containers and the
+few Python-side values of a run (counters, cached hashes) that no kernel
+reads. Capacities: N voxels, L links, B body slots (2 N + 2: every split adds
+bodies, none is ever reused).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
-import numba as nb
 import numpy as np
 
-from blastvox.model import VoxelModel
-from blastvox.simulate.shell import dense_grid
 
-CONFORM_FACES = 7  # cell faces 0..5 plus the original surface
+class Bodies(NamedTuple):
+    """Rigid bodies, by slot (B,). A body's rest frame is the VoxelModel's frame:
+    ``x_world = pos + rot (x_rest - com)``.
 
-
-@dataclass(frozen=True)
-class SimModel:
-    """Static data of a run (SI units; model frame = the VoxelModel's frame).
-
-    vertices (V, 3), voxel_vertices (N, 8): voxel corners at rest.
-    voxel_mass (N,), voxel_centroid (N, 3), voxel_inertia (N, 3, 3): rest mass properties.
-    link_voxels (L, 2), link_face (L,), link_midpoint (L, 3), link_direction (L, 3).
-    voxel_link_offsets (N+1,), voxel_link_ids (2L,): links of each voxel (CSR).
-    conform_slot (N,): row in the conform tables or -1; conform_face_area (C, 7, 3)
-    vector areas (m^2, outward) and conform_face_centroid (C, 7, 3) of each face.
-    voxel_restitution (N,): from the material; voxel_radius (N,): farthest corner
-    from the centroid, m; voxel_contact_radius (N,): collision sphere,
-    (volume)^(1/3) / 2, m. up (3,): unit up vector (axis index up_axis);
-    ground_height: m along up, or None for no ground.
-    link_grid, voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of the link
-    midpoints and voxel centroids at rest, cells of grid_cell m (about four voxels).
+    mass (B,) kg; com (B, 3) rest centre of mass, m; inertia, inv_inertia
+    (B, 3, 3) rest-frame tensor about com (kg m^2) and its inverse; radius (B,)
+    m, a sphere about com holding every voxel; pos (B, 3) world position of
+    com, m; quat (B, 4) orientation (w, x, y, z); rot (B, 3, 3) its matrix,
+    refreshed by :func:`blastvox.simulate.kernels.body_rotations`; lin (B, 3)
+    linear momentum, N s; ang (B, 3) world angular momentum about com, N m s;
+    fixed (has a live foundation voxel), live (exists now), dust (a destroyed
+    voxel), asleep (B,) bool; parent (B,) the body it split from or -1;
+    born, died (B,) step numbers (died = -1 while live); still (B,) steps in a
+    row below the sleep speed; count (1,) slots in use.
     """
 
-    vertices: np.ndarray
-    voxel_vertices: np.ndarray
-    voxel_mass: np.ndarray
-    voxel_centroid: np.ndarray
-    voxel_inertia: np.ndarray
-    link_voxels: np.ndarray
-    link_face: np.ndarray
-    link_midpoint: np.ndarray
-    link_direction: np.ndarray
-    voxel_link_offsets: np.ndarray
-    voxel_link_ids: np.ndarray
-    conform_slot: np.ndarray
-    conform_face_area: np.ndarray
-    conform_face_centroid: np.ndarray
-    voxel_material: np.ndarray
-    voxel_object: np.ndarray
-    voxel_restitution: np.ndarray
-    voxel_radius: np.ndarray
-    voxel_contact_radius: np.ndarray
-    up: np.ndarray
-    up_axis: int
-    ground_height: float | None
-    grid_cell: float
-    link_grid: tuple
-    voxel_grid: tuple
+    mass: np.ndarray
+    com: np.ndarray
+    inertia: np.ndarray
+    inv_inertia: np.ndarray
+    radius: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray
+    rot: np.ndarray
+    lin: np.ndarray
+    ang: np.ndarray
+    fixed: np.ndarray
+    live: np.ndarray
+    dust: np.ndarray
+    asleep: np.ndarray
+    parent: np.ndarray
+    born: np.ndarray
+    died: np.ndarray
+    still: np.ndarray
+    count: np.ndarray
 
-    @property
-    def n_voxels(self) -> int:
-        return len(self.voxel_mass)
 
-    @property
-    def n_links(self) -> int:
-        return len(self.link_voxels)
+class Voxels(NamedTuple):
+    """Per-voxel state (N,).
+
+    body: body slot; alive; link_mask (uint8): bit f set iff an alive link
+    leaves across face f; yield_pa: current voxel yield, Pa; foundation and
+    foundation_pa: foundation flag and its remaining yield, Pa; damage:
+    Davison-Stevens damage (links' worth, 0..6); combust: combustibility left
+    (inf = cannot burn); burning.
+    """
+
+    body: np.ndarray
+    alive: np.ndarray
+    link_mask: np.ndarray
+    yield_pa: np.ndarray
+    foundation: np.ndarray
+    foundation_pa: np.ndarray
+    damage: np.ndarray
+    combust: np.ndarray
+    burning: np.ndarray
+
+
+class Links(NamedTuple):
+    """Per-link state (L,): alive; yield_pa, current yield limit, Pa."""
+
+    alive: np.ndarray
+    yield_pa: np.ndarray
+
+
+class Marks(NamedTuple):
+    """What the current phase changed, for the phases after it (cleared by whoever
+    starts a new round): broken (L,) links broken; destroyed (N,) voxels dusted;
+    crossed (N,) voxels a front crossed; dirty (B,) bodies to search for a
+    split; active (B,) bodies a front's shell can touch this step."""
+
+    broken: np.ndarray
+    destroyed: np.ndarray
+    crossed: np.ndarray
+    dirty: np.ndarray
+    active: np.ndarray
+
+
+class Loads(NamedTuple):
+    """Blast loads. impulse (B, 3) N s and angular (B, 3) N m s about the centre of
+    mass: this step's, per body. held_p (N, 3) N s and held_l (N, 3) N m s about
+    the voxel centroid: what voxels of fixed bodies took during the current
+    wave, handed to their piece if it breaks free (see
+    :func:`blastvox.simulate.kernels.release_held`)."""
+
+    impulse: np.ndarray
+    angular: np.ndarray
+    held_p: np.ndarray
+    held_l: np.ndarray
+
+
+class Contacts(NamedTuple):
+    """Contact scratch and flags. resting (B,): a gentle contact this step;
+    supported, supported_next (B,): resting on the ground or on something at
+    rest, last step and this one; hits (H, 4): this step's contact points (m)
+    and approach speeds (m/s), for dust; points (K, 3): ground contact points
+    of one body (grows with the largest body); vertex_stamp (V,): body that
+    last listed a corner (-1 none)."""
+
+    resting: np.ndarray
+    supported: np.ndarray
+    supported_next: np.ndarray
+    hits: np.ndarray
+    points: np.ndarray
+    vertex_stamp: np.ndarray
+
+
+class Front(NamedTuple):
+    """The C charges' shock fronts over one step: position (C, 3) m, time (C,)
+    detonation s, scale (C,) W^(1/3) in kg^(1/3), table: the reference blast
+    table (:func:`blastvox.simulate.wave.reference_table`); inner (C,) radius at
+    the step's start (-1: nothing passed yet), outer (C,) radius at its end
+    (<= 0: not detonated), m."""
+
+    position: np.ndarray
+    time: np.ndarray
+    scale: np.ndarray
+    table: np.ndarray
+    inner: np.ndarray
+    outer: np.ndarray
+
+
+@dataclass
+class Caches:
+    """Derived lookups, rebuilt only when what they derive from changes.
+
+    boundary: (offsets (B+1,), voxels) each body's alive boundary voxels, or
+    None after a topology change; version counts rebuilds. rest: the rest-grid
+    hash of the boundary (version rest_version). static: the hash of resting
+    bodies' voxels, for ``static_key``."""
+
+    boundary: tuple | None = None
+    version: int = 0
+    rest: tuple | None = None
+    rest_version: int = -1
+    static: tuple | None = None
+    static_key: tuple | None = None
+
+
+@dataclass
+class Counters:
+    """Run totals stored in the SimCache meta, and change counters."""
+
+    broken_links: int = 0
+    ground_contacts: int = 0
+    collisions: int = 0
+    topology_version: int = 0  # counts topology changes (the only place links die)
+
+
+@dataclass
+class Scratch:
+    """Work arrays of the phases, allocated once. component, order (N,) int64: for
+    splits; link_owner (L,), voxel_owner (N,): the voxel each fracture candidate
+    moves with; link_candidate (L,), voxel_candidate (N,): fracture candidates."""
+
+    component: np.ndarray
+    order: np.ndarray
+    link_owner: np.ndarray
+    voxel_owner: np.ndarray
+    link_candidate: np.ndarray
+    voxel_candidate: np.ndarray
+
+    @classmethod
+    def for_model(cls, model) -> Scratch:
+        n, n_links = model.n_voxels, model.n_links
+        return cls(component=np.zeros(n, dtype=np.int64), order=np.zeros(n, dtype=np.int64),
+                   link_owner=np.ascontiguousarray(model.links.voxels[:, 0]),
+                   voxel_owner=np.arange(n, dtype=np.int64),
+                   link_candidate=np.zeros(n_links, dtype=bool),
+                   voxel_candidate=np.zeros(n, dtype=bool))
 
 
 @dataclass
 class State:
-    """Everything a step changes.
+    """Everything a run changes (see the module docstring)."""
 
-    Voxels: body (N,) body slot; alive (N,); link_mask (N,) bit f = alive link
-    across face f; yield_pa (N,) current voxel yield; foundation (N,) and
-    foundation_pa (N,); damage (N,) Davison-Stevens damage (links' worth).
-    Links: alive (L,), yield_pa (L,).
-    Bodies (capacity B): see :mod:`blastvox.simulate.bodies`; plus fixed (has a
-    foundation), live (exists now), dust (destroyed voxel), parent, born/died
-    (step numbers; died = -1 while alive).
-    """
+    bodies: Bodies
+    voxels: Voxels
+    links: Links
+    marks: Marks
+    loads: Loads
+    contacts: Contacts
+    scratch: Scratch
+    caches: Caches = field(default_factory=Caches)
+    counters: Counters = field(default_factory=Counters)
+    holding: bool = False  # do voxels hold blast impulse (Loads.held_*) now?
 
-    voxel_body: np.ndarray
-    voxel_alive: np.ndarray
-    voxel_link_mask: np.ndarray
-    voxel_yield: np.ndarray
-    voxel_foundation: np.ndarray
-    voxel_foundation_yield: np.ndarray
-    voxel_damage: np.ndarray
-    voxel_combust: np.ndarray
-    voxel_burning: np.ndarray
-    link_alive: np.ndarray
-    link_yield: np.ndarray
-    body_mass: np.ndarray
-    body_com: np.ndarray
-    body_inertia: np.ndarray
-    body_inv_inertia: np.ndarray
-    body_radius: np.ndarray
-    body_pos: np.ndarray
-    body_quat: np.ndarray
-    body_lin: np.ndarray
-    body_ang: np.ndarray
-    body_fixed: np.ndarray
-    body_live: np.ndarray
-    body_dust: np.ndarray
-    body_asleep: np.ndarray
-    body_parent: np.ndarray
-    body_born: np.ndarray
-    body_died: np.ndarray
-    n_bodies: np.ndarray  # (1,) int64, slots used
+    @property
+    def n_bodies(self) -> int:
+        return int(self.bodies.count[0])
 
 
-def build_model(model: VoxelModel) -> SimModel:
-    """Derive the static simulation arrays from a VoxelModel."""
-    a = model.arrays
-    n = model.voxel_count
-    links = np.ascontiguousarray(a["link_voxels"], dtype=np.int64)
-    offsets, link_ids = link_csr(links, n)
-    slot = np.full(n, -1, dtype=np.int64)
-    conform = a["conform_voxels"].astype(np.int64)
-    slot[conform] = np.arange(len(conform))
-    area, centroid = _conform_faces(a["conform_triangles"], a["conform_tag"],
-                                    a["conform_offsets"])
-    up = np.zeros(3)
-    up[model.up_index] = 1.0
-    vertices = np.ascontiguousarray(a["vertices"], dtype=np.float64)
-    voxel_vertices = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int64)
-    voxel_centroid = np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64)
-    ground = model.meta.get("ground_height")
-    contact_radius = 0.5 * np.cbrt(np.maximum(a["voxel_volume"], 0.0))
-    grid_cell = 8.0 * float(np.median(contact_radius)) if n else 1.0
-    grid_cell = grid_cell if grid_cell > 0.0 else 1.0
-    link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)
-    return SimModel(
-        vertices=vertices,
-        voxel_vertices=voxel_vertices,
-        voxel_mass=a["voxel_mass"].astype(np.float64),
-        voxel_centroid=voxel_centroid,
-        voxel_inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
-        link_voxels=links, link_face=a["link_face"].astype(np.int64),
-        link_midpoint=link_midpoint,
-        link_direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64),
-        voxel_link_offsets=offsets, voxel_link_ids=link_ids,
-        conform_slot=slot, conform_face_area=area, conform_face_centroid=centroid,
-        voxel_material=a["voxel_material"].astype(np.int64),
-        voxel_object=a["voxel_object"].astype(np.int64),
-        voxel_restitution=a["material_restitution"][a["voxel_material"]].astype(np.float64),
-        voxel_radius=corner_radius(vertices, voxel_vertices, voxel_centroid),
-        voxel_contact_radius=contact_radius,
-        up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
-        grid_cell=grid_cell, link_grid=dense_grid(link_midpoint.reshape(-1, 3), grid_cell),
-        voxel_grid=dense_grid(voxel_centroid, grid_cell))
-
-
-@nb.njit(cache=True)
-def link_csr(link_voxels, n_voxels):
-    """Links of each voxel as CSR: offsets (N+1,) and link ids (2L,).
-
-    A voxel lists the links it is the first end of, then those it is the
-    second end of, each in link order (a counting sort, O(N + L)).
-    """
-    offsets = np.zeros(n_voxels + 1, dtype=np.int64)
-    for link in range(link_voxels.shape[0]):
-        offsets[link_voxels[link, 0] + 1] += 1
-        offsets[link_voxels[link, 1] + 1] += 1
-    for v in range(n_voxels):
-        offsets[v + 1] += offsets[v]
-    fill = offsets[:-1].copy()
-    ids = np.empty(2 * link_voxels.shape[0], dtype=np.int64)
-    for side in range(2):
-        for link in range(link_voxels.shape[0]):
-            v = link_voxels[link, side]
-            ids[fill[v]] = link
-            fill[v] += 1
-    return offsets, ids
-
-
-@nb.njit(cache=True)
-def corner_radius(vertices, voxel_vertices, voxel_centroid):
-    """Distance (N,) m from each voxel's centroid to its farthest corner."""
-    out = np.empty(voxel_vertices.shape[0])
-    for v in range(voxel_vertices.shape[0]):
-        best = 0.0
-        for c in range(8):
-            q = voxel_vertices[v, c]
-            d = ((vertices[q, 0] - voxel_centroid[v, 0]) ** 2
-                 + (vertices[q, 1] - voxel_centroid[v, 1]) ** 2
-                 + (vertices[q, 2] - voxel_centroid[v, 2]) ** 2)
-            best = max(best, d)
-        out[v] = np.sqrt(best)
-    return out
-
-
-def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray):
-    """Per conform voxel and face (0..5 cell faces, 6 surface): vector area and centroid."""
-    c = len(offsets) - 1
-    area = np.zeros((c, CONFORM_FACES, 3))
-    moment = np.zeros((c, CONFORM_FACES, 3))
-    weight = np.zeros((c, CONFORM_FACES))
-    if c == 0:
-        return area, moment
-    owner = np.repeat(np.arange(c), np.diff(offsets))
-    vec = 0.5 * np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    mag = np.linalg.norm(vec, axis=1)
-    np.add.at(area, (owner, tags.astype(np.int64)), vec)
-    np.add.at(moment, (owner, tags.astype(np.int64)), mag[:, None] * triangles.mean(axis=1))
-    np.add.at(weight, (owner, tags.astype(np.int64)), mag)
-    centroid = moment / np.where(weight > 0, weight, 1.0)[..., None]
-    return area, centroid
+def empty_bodies(capacity: int) -> Bodies:
+    """``capacity`` unused body slots."""
+    return Bodies(
+        mass=np.zeros(capacity), com=np.zeros((capacity, 3)),
+        inertia=np.zeros((capacity, 3, 3)), inv_inertia=np.zeros((capacity, 3, 3)),
+        radius=np.zeros(capacity), pos=np.zeros((capacity, 3)), quat=np.zeros((capacity, 4)),
+        rot=np.zeros((capacity, 3, 3)), lin=np.zeros((capacity, 3)),
+        ang=np.zeros((capacity, 3)), fixed=np.zeros(capacity, dtype=bool),
+        live=np.zeros(capacity, dtype=bool), dust=np.zeros(capacity, dtype=bool),
+        asleep=np.zeros(capacity, dtype=bool), parent=np.full(capacity, -1, dtype=np.int64),
+        born=np.zeros(capacity, dtype=np.int64), died=np.full(capacity, -1, dtype=np.int64),
+        still=np.zeros(capacity, dtype=np.int64), count=np.zeros(1, dtype=np.int64))

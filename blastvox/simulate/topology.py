@@ -18,6 +18,7 @@ from blastvox.geometry.quaternion import matrix_into
 from blastvox.jit import helper
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.integrate import angular_velocity, world_tensor_times
+from blastvox.simulate.kernels import body_radii, body_rotations, link_masks, release_held
 
 
 @helper
@@ -90,13 +91,22 @@ def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.n
 
 
 @nb.njit(cache=True)
-def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_alive,
-                 link_voxels, offsets, link_ids, voxel_mass, voxel_centroid, voxel_inertia,
-                 body_mass, body_com, body_inertia, body_inv_inertia, body_pos, body_quat,
-                 body_lin, body_ang,
-                 body_fixed, body_live, body_dust, body_parent, body_born, body_died,
-                 n_bodies, component, order) -> int:
-    """Split every dirty body that fell apart. Returns the number of new bodies."""
+def split_bodies(dirty, step, geometry, link_geometry, voxels, links, bodies, component,
+                 order) -> int:
+    """Split every body flagged in ``dirty`` (B,) that fell apart, at step ``step``.
+
+    New bodies take the next free slots (bodies.count grows); the parents are
+    retired (live False, died = step). component, order (N,) int64: work arrays.
+    Returns the number of new bodies."""
+    voxel_body, voxel_alive, voxel_foundation = voxels.body, voxels.alive, voxels.foundation
+    link_alive, link_voxels = links.alive, link_geometry.voxels
+    offsets, link_ids = geometry.link_offsets, geometry.link_ids
+    voxel_mass, voxel_centroid, voxel_inertia = geometry.mass, geometry.centroid, geometry.inertia
+    body_mass, body_com, body_inertia = bodies.mass, bodies.com, bodies.inertia
+    body_inv_inertia, body_pos, body_quat = bodies.inv_inertia, bodies.pos, bodies.quat
+    body_lin, body_ang, body_fixed, body_live = bodies.lin, bodies.ang, bodies.fixed, bodies.live
+    body_dust, body_parent, body_born = bodies.dust, bodies.parent, bodies.born
+    body_died, n_bodies = bodies.died, bodies.count
     ncomp, start = label_components(dirty, voxel_body, link_alive, link_voxels, offsets,
                                     link_ids, component, order)
     if ncomp == 0:
@@ -172,9 +182,10 @@ def split_bodies(dirty, step, voxel_body, voxel_alive, voxel_foundation, link_al
 
 
 @nb.njit(cache=True)
-def refresh_fixed(voxel_body, voxel_alive, voxel_foundation, body_fixed, body_live,
-                  body_lin, body_ang) -> None:
+def refresh_fixed(voxels, bodies) -> None:
     """A body is fixed while it has a live foundation voxel; a freed body starts at rest."""
+    voxel_body, voxel_alive, voxel_foundation = voxels.body, voxels.alive, voxels.foundation
+    body_fixed, body_live, body_lin, body_ang = bodies.fixed, bodies.live, bodies.lin, bodies.ang
     has = np.zeros(body_fixed.shape[0], dtype=np.bool_)
     for v in range(voxel_body.shape[0]):
         if voxel_alive[v] and voxel_foundation[v]:
@@ -184,3 +195,47 @@ def refresh_fixed(voxel_body, voxel_alive, voxel_foundation, body_fixed, body_li
             body_fixed[b] = False
             body_lin[b] = 0.0
             body_ang[b] = 0.0
+
+
+def split_phase(model, state, step: int) -> tuple[np.ndarray, np.ndarray]:
+    """Phase: apply the links broken and voxels destroyed (marks) since the last split.
+
+    Links of destroyed voxels die with them; link masks are rebuilt; dirty
+    bodies that fell apart are split (:func:`split_bodies`, new bodies awake,
+    poses and radii refreshed); freed pieces take their held blast impulse.
+    Returns (broken links, destroyed voxels), the ids applied, and clears
+    marks.broken, marks.destroyed and the boundary cache. Both empty: nothing
+    to do, nothing changed.
+    """
+    marks = state.marks
+    destroyed = np.flatnonzero(marks.destroyed)
+    broken = np.flatnonzero(marks.broken)
+    if not destroyed.size and not broken.size:
+        return broken, destroyed
+    state.counters.topology_version += 1
+    if destroyed.size:
+        kill_links_of(marks.destroyed, model.voxels.link_offsets, model.voxels.link_ids,
+                      state.links.alive)
+    link_masks(model.links, state.links, state.voxels)
+    split_bodies(marks.dirty, step, model.voxels, model.links, state.voxels, state.links,
+                 state.bodies, state.scratch.component, state.scratch.order)
+    n = state.n_bodies
+    state.bodies.asleep[:n][marks.dirty[:n]] = False
+    body_rotations(state.bodies)
+    if state.holding:
+        release_held(model.voxels, state.voxels, state.bodies, state.loads)
+    body_radii(model.voxels, state.voxels, state.bodies)
+    state.caches.boundary = None
+    marks.broken[:] = False
+    marks.destroyed[:] = False
+    return broken, destroyed
+
+
+@nb.njit(cache=True)
+def kill_links_of(destroyed, voxel_link_offsets, voxel_link_ids, link_alive) -> None:
+    """A dusted voxel's links vanish with it (not counted as breaks)."""
+    for v in range(destroyed.shape[0]):
+        if not destroyed[v]:
+            continue
+        for k in range(voxel_link_offsets[v], voxel_link_offsets[v + 1]):
+            link_alive[voxel_link_ids[k]] = False

@@ -1,116 +1,36 @@
 """The blast waves of a scene's charges, in the form the step kernels use.
 
-:mod:`blastvox.blast.model` defines the physics (Kingery-Bulmash reference
-data, Hopkinson-Cranz scaling, the bounded modified Friedlander profile and its
-exact step integral). Here it is tabulated once per run on a fine logarithmic
-grid of scaled distance (Ps, ta, Td, b for 1 kg TNT; linear interpolation in
-log Z, relative error ~1e-6), so a kernel evaluates a point in a few
-nanoseconds instead of re-solving the decay coefficient. Outside the fitted
-range the table continues with the blast module's own rules (constant near
-the charge with ta linear in Z; 1/R decay and sound speed beyond Z_MAX).
+The physics is :mod:`blastvox.blast` (Kingery-Bulmash reference data,
+Hopkinson-Cranz scaling, the bounded modified Friedlander profile and its exact
+step integral), tabulated once per process for the kernels by
+:mod:`blastvox.blast.table`, whose point functions are re-exported here.
 
-Also here: the shock-front radius at a time (inverse of the arrival time) and
-the radius behind which a wave has completely passed, which bound the shell
-of points a step must look at.
+Here: the charges of a run, the shock-front radius at a time (inverse of the
+arrival time) and the radius behind which a wave has completely passed, which
+bound the shell of points a step must look at.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 
-import numba as nb
 import numpy as np
 
-from blastvox.blast import model as blast
-from blastvox.blast.model import C0_M_S, Z_MAX, Z_MIN, impulse_nb
-from blastvox.jit import helper
+from blastvox.blast import (
+    C0_M_S,
+    exceedance_integral,
+    negative_phase,
+    params_at,
+    peak_overpressure,
+    point_impulse,
+    reference_grid,
+    reference_table,
+    tnt_equivalent,
+)
 
-_GRID = 4096
-_LOG_LO = math.log10(Z_MIN)
-_LOG_HI = math.log10(Z_MAX)
-_STEP = (_LOG_HI - _LOG_LO) / (_GRID - 1)
-
-
-@functools.lru_cache(maxsize=1)
-def reference_table() -> np.ndarray:
-    """(GRID, 4) columns Ps (Pa), ta (s), Td (s), b for 1 kg TNT on the log-Z grid (read-only)."""
-    z = 10.0 ** np.linspace(_LOG_LO, _LOG_HI, _GRID)
-    z[0], z[-1] = Z_MIN, Z_MAX
-    ps, ta, td, imp = blast.reference_parameters(z)
-    b = blast.decay_coefficient(ps, td, imp)
-    table = np.ascontiguousarray(np.stack([ps, ta, td, b], axis=1), dtype=np.float64)
-    table.flags.writeable = False
-    return table
-
-
-@helper
-def params_at(table: np.ndarray, r: float, scale: float):
-    """(Ps Pa, ta s, Td s, b) at distance r (m) from a charge of scale W^(1/3) (kg^(1/3))."""
-    z = r / scale
-    if z <= Z_MIN:
-        frac = z / Z_MIN
-        return table[0, 0], table[0, 1] * frac * scale, table[0, 2] * scale, table[0, 3]
-    if z >= Z_MAX:
-        last = table.shape[0] - 1
-        ta = table[last, 1] + (z - Z_MAX) / C0_M_S
-        return table[last, 0] * Z_MAX / z, ta * scale, table[last, 2] * scale, table[last, 3]
-    x = (math.log10(z) - _LOG_LO) / _STEP
-    i = min(int(x), table.shape[0] - 2)
-    w = x - i
-    ps = table[i, 0] * (1.0 - w) + table[i + 1, 0] * w
-    ta = table[i, 1] * (1.0 - w) + table[i + 1, 1] * w
-    td = table[i, 2] * (1.0 - w) + table[i + 1, 2] * w
-    b = table[i, 3] * (1.0 - w) + table[i + 1, 3] * w
-    return ps, ta * scale, td * scale, b
-
-
-@nb.njit(cache=True)
-def peak_overpressure(table: np.ndarray, r: float, scale: float) -> float:
-    """Peak incident overpressure (Pa) at r (m)."""
-    return params_at(table, r, scale)[0]
-
-
-@helper
-def point_impulse(table: np.ndarray, r: float, t_detonation: float, scale: float,
-                  t0: float, t1: float) -> float:
-    """Exact integral of p - p0 (Pa s) over [t0, t1] at a fixed point r (m) from the charge."""
-    ps, ta, td, b = params_at(table, r, scale)
-    return impulse_nb(t0 - t_detonation, t1 - t_detonation, ta, td, ps, b)
-
-
-@helper
-def exceedance_integral(table: np.ndarray, r: float, scale: float, threshold: float) -> float:
-    """Integral over the positive phase of max(p - p0 - threshold, 0) dt, Pa s.
-
-    The positive phase is decreasing, so the overpressure exceeds ``threshold``
-    on [0, tau*] with Ps (1 - tau*) e^(-b tau*) = threshold (Newton from the
-    left, monotone). Closed form: Td [Ps F(tau*) - threshold tau*] with
-    F(tau) = integral_0^tau (1 - s) e^(-b s) ds.
-    """
-    ps, _, td, b = params_at(table, r, scale)
-    if threshold >= ps:
-        return 0.0
-    if threshold <= 0.0:
-        tau = 1.0
-    else:
-        k = threshold / ps
-        tau = 0.0
-        for _ in range(60):
-            f = (1.0 - tau) * math.exp(-b * tau) - k
-            df = -math.exp(-b * tau) * (1.0 + b * (1.0 - tau))
-            step = f / df
-            tau -= step
-            if abs(step) < 1e-14:
-                break
-        tau = min(max(tau, 0.0), 1.0)
-    e = math.exp(-b * tau)
-    if b * tau < 1e-6:
-        integral = tau - 0.5 * tau * tau * (1.0 + b) + b * tau ** 3 / 3.0
-    else:
-        integral = (1.0 - e) / b - (1.0 - e * (1.0 + b * tau)) / (b * b)
-    return td * (ps * integral - threshold * tau)
+__all__ = ["Charges", "build_charges", "exceedance_integral", "params_at", "peak_overpressure",
+           "point_impulse", "reference_table"]
 
 
 @dataclass(frozen=True)
@@ -181,14 +101,12 @@ def _invert(tau: float, z: np.ndarray, times: np.ndarray, leading: bool) -> floa
 def build_charges(specs) -> Charges:
     """Tabulate the blast of each :class:`~blastvox.simulate.settings.ChargeSpec`."""
     table = reference_table()
-    z = 10.0 ** np.linspace(_LOG_LO, _LOG_HI, _GRID)
-    z[0], z[-1] = Z_MIN, Z_MAX
-    sigma, tau_end = blast.negative_phase(table[:, 0], table[:, 3])
-    del sigma
+    z = reference_grid()
+    _, tau_end = negative_phase(table[:, 0], table[:, 3])
     arrive = np.maximum.accumulate(table[:, 1])
     leave = np.maximum.accumulate(table[:, 1] + table[:, 2] * tau_end)
     position = np.array([s.position for s in specs], dtype=np.float64).reshape(-1, 3)
-    tnt = np.array([s.mass_kg * blast.tnt_equivalent(s.explosive) for s in specs],
+    tnt = np.array([s.mass_kg * tnt_equivalent(s.explosive) for s in specs],
                    dtype=np.float64)
     return Charges(position=position, tnt_kg=tnt,
                    time=np.array([s.time_s for s in specs], dtype=np.float64),

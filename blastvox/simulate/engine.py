@@ -1,0 +1,321 @@
+"""``simulate(model, settings) -> SimCache``: the fixed-step loop over typed state.
+
+A run is an immutable :class:`~blastvox.simulate.model.SimModel`, a mutable
+:class:`~blastvox.simulate.state.State`, and :func:`step`, a short sequence of
+public phases, each in its own module with a docstring saying what it reads
+and writes:
+
+1. blast front: each charge's shock-front radius at the step's start and end
+   (:mod:`~blastvox.simulate.wave`), and which bodies it can reach;
+2. fracture: links, voxels and foundations the fronts crossed
+   (:func:`~blastvox.simulate.fracture.fracture_phase`), ignition
+   (:func:`~blastvox.simulate.fire.ignite_phase`);
+3. split: bodies that lost links or voxels are searched again and split
+   (:func:`~blastvox.simulate.topology.split_phase`);
+4. fire: burning and spreading (:func:`~blastvox.simulate.fire.burn_phase`);
+5. forces: the exact blast impulse of the step on exposed faces
+   (:func:`~blastvox.simulate.forces.blast_phase`);
+6. integrate velocities: blast impulse, gravity, drag;
+7. collide: fragments (:func:`~blastvox.simulate.collide.collide_phase`), then the
+   ground (:func:`~blastvox.simulate.ground.ground_phase`), at velocity level;
+   sleeping;
+8. integrate positions and orientations;
+9. record: at every frame boundary, live body transforms and damage
+   (:class:`~blastvox.simulate.recorder.Recorder`); particle cues
+   (:class:`~blastvox.simulate.effects.Effects`) along the way.
+
+Every kernel runs serially in a fixed order, so results are bit-identical for
+any NUMBA_NUM_THREADS.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from blastvox import __version__
+from blastvox.cache import SimCache
+from blastvox.model import VoxelModel
+from blastvox.particles import particle_meta
+from blastvox.simulate import cues
+from blastvox.simulate.bodies import aggregate, inverse_inertia
+from blastvox.simulate.collide import begin_contacts, collide_phase
+from blastvox.simulate.effects import Effects
+from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
+from blastvox.simulate.forces import blast_phase
+from blastvox.simulate.fracture import fracture_phase
+from blastvox.simulate.ground import ground_phase
+from blastvox.simulate.integrate import integrate_positions, integrate_velocities
+from blastvox.simulate.kernels import (
+    any_moving,
+    bodies_in_shell,
+    body_radii,
+    body_rotations,
+    link_alive_counts,
+    link_masks,
+    settle,
+)
+from blastvox.simulate.limits import LimitMonitor
+from blastvox.simulate.model import SimModel, build_model
+from blastvox.simulate.recorder import Recorder
+from blastvox.simulate.settings import SimSettings, gravity_vector
+from blastvox.simulate.state import (
+    Contacts,
+    Front,
+    Links,
+    Loads,
+    Marks,
+    Scratch,
+    State,
+    Voxels,
+    empty_bodies,
+)
+from blastvox.simulate.topology import split_phase
+from blastvox.simulate.wave import Charges, build_charges
+
+
+class Progress:
+    """Progress sink: ``update(sim_time_s, steps_done, total_steps)``, a no-op here,
+    and ``note(line)``, a one-line status (first-run compilation) passed to
+    ``notes`` if given."""
+
+    def __init__(self, notes: Callable[[str], None] | None = None) -> None:
+        self._notes = notes
+
+    def update(self, sim_time: float, done: int, total: int) -> None: ...
+
+    def note(self, line: str) -> None:
+        if self._notes is not None:
+            self._notes(line)
+
+
+def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State:
+    """One body per object of the model, at rest in its rest pose. Without a ground
+    nothing is founded."""
+    a = model.arrays
+    n, n_links = sm.n_voxels, sm.n_links
+    capacity = 2 * n + 2
+    objects = a["voxel_object"].astype(np.int64)
+    n_objects = int(objects.max()) + 1 if n else 0
+    foundation = a["voxel_foundation"].copy() if ground else np.zeros(n, dtype=bool)
+    voxels = Voxels(
+        body=objects.copy(), alive=np.ones(n, dtype=bool), link_mask=np.zeros(n, dtype=np.uint8),
+        yield_pa=a["voxel_yield"].astype(np.float64).copy(), foundation=foundation,
+        foundation_pa=a["voxel_foundation_yield"].astype(np.float64).copy(),
+        damage=np.zeros(n), combust=a["voxel_combustibility"].astype(np.float64).copy(),
+        burning=np.zeros(n, dtype=bool))
+    links = Links(alive=np.ones(n_links, dtype=bool),
+                  yield_pa=a["link_yield"].astype(np.float64).copy())
+    bodies = empty_bodies(capacity)
+    bodies.count[0] = n_objects
+    order = np.argsort(objects, kind="stable")
+    bounds = np.searchsorted(objects[order], np.arange(n_objects + 1))
+    for b in range(n_objects):
+        members = order[bounds[b]:bounds[b + 1]]
+        mass, com, inertia = aggregate(members, sm.voxels.mass, sm.voxels.centroid,
+                                       sm.voxels.inertia)
+        bodies.mass[b], bodies.com[b], bodies.inertia[b] = mass, com, inertia
+        bodies.inv_inertia[b] = inverse_inertia(inertia)
+        bodies.pos[b] = com
+        bodies.quat[b] = (1.0, 0.0, 0.0, 0.0)
+        bodies.live[b] = True
+        bodies.fixed[b] = bool(foundation[members].any())
+    link_masks(sm.links, links, voxels)
+    body_radii(sm.voxels, voxels, bodies)
+    state = State(
+        bodies=bodies, voxels=voxels, links=links,
+        marks=Marks(broken=np.zeros(n_links, dtype=bool), destroyed=np.zeros(n, dtype=bool),
+                    crossed=np.zeros(n, dtype=bool), dirty=np.zeros(capacity, dtype=bool),
+                    active=np.zeros(capacity, dtype=bool)),
+        loads=Loads(impulse=np.zeros((capacity, 3)), angular=np.zeros((capacity, 3)),
+                    held_p=np.zeros((n, 3)), held_l=np.zeros((n, 3))),
+        contacts=Contacts(resting=np.zeros(capacity, dtype=bool),
+                          supported=np.zeros(capacity, dtype=bool),
+                          supported_next=np.zeros(capacity, dtype=bool),
+                          hits=np.zeros((4096, 4)), points=np.zeros((64, 3)),
+                          vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int64)),
+        scratch=Scratch.for_model(sm))
+    return state
+
+
+@dataclass
+class Run:
+    """One run: the model, its state, the charges and settings, and what records it.
+
+    ground: the plane's height (m along up) or None without one; fire: fire's
+    memory, or None when nothing in the scene can burn (or fire is off)."""
+
+    model: SimModel
+    state: State
+    charges: Charges
+    settings: SimSettings
+    dt: float
+    gravity: np.ndarray
+    ground: float | None
+    still_steps: int
+    recorder: Recorder
+    effects: Effects
+    fire: Fire | None
+
+    @classmethod
+    def start(cls, model: VoxelModel, settings: SimSettings) -> Run:
+        sm = build_model(model)
+        state = initial_state(model, sm, ground=settings.ground)
+        charges = build_charges(settings.charges)
+        dt = settings.step_seconds()
+        combustible = bool(np.isfinite(state.voxels.combust).any())
+        return cls(
+            model=sm, state=state, charges=charges, settings=settings, dt=dt,
+            gravity=gravity_vector(sm.up, settings.gravity),
+            ground=sm.ground_height if settings.ground else None,
+            still_steps=max(1, round(0.5 / dt)),  # half a second below sleep_speed
+            recorder=Recorder(sm.n_voxels, sm.voxels.link_offsets,
+                              state.voxels.yield_pa.copy()),
+            effects=Effects(settings.budgets, settings.seed, len(charges.tnt_kg)),
+            # model only what the scene needs: no combustible material, no fire
+            fire=Fire.start(state) if settings.fire and combustible else None)
+
+    def effects_on(self) -> dict[str, bool]:
+        """Which effects this run models (stored in the SimCache meta)."""
+        s = self.settings
+        return {"collisions": s.collisions, "ground": self.ground is not None,
+                "fire": self.fire is not None, "dust": s.dust, "fireball": s.fireball,
+                "shock_sphere": s.shock_sphere,
+                "camera_shake": s.camera_shake and s.camera is not None}
+
+
+def step(run: Run, n: int, frame_next: int) -> None:
+    """Advance ``run`` by step n (from (n - 1) dt to n dt); frame_next: the output frame
+    this step leads to (for event records)."""
+    model, state, s, charges, dt = run.model, run.state, run.settings, run.charges, run.dt
+    t0, t1 = (n - 1) * dt, n * dt
+    body_rotations(state.bodies)
+    front = _front(charges, t0, t1)
+    if bodies_in_shell(state.bodies, front.position, front.inner, front.outer,
+                       state.marks.active):
+        fracture_phase(model, state, front, s)
+        if run.fire is not None:
+            ignite_phase(model, state, run.fire, front, s, frame_next)
+        split(run, n, t1, frame_next)
+        if s.dust:
+            run.effects.shock_dust(model, state, charges, t1)
+    if run.fire is not None and run.fire.burning:
+        burn_phase(model, state, run.fire, s, dt, frame_next)
+        split(run, n, t1, frame_next)
+        run.effects.flames(model, state, t1, dt)
+    if s.fireball:
+        run.effects.fireball(charges, t0, t1)
+    if s.dust and run.ground is not None:
+        run.effects.ground_ring(model, charges, run.ground, t1, front.outer, dt)
+    blast_phase(model, state, charges, t0, t1, front.outer)
+    if not any_moving(state.bodies):
+        _still_step(run)
+        return
+    integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag, state.loads,
+                         state.bodies)
+    if s.collisions:
+        resolved = collide_phase(model, state, s, dt)
+        if s.dust and resolved:
+            run.effects.collision_dust(model, state.contacts.hits[:resolved], t1)
+        if state.marks.destroyed.any():
+            split(run, n, t1, frame_next)
+    if run.ground is not None:
+        ground_phase(model, state, s, dt, run.ground)
+    if s.collisions or run.ground is not None:
+        settle(state.bodies, s.sleep_speed, run.still_steps)
+    integrate_positions(dt, state.bodies)
+
+
+def _front(charges: Charges, t0: float, t1: float) -> Front:
+    """The fronts over [t0, t1] (see :class:`~blastvox.simulate.state.Front`)."""
+    return Front(charges.position, charges.time, charges.scale, charges.table,
+                 charges.front_radius(t0, before=-1.0), charges.front_radius(t1))
+
+
+def split(run: Run, n: int, t1: float, frame_next: int) -> None:
+    """Split bodies by what broke (:func:`~blastvox.simulate.topology.split_phase`), and
+    record the breaks and the dusted voxels, which burst into dust particles."""
+    state = run.state
+    broken, destroyed = split_phase(run.model, state, n)
+    if not broken.size and not destroyed.size:
+        return
+    run.recorder.link_breaks(broken, t1)
+    run.recorder.voxels_destroyed(destroyed, t1, frame_next, state, run.model.voxels.mass)
+    if run.settings.dust and destroyed.size:
+        run.effects.voxel_dust(run.model, state, destroyed, t1)
+
+
+def _still_step(run: Run) -> None:
+    """The rest of a step in which no body can move: the velocity, contact and
+    position kernels would only do their bookkeeping, done here (the results are
+    byte-identical to running them; a settled shot's steps cost ~10x less)."""
+    if run.settings.collisions:
+        begin_contacts(run.state)
+    if run.settings.collisions or run.ground is not None:
+        run.state.bodies.still[:run.state.n_bodies] = 0  # settle() resets what cannot move
+
+
+def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None = None,
+             warn: Callable[[str], None] | None = None) -> SimCache:
+    """Run the blast simulation of ``model`` with ``settings``."""
+    progress = progress or Progress()
+    warn = warn or (lambda message: None)
+    run = Run.start(model, settings)
+    state, dt = run.state, run.dt
+    if dt < settings.dt * (1 - 1e-12):
+        warn(f"dt {settings.dt:g} s does not divide the frame interval 1/{settings.fps:g} s; "
+             f"using {dt:g} s ({settings.steps_per_frame()} steps per frame)")
+    per_frame = settings.steps_per_frame()
+    frames = settings.frame_count()
+    total_steps = (frames - 1) * per_frame
+    limits = LimitMonitor(run.model, settings, dt)  # warns once per limit the run passes
+    counts, counted = _alive_counts(run), state.counters.topology_version
+    run.recorder.frame(0, state, counts, run.charges.front_radius(0.0))
+    for n in range(1, total_steps + 1):
+        step(run, n, -(-n // per_frame))
+        if n % per_frame == 0:
+            if state.counters.topology_version != counted:  # links only change in a split
+                counts, counted = _alive_counts(run), state.counters.topology_version
+            run.recorder.frame(n, state, counts, run.charges.front_radius(n * dt))
+            limits.check(state)
+            progress.update(n * dt, n, total_steps)
+    limits.finish()
+    return _cache(run, model, frames, per_frame, total_steps)
+
+
+def _alive_counts(run: Run) -> np.ndarray:
+    v = run.model.voxels
+    return link_alive_counts(v.link_offsets, v.link_ids, run.state.links.alive)
+
+
+def _cache(run: Run, model: VoxelModel, frames: int, per_frame: int,
+           total_steps: int) -> SimCache:
+    """Pack the run's records into a SimCache (see :mod:`blastvox.cache`)."""
+    settings, charges, state, dt = run.settings, run.charges, run.state, run.dt
+    frame_time = np.arange(frames) * (per_frame * dt)
+    arrays = run.recorder.pack(state, run.model.voxels.mass, frame_time)
+    ignite = run.fire.ignite_frame if run.fire is not None else np.full(
+        run.model.n_voxels, -1, dtype=np.int32)
+    arrays.update(charge_position=charges.position.copy(), charge_tnt_kg=charges.tnt_kg.copy(),
+                  charge_time=charges.time.copy(), voxel_ignite_frame=ignite)
+    arrays.update(run.effects.emitter.arrays())
+    radius = arrays["shock_radius"]
+    arrays["shock_opacity"] = (cues.shock_opacity(radius, charges.tnt_kg)
+                               if settings.shock_sphere else np.zeros_like(radius))
+    camera = settings.camera if settings.camera_shake else None
+    arrays["camera_offset"] = (np.zeros((frames, 3)) if camera is None else cues.camera_shake(
+        np.asarray(camera[0]), frame_time, charges.position, charges.tnt_kg, charges.time))
+    counters = state.counters
+    meta = {"tool_version": __version__, "fps": settings.fps, "dt": dt,
+            "duration": settings.duration, "fracture": settings.fracture, "seed": settings.seed,
+            "settings": settings.to_dict(), "up_axis": model.meta.get("up_axis"),
+            "ground_height": run.ground,
+            "steps": total_steps, "broken_links": counters.broken_links,
+            "ground_contacts": counters.ground_contacts, "collisions": counters.collisions,
+            "effects": run.effects_on(), "gravity_vector": run.gravity.tolist(),
+            "particle_systems": particle_meta(),
+            "camera": settings.to_dict()["camera"]}
+    # wall time is reported by the CLI, never stored: caches must be byte-identical
+    return SimCache(arrays=arrays, model=model, meta=meta)

@@ -1,0 +1,200 @@
+"""The simulator's immutable model: what a run reads and never changes.
+
+Like MuJoCo's mjModel or Warp's Model: :class:`SimModel` is built once from a
+VoxelModel (:func:`build_model`) and shared by every phase of every step. Its
+per-voxel and per-link arrays are grouped in two NumPy-array NamedTuples,
+:class:`VoxelGeometry` and :class:`LinkGeometry`, that numba kernels take as
+single arguments. SI units; rest frame = the VoxelModel's frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+
+from blastvox.model import VoxelModel
+from blastvox.simulate.shell import dense_grid
+
+CONFORM_FACES = 7  # cell faces 0..5 plus the original surface
+
+
+class VoxelGeometry(NamedTuple):
+    """Rest geometry and mass properties of the N voxels (read-only).
+
+    vertices (V, 3) m and corners (N, 8) int64: voxel corners at rest (rows of
+    ``vertices``). mass (N,) kg, centroid (N, 3) m, inertia (N, 3, 3) kg m^2
+    about the voxel centroid. restitution (N,) from the material. radius (N,):
+    farthest corner from the centroid, m; contact_radius (N,): collision sphere,
+    (volume)^(1/3) / 2, m; density (N,) kg/m^3 (mass over the contact cube).
+    conform_slot (N,): row in the conform tables or -1; conform_area (C, 7, 3)
+    vector areas (m^2, outward) and conform_centroid (C, 7, 3) m of each face.
+    link_offsets (N+1,), link_ids (2L,): the links of each voxel (CSR).
+    """
+
+    vertices: np.ndarray
+    corners: np.ndarray
+    mass: np.ndarray
+    centroid: np.ndarray
+    inertia: np.ndarray
+    restitution: np.ndarray
+    radius: np.ndarray
+    contact_radius: np.ndarray
+    density: np.ndarray
+    conform_slot: np.ndarray
+    conform_area: np.ndarray
+    conform_centroid: np.ndarray
+    link_offsets: np.ndarray
+    link_ids: np.ndarray
+
+
+class LinkGeometry(NamedTuple):
+    """The L links between face-adjacent voxels (read-only).
+
+    voxels (L, 2) int64; face (L,) int64: the face of voxels[:, 0] the link
+    crosses (voxels[:, 1] sees face - 1); midpoint (L, 3) m; direction (L, 3)
+    unit vector from the first voxel to the second, at rest.
+    """
+
+    voxels: np.ndarray
+    face: np.ndarray
+    midpoint: np.ndarray
+    direction: np.ndarray
+
+
+@dataclass(frozen=True)
+class SimModel:
+    """Static data of a run.
+
+    voxels, links: see :class:`VoxelGeometry` and :class:`LinkGeometry`.
+    material (N,), object (N,): indices from the VoxelModel. up (3,): unit up
+    vector (axis index up_axis); ground_height: m along up, or None for no
+    ground. link_grid, voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of
+    the link midpoints and voxel centroids at rest, cells of grid_cell m (about
+    four voxels).
+    """
+
+    voxels: VoxelGeometry
+    links: LinkGeometry
+    material: np.ndarray
+    object: np.ndarray
+    up: np.ndarray
+    up_axis: int
+    ground_height: float | None
+    grid_cell: float
+    link_grid: tuple
+    voxel_grid: tuple
+
+    @property
+    def n_voxels(self) -> int:
+        return len(self.voxels.mass)
+
+    @property
+    def n_links(self) -> int:
+        return len(self.links.voxels)
+
+    @property
+    def max_contact_radius(self) -> float:
+        return float(self.voxels.contact_radius.max(initial=0.0))
+
+
+def build_model(model: VoxelModel) -> SimModel:
+    """Derive the static simulation arrays from a VoxelModel."""
+    a = model.arrays
+    n = model.voxel_count
+    links = np.ascontiguousarray(a["link_voxels"], dtype=np.int64)
+    offsets, link_ids = link_csr(links, n)
+    slot = np.full(n, -1, dtype=np.int64)
+    conform = a["conform_voxels"].astype(np.int64)
+    slot[conform] = np.arange(len(conform))
+    area, centroid = _conform_faces(a["conform_triangles"], a["conform_tag"],
+                                    a["conform_offsets"])
+    up = np.zeros(3)
+    up[model.up_index] = 1.0
+    vertices = np.ascontiguousarray(a["vertices"], dtype=np.float64)
+    corners = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int64)
+    voxel_centroid = np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64)
+    ground = model.meta.get("ground_height")
+    contact_radius = 0.5 * np.cbrt(np.maximum(a["voxel_volume"], 0.0))
+    grid_cell = 8.0 * float(np.median(contact_radius)) if n else 1.0
+    grid_cell = grid_cell if grid_cell > 0.0 else 1.0
+    link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)
+    mass = a["voxel_mass"].astype(np.float64)
+    voxels = VoxelGeometry(
+        vertices=vertices, corners=corners, mass=mass, centroid=voxel_centroid,
+        inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
+        restitution=a["material_restitution"][a["voxel_material"]].astype(np.float64),
+        radius=corner_radius(vertices, corners, voxel_centroid),
+        contact_radius=contact_radius,
+        density=mass / np.maximum((2.0 * contact_radius) ** 3, 1e-300),
+        conform_slot=slot, conform_area=area, conform_centroid=centroid,
+        link_offsets=offsets, link_ids=link_ids)
+    link_geometry = LinkGeometry(
+        voxels=links, face=a["link_face"].astype(np.int64), midpoint=link_midpoint,
+        direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
+    return SimModel(
+        voxels=voxels, links=link_geometry,
+        material=a["voxel_material"].astype(np.int64),
+        object=a["voxel_object"].astype(np.int64),
+        up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
+        grid_cell=grid_cell, link_grid=dense_grid(link_midpoint.reshape(-1, 3), grid_cell),
+        voxel_grid=dense_grid(voxel_centroid, grid_cell))
+
+
+@nb.njit(cache=True)
+def link_csr(link_voxels, n_voxels):
+    """Links of each voxel as CSR: offsets (N+1,) and link ids (2L,).
+
+    A voxel lists the links it is the first end of, then those it is the
+    second end of, each in link order (a counting sort, O(N + L)).
+    """
+    offsets = np.zeros(n_voxels + 1, dtype=np.int64)
+    for link in range(link_voxels.shape[0]):
+        offsets[link_voxels[link, 0] + 1] += 1
+        offsets[link_voxels[link, 1] + 1] += 1
+    for v in range(n_voxels):
+        offsets[v + 1] += offsets[v]
+    fill = offsets[:-1].copy()
+    ids = np.empty(2 * link_voxels.shape[0], dtype=np.int64)
+    for side in range(2):
+        for link in range(link_voxels.shape[0]):
+            v = link_voxels[link, side]
+            ids[fill[v]] = link
+            fill[v] += 1
+    return offsets, ids
+
+
+@nb.njit(cache=True)
+def corner_radius(vertices, voxel_vertices, voxel_centroid):
+    """Distance (N,) m from each voxel's centroid to its farthest corner."""
+    out = np.empty(voxel_vertices.shape[0])
+    for v in range(voxel_vertices.shape[0]):
+        best = 0.0
+        for c in range(8):
+            q = voxel_vertices[v, c]
+            d = ((vertices[q, 0] - voxel_centroid[v, 0]) ** 2
+                 + (vertices[q, 1] - voxel_centroid[v, 1]) ** 2
+                 + (vertices[q, 2] - voxel_centroid[v, 2]) ** 2)
+            best = max(best, d)
+        out[v] = np.sqrt(best)
+    return out
+
+
+def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray):
+    """Per conform voxel and face (0..5 cell faces, 6 surface): vector area and centroid."""
+    c = len(offsets) - 1
+    area = np.zeros((c, CONFORM_FACES, 3))
+    moment = np.zeros((c, CONFORM_FACES, 3))
+    weight = np.zeros((c, CONFORM_FACES))
+    if c == 0:
+        return area, moment
+    owner = np.repeat(np.arange(c), np.diff(offsets))
+    vec = 0.5 * np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    mag = np.linalg.norm(vec, axis=1)
+    np.add.at(area, (owner, tags.astype(np.int64)), vec)
+    np.add.at(moment, (owner, tags.astype(np.int64)), mag[:, None] * triangles.mean(axis=1))
+    np.add.at(weight, (owner, tags.astype(np.int64)), mag)
+    centroid = moment / np.where(weight > 0, weight, 1.0)[..., None]
+    return area, centroid
