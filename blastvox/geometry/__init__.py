@@ -1,2 +1,3 @@
-"""Geometry shared by every stage: quaternions and rigid transforms, up-axis frames,
-voxel face and corner tables. NumPy faces for Python callers, numba faces for kernels."""
+"""Geometry shared by every stage, one module per concept: quaternions (numba and NumPy
+faces), rigid transforms of bodies (rest <-> world), up-axis frames, and the face and
+corner tables of the hexahedral voxel."""
