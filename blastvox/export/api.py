@@ -8,24 +8,17 @@ atomically.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
+from blastvox.export.options import ExportOptions
+from blastvox.geometry.frames import UP_AXES
+
+__all__ = ["ExportOptions", "GLTF_SUFFIXES", "USD_SUFFIXES", "export"]
 
 USD_SUFFIXES = (".usda", ".usdc", ".usd")
 GLTF_SUFFIXES = (".gltf", ".glb")
-
-
-@dataclass(frozen=True)
-class ExportOptions:
-    """up_axis: "Y" (default, glTF's and Blender-USD's convention) or "Z".
-    layout: "xforms" (one Xform + Mesh per piece) or "instancer" (USD
-    PointInstancer for shots with many thousands of pieces; USD only)."""
-
-    up_axis: str = "Y"
-    layout: str = "xforms"
 
 
 def export(cache: SimCache, path: str | Path, options: ExportOptions | None = None) -> None:
@@ -33,7 +26,7 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
     options = options or ExportOptions()
     path = Path(path)
     suffix = path.suffix.lower()
-    if options.up_axis not in ("Y", "Z"):
+    if options.up_axis not in UP_AXES:
         raise BlastvoxError(f"{path}: --up-axis must be Y or Z (got {options.up_axis!r})")
     if suffix in USD_SUFFIXES:
         from blastvox.export.usd import write_usd

@@ -44,7 +44,10 @@ import numpy as np
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
-from blastvox.export.pieces import animation, frame_change, piece_meshes
+from blastvox.export.options import ExportOptions
+from blastvox.export.pieces import animation, piece_meshes
+from blastvox.geometry import quaternion
+from blastvox.geometry.frames import frame_change
 from blastvox.io.atomic import atomic_path
 
 FLOAT, UINT16, UINT32 = 5126, 5123, 5125
@@ -57,10 +60,10 @@ U16_VERTEX_LIMIT = 65535  # a primitive with fewer vertices uses 16-bit indices 
 _GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 
 
-def write_gltf(cache: SimCache, path: str | Path, options: Any = None) -> None:
+def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None = None) -> None:
     """Write ``cache`` as glTF 2.0: binary .glb, or .gltf JSON plus a sibling ``<stem>.bin``.
 
-    ``options`` (:class:`blastvox.export.api.ExportOptions`) is accepted for the
+    ``options`` (:class:`blastvox.export.options.ExportOptions`) is accepted for the
     common writer signature; glTF is always Y-up, so its ``up_axis`` is ignored.
     """
     path = Path(path)
@@ -288,12 +291,7 @@ def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[d
 def _gltf_quaternions(wxyz: np.ndarray) -> np.ndarray:
     """(F, P, 4) (w, x, y, z) -> float32 (x, y, z, w), each key flipped to the hemisphere
     of the previous one so LINEAR (nlerp/slerp) interpolation takes the short way."""
-    q = np.asarray(wxyz, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    if len(q) > 1:
-        dots = np.einsum("fpk,fpk->fp", q[1:], q[:-1])
-        sign = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
-        q[1:] *= sign[:, :, None]
+    q = quaternion.sign_continuous(quaternion.normalize(wxyz))
     return np.ascontiguousarray(q[..., [1, 2, 3, 0]], dtype=np.float32) + np.float32(0.0)  # no -0
 
 

@@ -20,9 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from blastvox.cache import SimCache
-from blastvox.voxelize.lattice import FACE_CORNERS, face_triangles
+from blastvox.geometry.frames import frame_change
+from blastvox.geometry.transforms import change_frame
+from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG, face_triangles
 
-SURFACE_TAG = 6
+__all__ = ["Animation", "PieceMeshes", "animation", "frame_change", "piece_meshes"]
 
 
 @dataclass(frozen=True)
@@ -55,49 +57,6 @@ class Animation:
     times: np.ndarray
 
 
-def frame_change(model_up: str, export_up: str) -> np.ndarray:
-    """Rotation (3, 3) from the model's frame to a frame whose up axis is ``export_up``.
-
-    Z-up -> Y-up maps (x, y, z) to (x, z, -y) (a -90 degree turn about x), the
-    convention of Blender's glTF/USD exporters; the inverse for Y-up -> Z-up.
-    """
-    if model_up == export_up:
-        return np.eye(3)
-    if model_up == "Z" and export_up == "Y":
-        return np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
-    if model_up == "Y" and export_up == "Z":
-        return np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
-    raise ValueError(f"unsupported up axes {model_up!r} -> {export_up!r}")
-
-
-def _matrix_quaternion(m: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a proper rotation matrix (Shepperd's method)."""
-    trace = np.trace(m)
-    if trace > 0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = np.zeros(4)
-        q[0] = (m[k, j] - m[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (m[j, i] + m[i, j]) / s
-        q[1 + k] = (m[k, i] + m[i, k]) / s
-    q = np.asarray(q, dtype=np.float64)
-    return q / np.linalg.norm(q)
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
-    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
-    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
-
-
 def animation(cache: SimCache, export_up: str) -> Animation:
     """Piece transforms of ``cache`` re-expressed in the export frame.
 
@@ -105,13 +64,7 @@ def animation(cache: SimCache, export_up: str) -> Animation:
     orientation' = q_C q q_C^-1 (the piece-local frame is changed by C too).
     """
     c = frame_change(cache.model.meta.get("up_axis", "Y"), export_up)
-    qc = _matrix_quaternion(c)
-    qc_inv = qc * np.array([1.0, -1.0, -1.0, -1.0])
-    pos = cache.piece_position.astype(np.float64) @ c.T
-    ori = _quat_mul(_quat_mul(np.broadcast_to(qc, cache.piece_orientation.shape),
-                              cache.piece_orientation.astype(np.float64)),
-                    np.broadcast_to(qc_inv, cache.piece_orientation.shape))
-    ori /= np.linalg.norm(ori, axis=-1, keepdims=True)
+    pos, ori = change_frame(cache.piece_position, cache.piece_orientation, c)
     return Animation(position=pos, orientation=ori, end_frame=cache.piece_end_frame.copy(),
                      times=cache.frame_time.copy())
 

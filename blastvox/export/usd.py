@@ -40,8 +40,11 @@ from pxr import Gf, Sdf, Tf, Vt
 
 from blastvox import __version__
 from blastvox.cache import SimCache
-from blastvox.export.api import ExportOptions
-from blastvox.export.pieces import animation, frame_change, piece_meshes
+from blastvox.export.options import ExportOptions
+from blastvox.export.pieces import animation, piece_meshes
+from blastvox.geometry import quaternion
+from blastvox.geometry.frames import frame_change, gravity_vector, up_vector
+from blastvox.geometry.transforms import rest_to_world
 from blastvox.io.atomic import atomic_path
 
 ROOT = "/Shot"
@@ -117,16 +120,8 @@ def _gravity(cache: SimCache) -> np.ndarray:
     """Model-frame gravity (m/s^2): meta["gravity_vector"], else -settings.gravity * up."""
     if cache.meta.get("gravity_vector") is not None:
         return np.asarray(cache.meta["gravity_vector"], dtype=np.float64).reshape(3)
-    up = np.zeros(3)
-    up["XYZ".index(cache.model.meta.get("up_axis", "Y"))] = 1.0
-    return -float(cache.meta.get("settings", {}).get("gravity", 9.81)) * up
-
-
-def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) (w, x, y, z)."""
-    w, u = q[..., :1], q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    return gravity_vector(cache.model.meta.get("up_axis", "Y"),
+                          cache.meta.get("settings", {}).get("gravity", 9.81))
 
 
 def _fps(cache: SimCache) -> float:
@@ -163,18 +158,6 @@ def _material_colors(cache: SimCache, count: int) -> tuple[np.ndarray, np.ndarra
     if "material_damage_color" in a:
         damage[:len(a["material_damage_color"])] = a["material_damage_color"]
     return color, damage
-
-
-def _sign_continuous(q: np.ndarray) -> np.ndarray:
-    """Flip quaternions (F, P, 4) so consecutive frames have a non-negative dot product
-    (the same rotations; interpolation then takes the short way)."""
-    if len(q) < 2:
-        return q
-    dots = np.einsum("fpi,fpi->fp", q[1:], q[:-1])
-    sign = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
-    out = q.copy()
-    out[1:] *= sign[..., None]
-    return out
 
 
 def _finite_hold(a: np.ndarray) -> np.ndarray:
@@ -492,7 +475,7 @@ class _Writer:
 
     def _animation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         pos = _finite_hold(self.anim.position)
-        ori = _sign_continuous(_finite_hold(self.anim.orientation))
+        ori = quaternion.sign_continuous(_finite_hold(self.anim.orientation))
         return pos, ori
 
     def _instancer_samples(self) -> None:
@@ -524,8 +507,8 @@ class _Writer:
             set_sample(orientations, float(f), Vt.QuathArray.FromNumpy(quat.astype(np.float16)))
             shown = self.end > f
             if shown.any():
-                q = np.repeat(ori[f][shown][:, None, :], 8, axis=1)
-                world = pos[f][shown][:, None, :] + _quat_rotate(q, corners[shown])
+                world = rest_to_world(corners[shown], pos[f][shown][:, None, :],
+                                      ori[f][shown][:, None, :])
                 box = np.stack([world.min(axis=(0, 1)), world.max(axis=(0, 1))]) + 0.0
             else:
                 box = np.zeros((2, 3))
@@ -597,8 +580,7 @@ class _Writer:
         target = np.asarray(camera["look_at"], dtype=np.float64) @ self.change.T
         offset = np.asarray(self.cache.arrays.get("camera_offset", np.zeros((self.frames, 3))),
                             dtype=np.float64) @ self.change.T
-        up = np.zeros(3)
-        up["XYZ".index(self.options.up_axis)] = 1.0
+        up = up_vector(self.options.up_axis)
         back = position - target
         back /= np.linalg.norm(back)
         right = np.cross(up, back)

@@ -1,0 +1,19 @@
+"""``ExportOptions``: what an export may ask for besides the cache and the path.
+
+Its own module so that the writers (usd, gltf) and the entry point
+(:mod:`blastvox.export.api`) share it without importing each other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """up_axis: "Y" (default, glTF's and Blender-USD's convention) or "Z".
+    layout: "xforms" (one Xform + Mesh per piece) or "instancer" (USD
+    PointInstancer for shots with many thousands of pieces; USD only)."""
+
+    up_axis: str = "Y"
+    layout: str = "xforms"
