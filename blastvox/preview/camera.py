@@ -56,13 +56,6 @@ class Camera:
                         axis=-1)
 
 
-def up_vector(up_axis: str) -> np.ndarray:
-    """Unit (3,) vector of the model's up axis ("Y" or "Z")."""
-    up = np.zeros(3)
-    up["XYZ".index(up_axis)] = 1.0
-    return up
-
-
 def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray, focal_mm: float) -> Camera:
     """A camera at ``eye`` (3,) m looking at ``target`` (3,) m with ``up`` (3,) kept up.
 

@@ -21,8 +21,9 @@ import numpy as np
 
 from blastvox.cache import SimCache
 from blastvox.export.pieces import piece_meshes
+from blastvox.geometry import quaternion
+from blastvox.geometry.frames import gravity_vector, up_vector
 from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
-from blastvox.preview.camera import up_vector
 
 CHAR_S = 3.0                             #: s for a burning voxel to char fully
 CHAR_COLOR = np.array([0.02, 0.015, 0.012])  #: linear RGB of fully charred faces
@@ -35,18 +36,6 @@ PARTICLE_STYLE: dict[str, tuple[tuple[float, float, float], float, float]] = {
     "smoke": ((0.05, 0.05, 0.055), 0.3, 1.5),
     "fireball": ((1.8, 0.6, 0.12), 0.3, 0.6),
 }
-
-
-def quaternion_matrices(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4) (w, x, y, z)."""
-    q = np.asarray(q, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], axis=-2)
 
 
 @dataclass(frozen=True)
@@ -107,7 +96,7 @@ class PreviewScene:
         ignite_frame = (np.full(len(cache.voxel_piece), -1) if ignite is None
                         else ignite.astype(np.int64))
         self.tri_ignite = ignite_frame[self.tri_voxel]
-        self.gravity = np.asarray(cache.meta.get("gravity_vector", -9.81 * self.up),
+        self.gravity = np.asarray(cache.meta.get("gravity_vector", gravity_vector(up_axis)),
                                   dtype=np.float64).reshape(3)
         get = cache.arrays.get
         self.particle_birth = np.asarray(get("particle_birth", np.zeros(0)), dtype=np.float64)
@@ -133,7 +122,8 @@ class PreviewScene:
             albedo[burning] = albedo[burning] * (1.0 - char) + CHAR_COLOR * char
         return PieceFrame(local=self.tri_local, normals=self.tri_normal, piece=self.tri_piece,
                           albedo=albedo,
-                          rotation=quaternion_matrices(self.cache.piece_orientation[frame]),
+                          rotation=quaternion.to_matrix(quaternion.normalize(
+                              self.cache.piece_orientation[frame])),
                           position=self.cache.piece_position[frame].astype(np.float64),
                           alive=self.end_frame > frame)
 
