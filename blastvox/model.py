@@ -52,13 +52,13 @@ import numpy as np
 
 from blastvox import __version__
 from blastvox.errors import ContractError
+from blastvox.geometry.voxel_faces import SURFACE_BIT as SURFACE_BIT  # voxel_boundary's bit 6
 from blastvox.io.npz import read_npz, write_npz
 
 SCHEMA = "blastvox.VoxelModel"
 SCHEMA_VERSION = 1
 UNITS = {"length": "m", "mass": "kg", "pressure": "Pa", "inertia": "kg m^2",
          "density": "kg m^-3"}
-SURFACE_BIT = 6
 
 _REQUIRED = {
     "vertices": (2, np.float64), "voxel_vertices": (2, np.int32), "voxel_ijk": (2, np.int32),

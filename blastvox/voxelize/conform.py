@@ -22,8 +22,8 @@ import numpy as np
 import trimesh
 
 from blastvox.errors import MeshError
+from blastvox.geometry.voxel_faces import SURFACE_TAG
 
-SURFACE_TAG = 6
 _BLOCK = 8  # cells per block edge for the two-level clip
 
 

@@ -1,10 +1,8 @@
-"""The voxel lattice: grid placement, corner numbering and hexahedron faces.
+"""The voxel lattice: grid placement and voxel spacing.
 
-A voxel is a hexahedron given by 8 corners. Corner ``c`` of the voxel at lattice
-index ``(i, j, k)`` is lattice vertex ``(i + dx, j + dy, k + dz)`` with
-``c = dx + 2*dy + 4*dz``. Faces are numbered ``0..5`` = ``-x, +x, -y, +y, -z, +z``
-(lattice axes, which are the object-space axes) and :data:`FACE_CORNERS` lists
-each face's corners counter-clockwise seen from outside.
+The hexahedral voxel's corner numbering, face tables and face triangles live in
+:mod:`blastvox.geometry.voxel_faces` (shared with export and the simulator) and
+are re-exported here for the voxelizer's modules.
 """
 
 from __future__ import annotations
@@ -13,17 +11,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Corners of each face, counter-clockwise seen from outside (outward normal).
-FACE_CORNERS = np.array(
-    [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]],
-    dtype=np.int64,
+from blastvox.geometry.voxel_faces import (
+    CORNER_OFFSETS,
+    FACE_CORNERS,
+    FACE_OFFSETS,
+    face_triangles,
+    hex_triangles,
 )
-#: Lattice offset of the neighbour across each face.
-FACE_OFFSETS = np.array(
-    [[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]], dtype=np.int64
-)
-#: Corner offsets ``(dx, dy, dz)`` for corner numbers 0..7.
-CORNER_OFFSETS = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)], dtype=np.int64)
+
+__all__ = ["CORNER_OFFSETS", "FACE_CORNERS", "FACE_OFFSETS", "Grid", "face_triangles",
+           "fit_grid", "hex_triangles", "spacing_for"]
 
 
 @dataclass(frozen=True)
@@ -77,28 +74,3 @@ def spacing_for(bounds: np.ndarray, voxel_size: float | tuple[float, float, floa
         raise ValueError("one of voxel_size or resolution is required")
     longest = float(np.max(np.asarray(bounds)[1] - np.asarray(bounds)[0]))
     return np.full(3, longest / resolution)
-
-
-def face_triangles(quads: np.ndarray) -> np.ndarray:
-    """Split quads (..., 4) of global vertex ids into triangles (..., 2, 3).
-
-    The split diagonal is the one through the quad's smallest vertex id, so the
-    two voxels that share a face (and so its four vertex ids) split it the same
-    way and their jittered faces coincide exactly.
-    """
-    quads = np.asarray(quads)
-    first = np.argmin(quads, axis=-1)
-    use_ac = (first % 2) == 0
-    a, b, c, d = (quads[..., n] for n in range(4))
-    tri_ac = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], -2)
-    tri_bd = np.stack([np.stack([b, c, d], -1), np.stack([b, d, a], -1)], -2)
-    return np.where(use_ac[..., None, None], tri_ac, tri_bd)
-
-
-def hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:
-    """Outward triangles (N, 12, 3) of global vertex ids for voxels (N, 8).
-
-    Triangle ``2*f`` and ``2*f + 1`` lie on face ``f``.
-    """
-    quads = voxel_vertices[:, FACE_CORNERS]  # (N, 6, 4)
-    return face_triangles(quads).reshape(len(voxel_vertices), 12, 3)

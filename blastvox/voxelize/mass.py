@@ -13,7 +13,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from blastvox.voxelize.lattice import FACE_CORNERS
+from blastvox.geometry.voxel_faces import FACE_CORNERS
 
 
 @nb.njit(cache=True)
@@ -106,7 +106,7 @@ def _hex_kernel(vertices, voxel_vertices, face_corners, volume, centroid, inerti
             q2 = voxel_vertices[i, face_corners[f, 2]]
             q3 = voxel_vertices[i, face_corners[f, 3]]
             smallest = min(q0, q1, q2, q3)
-            if smallest == q0 or smallest == q2:  # same diagonal rule as lattice.face_triangles
+            if smallest == q0 or smallest == q2:  # the diagonal rule of voxel_faces.face_triangles
                 _accumulate(acc, vertices[q0], vertices[q1], vertices[q2], ref)
                 _accumulate(acc, vertices[q0], vertices[q2], vertices[q3], ref)
             else:

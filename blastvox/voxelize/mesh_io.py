@@ -17,17 +17,10 @@ import numpy as np
 import trimesh
 
 from blastvox.errors import MeshError
+from blastvox.geometry.voxel_faces import VTK_CELL_FACES
 
 #: Suffixes read through meshio as volume meshes rather than through trimesh.
 VOLUME_SUFFIXES = {".vtu", ".vtk", ".msh", ".mesh", ".xdmf", ".med", ".inp", ".vol"}
-
-# Faces of the meshio cell types we turn into boundary surfaces, outward-oriented
-# for meshio's (VTK) node order.
-_CELL_FACES = {
-    "tetra": np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]),
-    "hexahedron": np.array([[0, 3, 2], [0, 2, 1], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-                            [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]]),
-}
 
 
 @dataclass
@@ -99,7 +92,7 @@ def _load_volume(path: Path) -> list[Part]:
         raise MeshError(f"{path}: cannot read volume mesh ({reason})") from None
     faces = []
     for block in vol.cells:
-        local = _CELL_FACES.get(block.type)
+        local = VTK_CELL_FACES.get(block.type)  # the cell's outward boundary triangles
         if local is None:
             continue
         faces.append(block.data[:, local].reshape(-1, 3))

@@ -17,13 +17,15 @@ import numpy as np
 
 from blastvox import __version__
 from blastvox.errors import BudgetError, MeshError
+from blastvox.geometry.frames import up_index
+from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG, hex_triangles
 from blastvox.materials import MaterialLibrary, material_table, perturbed
-from blastvox.model import SURFACE_BIT, VoxelModel
+from blastvox.model import VoxelModel
 from blastvox.voxelize import cells as cellsel
 from blastvox.voxelize.components import component_labels
 from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
 from blastvox.voxelize.hashing import uniform_by_key
-from blastvox.voxelize.lattice import CORNER_OFFSETS, Grid, fit_grid, hex_triangles, spacing_for
+from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
 from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
 from blastvox.voxelize.mesh_io import load_parts
 from blastvox.voxelize.regions import RegionRule
@@ -116,7 +118,7 @@ def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
     """Turn the requested meshes into one connected-voxel model."""
     progress = progress or Progress()
     warn = warn or (lambda message: None)
-    up = "XYZ".index(settings.up_axis)
+    up = up_index(settings.up_axis)
     lattices: list[_Lattice] = []
     budget_left = settings.max_voxels
     for index, request in enumerate(requests):
@@ -285,7 +287,7 @@ def _link(lat: _Lattice) -> None:
     # conform voxels with at least one triangle on the original surface
     owner = np.repeat(lat.conform_local, np.diff(lat.conform_offsets))
     has_surface = np.zeros(len(lat.ijk), dtype=bool)
-    has_surface[owner[lat.conform_tags == 6]] = True
+    has_surface[owner[lat.conform_tags == SURFACE_TAG]] = True
     boundary[has_surface] |= np.uint8(1 << SURFACE_BIT)
     lat.boundary = boundary
 
