@@ -63,15 +63,12 @@ pytestmark = pytest.mark.skipif(
 
 
 def _quat_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4) (w, x, y, z)."""
-    q = np.asarray(q, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    """Rotation matrices (..., 3, 3) of quaternions (..., 4) (w, x, y, z), normalised first
+    (Blender's are unit only to float32). This test runs in the main venv; only
+    import_check.py runs in the Blender venv."""
+    from blastvox.geometry import quaternion
+
+    return quaternion.to_matrix(quaternion.normalize(q))
 
 
 class Shot:
