@@ -14,9 +14,9 @@ from blastvox.blast.model import blast_parameters
 from blastvox.geometry import quaternion
 from blastvox.materials import MaterialLibrary
 from blastvox.simulate import topology
-from blastvox.simulate.run import initial_state, simulate
+from blastvox.simulate.engine import initial_state, simulate
+from blastvox.simulate.model import build_model
 from blastvox.simulate.settings import ChargeSpec, SimSettings
-from blastvox.simulate.state import build_model
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
 LIBRARY = MaterialLibrary.builtin().extended({
@@ -82,11 +82,11 @@ def test_symmetric_object_over_charge_gets_no_drift_or_torque(tmp_path):
 
 
 def _totals(state, n):
-    live = np.flatnonzero(state.body_live[:n])
-    m = state.body_mass[live]
-    lin = state.body_lin[live].sum(axis=0)
-    ang = (state.body_ang[live] + np.cross(state.body_pos[live],
-                                           state.body_lin[live])).sum(axis=0)
+    b = state.bodies
+    live = np.flatnonzero(b.live[:n])
+    m = b.mass[live]
+    lin = b.lin[live].sum(axis=0)
+    ang = (b.ang[live] + np.cross(b.pos[live], b.lin[live])).sum(axis=0)
     return lin, ang, m.sum()
 
 
@@ -96,38 +96,36 @@ def test_split_conserves_linear_and_angular_momentum(tmp_path, seed):
     sm = build_model(model)
     state = initial_state(model, sm)
     rng = np.random.default_rng(seed)
-    state.body_lin[0] = rng.normal(size=3) * state.body_mass[0] * 5.0
-    state.body_ang[0] = rng.normal(size=3) * 40.0
-    state.body_pos[0] += rng.normal(size=3) * 10.0
+    bodies = state.bodies
+    bodies.lin[0] = rng.normal(size=3) * bodies.mass[0] * 5.0
+    bodies.ang[0] = rng.normal(size=3) * 40.0
+    bodies.pos[0] += rng.normal(size=3) * 10.0
     q = rng.normal(size=4)
-    state.body_quat[0] = q / np.linalg.norm(q)
+    bodies.quat[0] = q / np.linalg.norm(q)
     before = _totals(state, 1)
-    # break a random third of the links and dust a few voxels
-    state.link_alive[rng.random(sm.n_links) < 0.35] = False
+    # break a random third of the links and dust a few voxels: the public split phase
+    broken = rng.random(sm.n_links) < 0.35
+    state.links.alive[broken] = False
+    state.marks.broken[broken] = True
     dust = rng.choice(sm.n_voxels, 3, replace=False)
-    state.voxel_alive[dust] = False
-    for v in dust:
-        links = sm.voxel_link_ids[sm.voxel_link_offsets[v]:sm.voxel_link_offsets[v + 1]]
-        state.link_alive[links] = False
-    dirty = np.zeros(len(state.body_mass), dtype=bool)
-    dirty[0] = True
-    created = topology.split_bodies(
-        dirty, 1, state.voxel_body, state.voxel_alive, state.voxel_foundation, state.link_alive,
-        sm.link_voxels, sm.voxel_link_offsets, sm.voxel_link_ids, sm.voxel_mass,
-        sm.voxel_centroid, sm.voxel_inertia, state.body_mass, state.body_com, state.body_inertia,
-        state.body_inv_inertia, state.body_pos, state.body_quat, state.body_lin,
-        state.body_ang, state.body_fixed, state.body_live, state.body_dust, state.body_parent,
-        state.body_born, state.body_died, state.n_bodies, np.zeros(sm.n_voxels, np.int64),
-        np.zeros(sm.n_voxels, np.int64))
-    assert created >= 4
-    n = int(state.n_bodies[0])
+    state.voxels.alive[dust] = False
+    state.marks.destroyed[dust] = True
+    state.marks.dirty[0] = True
+    bodies_before = state.n_bodies
+    applied_links, applied_voxels = topology.split_phase(sm, state, 1)
+    assert set(applied_voxels) == set(dust) and len(applied_links) == broken.sum()
+    assert state.n_bodies - bodies_before >= 4
+    for v in dust:  # a dusted voxel's links die with it
+        links = sm.voxels.link_ids[sm.voxels.link_offsets[v]:sm.voxels.link_offsets[v + 1]]
+        assert not state.links.alive[links].any()
+    n = state.n_bodies
     after = _totals(state, n)
     lin_scale = np.abs(before[0]).max()
     np.testing.assert_allclose(after[0], before[0], rtol=1e-12, atol=1e-12 * lin_scale)
     scale = np.abs(before[1]).max()
     np.testing.assert_allclose(after[1], before[1], rtol=1e-12, atol=1e-12 * scale)
     assert after[2] == pytest.approx(before[2], rel=1e-14)
-    assert state.body_dust[:n].sum() == 3
+    assert state.bodies.dust[:n].sum() == 3
 
 
 def test_founded_wall_sheds_debris_but_stands(tmp_path):
@@ -265,7 +263,7 @@ def test_linear_drag_decays_speed_exponentially(tmp_path):
 def test_shell_candidates_change_nothing(tmp_path, monkeypatch):
     """Fracture tests only the links and voxels the rest grid flags (shell.py); flagging
     all of them must give the same shot."""
-    from blastvox.simulate import run as run_module
+    from blastvox.simulate import fracture
 
     model = box_model(tmp_path, (2.0, 0.5, 1.5), 0.1, material="brick", ground="auto")
     settings = SimSettings(fps=24.0, duration=0.25,
@@ -273,11 +271,11 @@ def test_shell_candidates_change_nothing(tmp_path, monkeypatch):
                                     ChargeSpec((-0.5, 1.2, 0.0), 0.3, time_s=0.05)))
     grid = simulate(model, settings)
 
-    def everything(self, grid, owner, out, front_in, front_out):
+    def everything(model, state, grid, owner, out, front):
         out[:] = True
         return out
 
-    monkeypatch.setattr(run_module._Run, "_candidates", everything)
+    monkeypatch.setattr(fracture, "_candidates", everything)
     full = simulate(model, settings)
     assert len(grid.link_break_link) > 0
     for name in ("piece_position", "piece_orientation", "link_break_link",

@@ -132,8 +132,7 @@ class _Progress:
         return self
 
     def _start_bar(self) -> None:
-        # on the first update, not on entry: the bar's refresh thread would keep
-        # first-run compilation from forking its workers (see simulate.precompile)
+        # on the first update, not on entry: compilation is not stepping
         from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
         self._bar = Progress(TextColumn("simulating"), BarColumn(),

@@ -262,6 +262,9 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     """Run the blast simulation of ``model`` with ``settings``."""
     progress = progress or Progress()
     warn = warn or (lambda message: None)
+    if not _compiled_before():
+        progress.note("first run of this blastvox source: compiling the simulator's kernels "
+                      "into numba's cache (about half a minute, once)")
     run = Run.start(model, settings)
     state, dt = run.state, run.dt
     if dt < settings.dt * (1 - 1e-12):
@@ -283,6 +286,14 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
             progress.update(n * dt, n, total_steps)
     limits.finish()
     return _cache(run, model, frames, per_frame, total_steps)
+
+
+def _compiled_before() -> bool:
+    """Does the kernel cache of this source tree (blastvox.KERNEL_CACHE) hold the step's
+    first kernel already?"""
+    from blastvox import KERNEL_CACHE
+
+    return next(KERNEL_CACHE.rglob("kernels.body_rotations-*.nbi"), None) is not None
 
 
 def _alive_counts(run: Run) -> np.ndarray:

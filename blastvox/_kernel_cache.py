@@ -1,0 +1,74 @@
+"""Where numba caches blastvox's compiled kernels: one directory per version of their source.
+
+numba's on-disk cache (``cache=True``) checks only the source file of the
+function it compiled, so editing a helper that a kernel in another module
+inlines would leave the kernel's stale machine code in use. blastvox instead
+keys the whole cache on a content hash of every module that holds numba code:
+any edit to one of them starts a fresh cache directory, and everything is
+compiled again (once). Old directories beyond the newest :data:`KEEP` are
+removed.
+
+The directory is ``$NUMBA_CACHE_DIR/blastvox-<hash>`` if the user set
+NUMBA_CACHE_DIR, else ``$XDG_CACHE_HOME/blastvox/numba/<hash>`` (by default
+``~/.cache/blastvox/numba/<hash>``). No numba import here: this runs when
+``blastvox`` is imported, before any kernel is decorated.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import sys
+from pathlib import Path
+
+KEEP = 3
+_MARKERS = (b"numba", b"blastvox.jit")
+
+
+def source_hash(package: Path) -> str:
+    """Hash (16 hex digits) of the contents of every module under ``package`` that
+    holds or calls numba code, in path order."""
+    digest = hashlib.blake2b(digest_size=8)
+    for path in sorted(package.rglob("*.py")):
+        text = path.read_bytes()
+        if any(marker in text for marker in _MARKERS):
+            digest.update(path.relative_to(package).as_posix().encode() + b"\0" + text + b"\0")
+    return digest.hexdigest()
+
+
+def cache_directory(package: Path, environ: dict[str, str] | None = None) -> Path:
+    """The cache directory for the kernels of ``package`` as it is now (see module doc)."""
+    environ = os.environ if environ is None else environ
+    key = source_hash(package)
+    user = environ.get("NUMBA_CACHE_DIR")
+    if user:
+        return Path(user) / f"blastvox-{key}"
+    base = Path(environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "blastvox" / "numba" / key
+
+
+def configure(package: Path) -> Path:
+    """Point numba's cache at :func:`cache_directory` (also if numba is imported already)
+    and prune old siblings. Returns the directory."""
+    directory = cache_directory(package)
+    os.environ["NUMBA_CACHE_DIR"] = str(directory)
+    numba = sys.modules.get("numba")
+    if numba is not None:
+        numba.config.CACHE_DIR = str(directory)
+    _prune(directory)
+    return directory
+
+
+def _prune(directory: Path) -> None:
+    """Remove all but the newest KEEP sibling cache directories of ours."""
+    parent = directory.parent
+    if not parent.is_dir():
+        return
+    mine = [p for p in parent.iterdir() if p.is_dir() and p != directory and (
+        p.name.startswith("blastvox-") if parent.name != "numba" else len(p.name) == 16)]
+    if len(mine) < KEEP:
+        return
+    mine.sort(key=lambda p: p.stat().st_mtime, reverse=True)
+    for old in mine[KEEP - 1:]:
+        shutil.rmtree(old, ignore_errors=True)

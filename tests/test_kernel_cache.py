@@ -1,0 +1,93 @@
+"""numba's kernel cache is keyed on the source of every numba module (blastvox._kernel_cache),
+so editing a helper recompiles the kernels that inline it without `make clean`."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from blastvox import _kernel_cache
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _package(tmp_path: Path, helper_body: str) -> Path:
+    pkg = tmp_path / "pkg"
+    pkg.mkdir(exist_ok=True)
+    (pkg / "helpers.py").write_text(
+        "import numba as nb\n\n@nb.njit(cache=True)\ndef twice(x):\n"
+        f"    return {helper_body}\n")
+    (pkg / "kernels.py").write_text(
+        "import numba as nb\nfrom pkg.helpers import twice\n\n"
+        "@nb.njit(cache=True)\ndef kernel(x):\n    return twice(x) + 1\n")
+    (pkg / "cli.py").write_text("print('plain python')\n")
+    return pkg
+
+
+def test_the_key_changes_with_numba_modules_only(tmp_path):
+    pkg = _package(tmp_path, "2 * x")
+    key = _kernel_cache.source_hash(pkg)
+    (pkg / "cli.py").write_text("print('still plain')\n")
+    assert _kernel_cache.source_hash(pkg) == key
+    (pkg / "helpers.py").write_text((pkg / "helpers.py").read_text().replace("2 * x", "3 * x"))
+    assert _kernel_cache.source_hash(pkg) != key
+
+
+def test_the_directory_follows_numba_cache_dir(tmp_path):
+    pkg = _package(tmp_path, "2 * x")
+    key = _kernel_cache.source_hash(pkg)
+    assert _kernel_cache.cache_directory(pkg, {"NUMBA_CACHE_DIR": str(tmp_path / "c")}) == \
+        tmp_path / "c" / f"blastvox-{key}"
+    assert _kernel_cache.cache_directory(pkg, {"XDG_CACHE_HOME": str(tmp_path / "x")}) == \
+        tmp_path / "x" / "blastvox" / "numba" / key
+
+
+def _run_kernel(pkg: Path, cache: Path) -> str:
+    code = ("import sys; from pathlib import Path; from blastvox import _kernel_cache; "
+            f"_kernel_cache.configure(Path({str(pkg)!r})); "
+            "from pkg.kernels import kernel; print(kernel(5))")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache),
+           "PYTHONPATH": os.pathsep.join([str(pkg.parent), str(ROOT)])}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=300, check=True)
+    return out.stdout.strip()
+
+
+@pytest.mark.slow
+def test_editing_a_helper_recompiles_the_kernel_that_inlines_it(tmp_path):
+    # plain numba would load kernel's stale cached code (it checks kernels.py only)
+    pkg = _package(tmp_path, "2 * x")
+    cache = tmp_path / "cache"
+    assert _run_kernel(pkg, cache) == "11"
+    assert _run_kernel(pkg, cache) == "11"  # from the cache
+    (pkg / "helpers.py").write_text((pkg / "helpers.py").read_text().replace("2 * x", "3 * x"))
+    assert _run_kernel(pkg, cache) == "16"
+
+
+def test_old_directories_are_pruned(tmp_path):
+    parent = tmp_path / "blastvox" / "numba"
+    for i in range(6):
+        old = parent / f"{i:016x}"
+        old.mkdir(parents=True)
+        os.utime(old, (i, i))
+    current = parent / ("f" * 16)
+    _kernel_cache._prune(current)
+    left = sorted(p.name for p in parent.iterdir())
+    assert left == [f"{4:016x}", f"{5:016x}"]  # with the current one, KEEP in all
+
+
+def test_a_helper_called_from_python_raises_instead_of_crashing():
+    # helpers have no CPython wrapper (faster first runs); numba would segfault
+    from blastvox.jit import HelperDispatcher
+    from blastvox.simulate.integrate import world_tensor_times
+
+    assert isinstance(world_tensor_times, HelperDispatcher)
+    eye = np.eye(3)
+    with pytest.raises(TypeError, match="world_tensor_times is compiled for other numba"):
+        world_tensor_times(eye, eye, 1.0, 2.0, 3.0)
+    assert world_tensor_times.py_func(eye, eye, 1.0, 2.0, 3.0) == (1.0, 2.0, 3.0)
