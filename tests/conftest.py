@@ -25,7 +25,7 @@ def warm_numba_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     """Run a tiny voxelize -> simulate (every effect on) once per test session."""
     import trimesh
 
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, SimSettings
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

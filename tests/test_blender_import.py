@@ -115,7 +115,7 @@ def shot(tmp_path_factory) -> Shot:
     import trimesh
 
     from blastvox.export.api import export
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, SimSettings
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

@@ -35,7 +35,7 @@ def shots(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Path]
     """{"base"/"moved": {format: path}} plus "model": {"npz": VoxelModel path}."""
     import trimesh
 
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, SimSettings
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

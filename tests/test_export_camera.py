@@ -12,7 +12,7 @@ from pxr import Usd, UsdGeom
 
 from blastvox.export.api import ExportOptions, export
 from blastvox.export.pieces import frame_change
-from blastvox.simulate.run import simulate
+from blastvox.simulate.engine import simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

@@ -35,7 +35,7 @@ _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 def shot(tmp_path_factory: pytest.TempPathFactory) -> tuple[SimCache, Path]:
     import trimesh
 
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, SimSettings
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

@@ -115,7 +115,7 @@ def wall(tmp_path_factory) -> tuple[SimCache, Path]:
     """A real simulation: a 2 x 0.5 x 2 m brick wall, 2 kg TNT 2 m in front."""
     import trimesh
 
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, SimSettings
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

@@ -187,7 +187,7 @@ def shot(tmp_path_factory: pytest.TempPathFactory) -> Path:
     0.5 s: it cracks into pieces and catches fire; fireball, dust and shock sphere."""
     import trimesh
 
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, SimSettings
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
