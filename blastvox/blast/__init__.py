@@ -1,2 +1,61 @@
-"""The blast-wave model shared by every stage: Kingery-Bulmash reference data,
-the modified Friedlander profile and its exact impulse, TNT equivalence."""
+"""The blast-wave model shared by every stage (``blast``, ``simulate``, ``preview``).
+
+A spherical free-air burst: Kingery-Bulmash reference data for 1 kg TNT, scaled
+to a charge by TNT equivalence and Hopkinson-Cranz; the modified Friedlander
+profile with a bounded negative phase and its exact impulse over any window.
+
+=====================  =================================================================
+module                 contents
+=====================  =================================================================
+``atmosphere``         P0_PA, C0_M_S: the ambient air of the reference data
+``explosives``         tnt_equivalent, known_explosives, TNT_EQUIVALENTS (pure Python)
+``kingery_bulmash``    Z_MIN, Z_MAX, reference_parameters(_nb): the 1 kg TNT fits
+``friedlander``        decay_coefficient, positive_impulse, negative_phase, overpressure,
+                       impulse (and ``*_nb``), exceedance_nb: the pressure-time profile
+``charge``             blast_parameters(_nb), BlastParameters: a charge at distances
+``table``              reference_table, params_at, peak_overpressure, point_impulse,
+                       exceedance_integral: the tabulated form simulator kernels use
+=====================  =================================================================
+
+Every formula is one scalar numba function (``*_nb``, ``cache=True``); the
+NumPy faces (array in, array out) run the same functions in compiled loops.
+
+The names below are importable from this package; each loads only its module,
+so ``import blastvox.blast`` costs nothing and ``tnt_equivalent`` loads no numba.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_HOME = {
+    "atmosphere": ("C0_M_S", "P0_PA"),
+    "explosives": ("TNT_DENSITY_KG_M3", "TNT_EQUIVALENTS", "known_explosives",
+                   "tnt_equivalent"),
+    "kingery_bulmash": ("Z_MAX", "Z_MIN", "reference_parameters", "reference_parameters_nb"),
+    "friedlander": ("B_MIN", "NEG_CUTOFF", "NEG_MAX_DURATION", "X_EPS", "decay_coefficient",
+                    "decay_coefficient_nb", "exceedance_nb", "impulse", "impulse_nb",
+                    "negative_phase", "negative_phase_nb", "overpressure", "overpressure_nb",
+                    "positive_impulse", "positive_impulse_nb"),
+    "charge": ("BlastParameters", "blast_parameters", "blast_parameters_nb"),
+    "table": ("exceedance_integral", "params_at", "peak_overpressure", "point_impulse",
+              "reference_grid", "reference_table"),
+}
+_MODULE_OF = {name: module for module, names in _HOME.items() for name in names}
+
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+

@@ -1,0 +1,43 @@
+"""Plumbing shared by the blast modules: Horner's rule for compiled code, and the
+NumPy faces' broadcasting around compiled loop kernels.
+
+Every formula of the blast model is written once, as a scalar numba function. A
+NumPy face (array in, array out) broadcasts its arguments, flattens them into
+fresh float64 C arrays and hands them to a ``@nb.njit(cache=True)`` loop
+kernel that calls the scalar function per element. The kernel therefore always
+sees one argument type and is compiled, and cached, once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from blastvox.jit import helper
+
+
+@helper
+def horner_nb(coeffs, u):
+    """sum_i coeffs[i] u^i (coeffs a float64 array, highest power last)."""
+    out = coeffs[coeffs.shape[0] - 1]
+    for i in range(coeffs.shape[0] - 2, -1, -1):
+        out = out * u + coeffs[i]
+    return out
+
+
+def flat_arrays(*values: Any) -> tuple[tuple[int, ...], list[np.ndarray]]:
+    """The broadcast shape of ``values`` and each as a fresh, writeable 1-D float64 C array."""
+    arrays = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in values))
+    return arrays[0].shape, [np.array(a, dtype=np.float64, order="C").reshape(-1)
+                             for a in arrays]
+
+
+def run_kernel(kernel: Callable[..., None], outputs: int,
+               *values: Any) -> tuple[np.ndarray, ...]:
+    """``kernel(*flat inputs, out)`` with out (outputs, N); each row in the broadcast shape."""
+    shape, flat = flat_arrays(*values)
+    out = np.empty((outputs, flat[0].size))
+    kernel(*flat, out)
+    return tuple(row.reshape(shape) for row in out)

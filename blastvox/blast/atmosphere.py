@@ -1,0 +1,6 @@
+"""The ambient air every blast quantity refers to: sea-level standard atmosphere (ISA)."""
+
+from __future__ import annotations
+
+P0_PA = 101_325.0   #: ambient pressure, sea-level standard atmosphere (Pa)
+C0_M_S = 340.294    #: ambient speed of sound, ISA sea level 15 degC (m/s)
