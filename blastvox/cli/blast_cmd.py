@@ -77,7 +77,7 @@ def blast(
     JSON keys: distance_m, scaled_distance (m/kg^(1/3), TNT-equivalent), peak_overpressure_pa,
     arrival_time_s, positive_duration_s, decay_coefficient (Friedlander b), impulse_pa_s.
     """
-    from blastvox.blast.model import Z_MAX, Z_MIN, blast_parameters, tnt_equivalent
+    from blastvox.blast import Z_MAX, Z_MIN, blast_parameters, tnt_equivalent
 
     mass = parse_charge(charge)
     distances = parse_distances(distance)

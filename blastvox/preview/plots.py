@@ -14,7 +14,7 @@ Helpers any part of blastvox (or a benchmark) can reuse:
 :func:`blast_figure` draws, for a charge and the requested distances, the
 bounded modified Friedlander pressure-time curves (negative phase included)
 and the peak overpressure and impulses against distance (log-log), straight
-from :mod:`blastvox.blast.model`.
+from :mod:`blastvox.blast`.
 """
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ def pressure_time(distance_m: float, charge_kg: float, explosive: str = "TNT",
                   samples: int = 1200) -> tuple[np.ndarray, np.ndarray]:
     """(t (N,) s after detonation, p - p0 (N,) Pa) at ``distance_m``: from just before
     arrival to the end of the bounded negative phase, the jump at arrival included."""
-    from blastvox.blast import model as blast
+    import blastvox.blast as blast
 
     p = blast.blast_parameters(distance_m, charge_kg, explosive)
     ta, td = float(p.arrival_time_s), float(p.positive_duration_s)
@@ -127,7 +127,7 @@ def pressure_time(distance_m: float, charge_kg: float, explosive: str = "TNT",
 
 def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float]) -> Any:
     """Pressure-time curves at ``distances`` (m) and Ps / impulse against distance."""
-    from blastvox.blast import model as blast
+    import blastvox.blast as blast
 
     factor = blast.tnt_equivalent(explosive)
     cube = float(np.cbrt(charge_kg * factor))
