@@ -530,7 +530,7 @@ def test_blast_plot(out: Path, capsys) -> None:
 
 
 def test_pressure_time_curve_has_its_negative_phase() -> None:
-    from blastvox.blast.model import blast_parameters
+    from blastvox.blast import blast_parameters
     from blastvox.preview.plots import pressure_time
 
     p = blast_parameters(5.0, 10.0)

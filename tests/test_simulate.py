@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from blastvox.blast.model import blast_parameters
+from blastvox.blast import blast_parameters
 from blastvox.geometry import quaternion
 from blastvox.materials import MaterialLibrary
 from blastvox.simulate import topology
