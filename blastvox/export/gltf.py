@@ -47,7 +47,7 @@ from blastvox.errors import BlastvoxError
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import animation, piece_meshes
 from blastvox.geometry import quaternion
-from blastvox.geometry.frames import frame_change
+from blastvox.geometry.frames import frame_change, up_vector
 from blastvox.io.atomic import atomic_path
 
 FLOAT, UINT16, UINT32 = 5126, 5123, 5125
@@ -266,16 +266,13 @@ def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[d
     offset = np.asarray(cache.arrays.get("camera_offset", np.zeros((cache.frame_count, 3))),
                         dtype=np.float64) @ change.T
     back = (position - target) / np.linalg.norm(position - target)
-    right = np.cross([0.0, 1.0, 0.0], back)
+    right = np.cross(up_vector("Y"), back)
     if np.linalg.norm(right) < 1e-9:
         right = np.array([1.0, 0.0, 0.0])
     right /= np.linalg.norm(right)
     up = np.cross(back, right)
     rot = np.stack([right, up, back], axis=1)  # columns: camera axes in the world
-    w = np.sqrt(max(1e-12, 1.0 + np.trace(rot))) / 2.0
-    quat = np.array([(rot[2, 1] - rot[1, 2]) / (4 * w), (rot[0, 2] - rot[2, 0]) / (4 * w),
-                     (rot[1, 0] - rot[0, 1]) / (4 * w), w])
-    quat /= np.linalg.norm(quat)
+    quat = quaternion.from_matrix(rot)[[1, 2, 3, 0]]  # glTF order (x, y, z, w)
     focal = float(camera.get("focal_length_mm", 35.0))
     nodes.append({"name": "camera", "camera": 0, "translation": _floats(position + offset[0]),
                   "rotation": _floats(quat)})
