@@ -63,13 +63,37 @@ previews: $(STAMP)
 	done
 	$(BIN)/blastvox blast --charge 10 --distance 1,5,20 --plot docs/images/blast.png > /dev/null
 
-## bench: print the benchmark tables
+## bench: run every benchmark (about 20 minutes on 2 cores) and rewrite docs/benchmarks.md
+## with their tables (and docs/images/tradeoff.png); progress goes to the terminal
+BENCH_DOC := docs/benchmarks.md
 bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
-	$(BIN)/python benchmarks/voxelize.py
-	$(BIN)/python benchmarks/convergence.py
-	$(BIN)/python benchmarks/simulate.py
-	$(BIN)/python benchmarks/performance.py
+	@set -e; out=$(BENCH_DOC).partial; trap 'rm -f "$$out" "$$out.perf"' EXIT; \
+	section() { printf '\n## %s\n\n`python benchmarks/%s`\n\n' "$$1" "$$2"; }; \
+	{ \
+	  echo '# Benchmarks'; echo; \
+	  echo "<!-- Written by \`make bench\` at git $$(git describe --always --dirty 2>/dev/null \
+	    || echo unknown). Do not edit by hand: the next \`make bench\` rewrites it. -->"; echo; \
+	  echo 'The speed and accuracy of blastvox, measured by the scripts in `benchmarks/`.'; \
+	  echo 'Each section is the output of one script: its machine line (platform, CPU,'; \
+	  echo 'CPU count, load average, versions), then its tables. What each column means,'; \
+	  echo 'the cases and the targets: [`benchmarks/README.md`](../benchmarks/README.md).'; \
+	  echo 'How to read the speed/accuracy trade for a shot:'; \
+	  echo '[user guide](user-guide.md#choosing-voxel-size-and-time-step).'; \
+	  echo 'Targets are reported, not gated.'; \
+	  section Voxelize voxelize.py; $(BIN)/python benchmarks/voxelize.py; \
+	  section 'Time-step convergence' convergence.py; $(BIN)/python benchmarks/convergence.py; \
+	  section Simulate simulate.py; $(BIN)/python benchmarks/simulate.py; \
+	  section Performance performance.py; \
+	  $(BIN)/python benchmarks/performance.py > "$$out.perf"; sed 's/^## /### /' "$$out.perf"; \
+	  section Export export.py; $(BIN)/python benchmarks/export.py; \
+	  section Preview preview.py; $(BIN)/python benchmarks/preview.py; \
+	  section 'Speed/accuracy trade' 'tradeoff.py --plot docs/images/tradeoff.png'; \
+	  $(BIN)/python benchmarks/tradeoff.py --plot docs/images/tradeoff.png; \
+	  printf '\n![Wall time against error: combined (Pareto fronts drawn) and per metric]'; \
+	  printf '(images/tradeoff.png)\n'; \
+	} > "$$out"; \
+	mv "$$out" $(BENCH_DOC); echo "wrote $(BENCH_DOC)"
 
 ## clean: outputs, and numba's compiled-kernel cache (it only watches each kernel's
 ## own source file: after editing a helper another module inlines, clean)

@@ -132,16 +132,20 @@ class _Model(BaseModel):
 class Transform(_Model):
     """Mesh-to-world transform: scale, then rotate (XYZ Euler, degrees), then translate (m)."""
 
-    translate: Vec3 = (0.0, 0.0, 0.0)
-    rotate_deg: Vec3 = (0.0, 0.0, 0.0)
-    scale: Size3 = (1.0, 1.0, 1.0)
+    translate: Vec3 = Field((0.0, 0.0, 0.0), description=(
+        "Translation applied last, after scale and rotation."))
+    rotate_deg: Vec3 = Field((0.0, 0.0, 0.0), description=(
+        "Rotation as XYZ Euler angles, extrinsic (about X, then Y, then Z: "
+        "R = Rz Ry Rx), as Blender's XYZ mode; applied after scale."))
+    scale: Size3 = Field((1.0, 1.0, 1.0), description=(
+        "Scale factor, one number for all axes or one per axis; applied first."))
 
 
 class Box(_Model):
     """Axis-aligned box (m), boundary inclusive."""
 
-    min: Vec3
-    max: Vec3
+    min: Vec3 = Field(description="Lowest corner (world frame).")
+    max: Vec3 = Field(description="Highest corner (world frame); >= min on every axis.")
 
     @model_validator(mode="after")
     def _ordered(self) -> Box:
@@ -158,8 +162,8 @@ class Box(_Model):
 class Sphere(_Model):
     """Ball with ``center`` (m) and ``radius`` (m > 0), boundary inclusive."""
 
-    center: Vec3
-    radius: Positive
+    center: Vec3 = Field(description="Centre (world frame).")
+    radius: Positive = Field(description="Radius.")
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Boolean mask of the (N, 3) ``points`` inside the ball."""
@@ -170,8 +174,9 @@ class Sphere(_Model):
 class Halfspace(_Model):
     """Points x with (x - point) . normal >= 0; ``normal`` need not be unit length."""
 
-    point: Vec3
-    normal: Vec3
+    point: Vec3 = Field(description="A point on the bounding plane (world frame).")
+    normal: Vec3 = Field(description=(
+        "Direction into the half-space (need not be unit length, must not be zero)."))
 
     @field_validator("normal")
     @classmethod
@@ -192,11 +197,14 @@ class Rule(_Model):
     Rules apply in order; a later rule wins where regions overlap.
     """
 
-    box: Box | None = None
-    sphere: Sphere | None = None
-    halfspace: Halfspace | None = None
-    material: MaterialName | None = None
-    strength_scale: Positive | None = None
+    box: Box | None = Field(None, description="Axis-aligned box region.")
+    sphere: Sphere | None = Field(None, description="Ball region.")
+    halfspace: Halfspace | None = Field(None, description="Half-space region.")
+    material: MaterialName | None = Field(None, description=(
+        "Material of the voxels whose centre is inside the region."))
+    strength_scale: Positive | None = Field(None, description=(
+        "Factor on the link, voxel and foundation yields inside the region "
+        "(a link takes the smaller factor of its two voxels)."))
 
     @model_validator(mode="after")
     def _complete(self) -> Rule:
@@ -216,16 +224,32 @@ class Rule(_Model):
 class SceneObject(_Model):
     """One mesh to voxelize. Exactly one of ``voxel_size`` (m) and ``resolution`` is set."""
 
-    mesh: FilePath
-    name: Name
-    voxel_size: Size3 | None = None
-    resolution: Annotated[int, Field(strict=True, ge=1)] | None = None
-    shape: Annotated[Literal["cube", "conform"], _case("lower")] = "cube"
-    jitter: Annotated[float, Field(strict=True, ge=0, lt=0.5)] = 0.0
-    material: MaterialName = "concrete"
-    material_map: dict[str, MaterialName] = {}
-    transform: Transform = Transform()
-    rules: list[Rule] = []
+    mesh: FilePath = Field(description=(
+        "Mesh file: OBJ, STL, PLY, OFF, glTF/GLB, or a volume mesh meshio reads "
+        "(.vtu, .msh, ...)."))
+    name: Name = Field(description=(
+        "Object name, unique in the scene; default: the mesh file's stem. Parts that are "
+        "not connected become the objects NAME.000, NAME.001, ..."))
+    voxel_size: Size3 | None = Field(None, description=(
+        "Voxel edge, one number or one per axis. Give voxel_size or resolution, not both."))
+    resolution: Annotated[int, Field(strict=True, ge=1)] | None = Field(None, description=(
+        "Voxels along the longest axis of the transformed mesh; 32 if neither "
+        "voxel_size nor resolution is given."))
+    shape: Annotated[Literal["cube", "conform"], _case("lower")] = Field("cube", description=(
+        "cube: every voxel a (jittered) hexahedron; conform: voxels the surface crosses "
+        "are the exact cell-and-mesh intersection (needs a closed mesh)."))
+    jitter: Annotated[float, Field(strict=True, ge=0, lt=0.5)] = Field(0.0, description=(
+        "Moves each lattice vertex by a seeded random fraction of the voxel size; "
+        "neighbouring voxels share vertices, so faces stay shared."))
+    material: MaterialName = Field("concrete", description=(
+        "Material of the object's voxels where neither material_map nor a rule sets one."))
+    material_map: dict[str, MaterialName] = Field({}, description=(
+        "Mesh material name -> library material, for meshes that name their materials "
+        "(case-insensitive)."))
+    transform: Transform = Field(Transform(), description="Mesh-to-world transform.")
+    rules: list[Rule] = Field([], description=(
+        "Region rules, applied in order after material and material_map; a later rule "
+        "wins where regions overlap."))
 
     @model_validator(mode="before")
     @classmethod
@@ -255,10 +279,11 @@ class SceneObject(_Model):
 class Charge(_Model):
     """``mass_kg`` (kg) of ``explosive`` at ``position`` (m), detonated at ``time_s`` (s)."""
 
-    position: Vec3
-    mass_kg: Positive
-    explosive: Name = "TNT"
-    time_s: NonNegative = 0.0
+    position: Vec3 = Field(description="Centre of the charge (world frame).")
+    mass_kg: Positive = Field(description="Mass of explosive.")
+    explosive: Name = Field("TNT", description=(
+        "Explosive, converted to a TNT-equivalent mass (see Explosives)."))
+    time_s: NonNegative = Field(0.0, description="Detonation time after the start of the shot.")
 
 
 class Simulation(_Model):
@@ -275,50 +300,87 @@ class Simulation(_Model):
     fraction of its initial yield a burning voxel or link loses per second.
     """
 
-    dt: Positive = 1.0 / 240.0
-    fps: Positive = 24.0
-    duration: Positive = 5.0
-    fracture: Annotated[Literal["yield", "damage"], _case("lower")] = "yield"
-    gravity: NonNegative = 9.81
-    linear_drag: NonNegative = 0.0
-    angular_drag: NonNegative = 0.0
-    weakening: Annotated[float, Field(strict=True, ge=0, le=1)] = 0.5
-    orientation_factor: Annotated[float, Field(strict=True, ge=0, lt=1)] = 0.5
-    damage_b: NonNegative = 0.1
-    damage_c: NonNegative = 0.05
-    friction: NonNegative = 0.6
-    fire_pressure_scale: NonNegative = 1.0
-    fire_spread: NonNegative = 20_000.0
-    burn_rate: NonNegative = 0.05
+    dt: Positive = Field(1.0 / 240.0, description=(
+        "Fixed time step; shortened if needed so that a whole number of steps fills "
+        "a frame interval."))
+    fps: Positive = Field(24.0, description="Output frames per second.")
+    duration: Positive = Field(5.0, description=(
+        "Length of the shot; frames run from t = 0 to the last frame at or before it."))
+    fracture: Annotated[Literal["yield", "damage"], _case("lower")] = Field("yield", description=(
+        "yield: a link breaks when the peak overpressure exceeds its yield; damage: "
+        "Davison-Stevens damage accumulation (Mazarak 1999)."))
+    gravity: NonNegative = Field(9.81, description=(
+        "Gravitational acceleration along -up_axis; 0 switches gravity off."))
+    linear_drag: NonNegative = Field(0.0, description=(
+        "Exponential decay rate of every body's linear momentum."))
+    angular_drag: NonNegative = Field(0.0, description=(
+        "Exponential decay rate of every body's angular momentum."))
+    weakening: Annotated[float, Field(strict=True, ge=0, le=1)] = Field(0.5, description=(
+        "Fraction of a wave's peak overpressure taken off the yield of a link or voxel "
+        "that the wave did not break (yield fracture)."))
+    orientation_factor: Annotated[float, Field(strict=True, ge=0, lt=1)] = Field(
+        0.5, description=(
+            "k: a link's yield is scaled by (1 - k |R.l|), R the wave's direction and l "
+            "the link's, so a link along the wave's radius holds only (1 - k) of it."))
+    damage_b: NonNegative = Field(0.1, description=(
+        "Davison-Stevens constant B (fracture = \"damage\")."))
+    damage_c: NonNegative = Field(0.05, description=(
+        "Davison-Stevens constant C, per Pa s of overpressure above yield "
+        "(fracture = \"damage\")."))
+    friction: NonNegative = Field(0.6, description=(
+        "Coulomb friction coefficient at the ground and between pieces."))
+    fire_pressure_scale: NonNegative = Field(1.0, description=(
+        "A wave's peak overpressure times this is taken off a voxel's combustibility; "
+        "below zero the voxel burns."))
+    fire_spread: NonNegative = Field(20_000.0, description=(
+        "Rate at which a burning voxel lowers the combustibility of its linked "
+        "neighbours (full rate straight above, 20 % beside or below)."))
+    burn_rate: NonNegative = Field(0.05, description=(
+        "Fraction of its initial yield that a burning voxel and its links lose per second."))
 
 
 class Effects(_Model):
     """Which effects to model; an effect that is off costs nothing."""
 
-    collisions: Annotated[bool, Field(strict=True)] = True
-    ground: Annotated[bool, Field(strict=True)] = True
-    fire: Annotated[bool, Field(strict=True)] = True
-    dust: Annotated[bool, Field(strict=True)] = True
-    fireball: Annotated[bool, Field(strict=True)] = True
-    shock_sphere: Annotated[bool, Field(strict=True)] = True
-    camera_shake: Annotated[bool, Field(strict=True)] = True
+    collisions: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Pieces collide with each other."))
+    ground: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "The ground plane and foundations; false: foundations are ignored and the "
+        "model floats free."))
+    fire: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Ignition, burning and spread, with flame and smoke particles (only where a "
+        "material can burn)."))
+    dust: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Dust particles from destroyed voxels, impacts, the passing shock and the "
+        "shock's ring on the ground."))
+    fireball: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Fireball particles at each charge."))
+    shock_sphere: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Shock-front sphere opacity in the cache (false: opacity 0, the sphere is hidden)."))
+    camera_shake: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Shake the scene's [camera] when a wave reaches it."))
 
 
 class Particles(_Model):
     """Particle budgets per system (most particles kept over the whole shot)."""
 
-    dust: Annotated[int, Field(strict=True, ge=0)] = 20_000
-    fire: Annotated[int, Field(strict=True, ge=0)] = 10_000
-    smoke: Annotated[int, Field(strict=True, ge=0)] = 10_000
-    fireball: Annotated[int, Field(strict=True, ge=0)] = 2_000
+    dust: Annotated[int, Field(strict=True, ge=0)] = Field(20_000, description=(
+        "Most dust particles kept; later emission is dropped."))
+    fire: Annotated[int, Field(strict=True, ge=0)] = Field(10_000, description=(
+        "Most flame particles kept."))
+    smoke: Annotated[int, Field(strict=True, ge=0)] = Field(10_000, description=(
+        "Most smoke particles kept."))
+    fireball: Annotated[int, Field(strict=True, ge=0)] = Field(2_000, description=(
+        "Most fireball particles kept."))
 
 
 class Camera(_Model):
     """Shot camera: ``position`` and ``look_at`` in m, focal length in mm (35 mm film back)."""
 
-    position: Vec3
-    look_at: Vec3
-    focal_length_mm: Positive = 35.0
+    position: Vec3 = Field(description="Camera position (world frame).")
+    look_at: Vec3 = Field(description="Point the camera looks at (world frame).")
+    focal_length_mm: Positive = Field(35.0, description=(
+        "Focal length on a 36 x 24 mm film back."))
 
     @model_validator(mode="after")
     def _distinct(self) -> Camera:
@@ -333,11 +395,16 @@ class Output(_Model):
     ``export`` may be one path or a list (e.g. a .usdc and a .glb of the same shot).
     """
 
-    model: FilePath | None = None
-    cache: FilePath | None = None
-    export: FilePath | list[FilePath] | None = None
-    up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = "Y"
-    layout: Literal["xforms", "instancer"] = "xforms"
+    model: FilePath | None = Field(None, description=(
+        "VoxelModel (.npz) that voxelize writes and simulate reads."))
+    cache: FilePath | None = Field(None, description=(
+        "SimCache (.npz) that simulate writes and export reads."))
+    export: FilePath | list[FilePath] | None = Field(None, description=(
+        "Export file(s): .usda, .usdc, .usd, .gltf or .glb; the suffix picks the format."))
+    up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = Field("Y", description=(
+        "Up axis of the exported files."))
+    layout: Literal["xforms", "instancer"] = Field("xforms", description=(
+        "USD layout: an Xform and a Mesh per piece, or one PointInstancer."))
 
 
 class Scene(_Model):
@@ -349,18 +416,31 @@ class Scene(_Model):
     :meth:`material_library` during validation.
     """
 
-    seed: Annotated[int, Field(strict=True, ge=0)] = 0
-    up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = "Y"
-    ground: Annotated[Literal["auto", "none"] | float, BeforeValidator(_ground)] = "auto"
-    materials_file: FilePath | None = None
-    materials: dict[str, dict[str, Any]] = {}
-    objects: Annotated[list[SceneObject], Field(min_length=1)]
-    charges: list[Charge] = []
-    simulation: Simulation = Simulation()
-    effects: Effects = Effects()
-    particles: Particles = Particles()
-    camera: Camera | None = None
-    output: Output = Output()
+    seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description=(
+        "Seed of every random choice (jitter, yield perturbation, particles): the same "
+        "inputs and seed give byte-identical files."))
+    up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = Field("Y", description=(
+        "Axis that points up in the meshes and in every coordinate of the scene; "
+        "gravity acts along -up."))
+    ground: Annotated[Literal["auto", "none"] | float, BeforeValidator(_ground)] = Field(
+        "auto", description=(
+            "Ground height along up_axis: auto (the lowest point of all voxels), none "
+            "(no ground, no foundations) or a height. Voxels touching it are foundations."))
+    materials_file: FilePath | None = Field(None, description=(
+        "TOML material library that extends or overrides the built-in materials "
+        "(see Materials)."))
+    materials: dict[str, dict[str, Any]] = Field({}, description=(
+        "Inline [materials.NAME] tables, applied after materials_file (see Materials)."))
+    objects: Annotated[list[SceneObject], Field(min_length=1, description=(
+        "Meshes to voxelize, at least one."))]
+    charges: list[Charge] = Field([], description="Explosive charges (none: no blast).")
+    simulation: Simulation = Field(Simulation(), description="Integrator and physics settings.")
+    effects: Effects = Field(Effects(), description=(
+        "Which effects to model; an effect that is off costs nothing."))
+    particles: Particles = Field(Particles(), description="Particle budgets per system.")
+    camera: Camera | None = Field(None, description=(
+        "Shot camera for the exports, previews and camera shake (none: no camera)."))
+    output: Output = Field(Output(), description="Output paths of the stages, export options.")
 
     _library: MaterialLibrary | None = PrivateAttr(default=None)
 
