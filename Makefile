@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint bench examples previews clean
+.PHONY: demo test test-fast goldens lint bench examples previews clean
 
 # The Khronos glTF Validator (npm) that the export tests run; needs node and npm.
 VALIDATOR := tools/gltf-validator/node_modules/.installed
@@ -44,6 +44,17 @@ $(BLENDER_STAMP): tools/blender/requirements.txt
 test: $(STAMP) $(VALIDATOR) $(BLENDER_STAMP)
 	$(BIN)/ruff check blastvox tests benchmarks
 	$(BIN)/python -m pytest -q
+
+## test-fast: the everyday lane (no subprocess shots, goldens or Blender): a couple of minutes
+test-fast: $(STAMP)
+	$(BIN)/ruff check blastvox tests benchmarks
+	$(BIN)/python -m pytest -q -m "not slow"
+
+## goldens: refresh examples/golden/ from the current code (say why in the commit)
+goldens: $(STAMP)
+	for s in house building logo; do $(BIN)/blastvox run examples/$$s/scene.toml -q || exit 1; \
+	  cp out/$$s/sim.npz examples/golden/$$s.sim.npz; done
+	cp out/house/shot.glb examples/golden/house.glb
 
 lint: $(STAMP)
 	$(BIN)/ruff check blastvox tests benchmarks
@@ -95,8 +106,9 @@ bench: $(STAMP)
 	} > "$$out"; \
 	mv "$$out" $(BENCH_DOC); echo "wrote $(BENCH_DOC)"
 
-## clean: outputs, and numba's compiled-kernel cache (it only watches each kernel's
-## own source file: after editing a helper another module inlines, clean)
+## clean: outputs, and numba's compiled kernels of this source tree (never needed after
+## an edit: the cache is keyed on the source, see blastvox/_kernel_cache.py)
 clean:
 	rm -rf out .pytest_cache
 	find blastvox -name '*.nbi' -delete -o -name '*.nbc' -delete
+	[ ! -x $(BIN)/python ] || rm -rf "$$($(BIN)/python -c 'import blastvox; print(blastvox.KERNEL_CACHE)')"

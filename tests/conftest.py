@@ -38,3 +38,15 @@ def warm_numba_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
         simulate(model, SimSettings(duration=0.3, fracture=fracture,
                                     camera=((0.0, -10.0, 1.0), (0.0, 0.0, 0.5), 35.0),
                                     charges=(ChargeSpec((0.0, -1.5, 0.5), 2.0),)))
+
+
+#: Modules whose tests bake whole shots in subprocesses, render or run Blender: the
+#: full suite (CI, ``make test``) runs them; ``make test-fast`` (-m "not slow") skips them.
+SLOW_MODULES = {"test_cli_simulate", "test_cli_voxelize", "test_golden", "test_blender_import",
+                "test_extremes", "test_tradeoff"}
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.module is not None and item.module.__name__.rsplit(".", 1)[-1] in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)

@@ -116,9 +116,9 @@ GOOD_RUNS: dict[str, Spec] = {
     "scene": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",)),
     "scene_again": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",)),
     "threads1": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",),
-                     env={"NUMBA_NUM_THREADS": "1"}),
+                     env={"NUMBA_NUM_THREADS": "1", "PYTHONHASHSEED": "1"}),
     "threads2": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",),
-                     env={"NUMBA_NUM_THREADS": "2"}),
+                     env={"NUMBA_NUM_THREADS": "2", "PYTHONHASHSEED": "2"}),
     "still": Spec("wall", (MODEL, *FAR, "--gravity", "0", "--no-ground", "--duration", "0.5",
                            "-q")),
     "founded": Spec("wall", (MODEL, *FAR, "--duration", "0.5", "-q")),
@@ -338,10 +338,24 @@ def test_same_command_gives_identical_bytes(runs: dict[str, Run]) -> None:
     assert runs["scene"].sim.read_bytes() == runs["scene_again"].sim.read_bytes()
 
 
-def test_thread_count_does_not_change_bytes(runs: dict[str, Run]) -> None:
+def test_thread_count_and_hash_seed_do_not_change_bytes(runs: dict[str, Run]) -> None:
+    """Two processes that differ in what commonly breaks determinism: the thread count
+    (a parallel kernel's reductions run in a thread-dependent order) and Python's
+    string hash seed (set and str-keyed iteration order). A cache that depended on
+    either differs here (see the next test: the seeds do reach the runs)."""
     one, two = (runs[n].sim.read_bytes() for n in ("threads1", "threads2"))
     assert one == two
     assert one == runs["scene"].sim.read_bytes()
+
+
+def test_the_determinism_runs_see_different_hash_orders() -> None:
+    # the environment of threads1/threads2 really changes iteration order, so the
+    # comparison above would catch a cache built from a set of names
+    code = "print(list({'dust', 'fire', 'smoke', 'fireball', 'house', 'roof', 'wall'}))"
+    orders = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             env={**os.environ, "PYTHONHASHSEED": seed},
+                             check=True).stdout for seed in ("1", "2")}
+    assert len(orders) == 2
 
 
 def test_no_gravity_far_charge_keeps_everything_still(runs: dict[str, Run]) -> None:
@@ -415,9 +429,7 @@ def test_info_rejects_broken_caches(kind: str, tmp_path: Path, runs: dict[str, R
 
 
 def test_progress_bar_starts_with_stepping_not_with_compilation():
-    # no refresh thread while first-run compilation may fork its workers
-    # (simulate.precompile forks only a single-threaded process), and the
-    # steps/s shown count stepping only
+    # the steps/s shown count stepping only, not first-run compilation
     import io
     import threading
 

@@ -1,4 +1,10 @@
-"""The house example bakes to the committed golden files (what a shot CI checks)."""
+"""The bundled example shots bake to the committed golden files (what a shot CI checks).
+
+Goldens are small: each example's SimCache (examples/golden/<shot>.sim.npz, every
+array of the simulation and of its VoxelModel) and the house's glTF export. A
+behaviour change shows up here first; when it is intended, refresh them with
+``make goldens`` and say why in the commit.
+"""
 
 from __future__ import annotations
 
@@ -7,21 +13,60 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
+
+from blastvox.cache import SimCache
+
 ROOT = Path(__file__).resolve().parent.parent
+GOLDEN = ROOT / "examples" / "golden"
+BLASTVOX = [sys.executable, "-m", "blastvox"]
+
+pytestmark = pytest.mark.slow
 
 
-def test_house_shot_matches_its_goldens(tmp_path: Path) -> None:
-    shot = tmp_path / "house"
-    shutil.copytree(ROOT / "examples" / "house", shot)
-    scene = (shot / "scene.toml").read_text().replace("../../out/house/", "out/")
-    (shot / "scene.toml").write_text(scene)
-    blastvox = [sys.executable, "-m", "blastvox"]
-    run = subprocess.run([*blastvox, "run", "scene.toml", "-q"], cwd=shot, capture_output=True,
-                         text=True, timeout=600)
+def _bake(tmp_path: Path, shot: str) -> Path:
+    """Run examples/<shot>/scene.toml in a copy under tmp_path; its output directory."""
+    where = tmp_path / shot
+    shutil.copytree(ROOT / "examples" / shot, where)
+    scene = (where / "scene.toml").read_text().replace(f"../../out/{shot}/", "out/")
+    (where / "scene.toml").write_text(scene)
+    run = subprocess.run([*BLASTVOX, "run", "scene.toml", "-q"], cwd=where,
+                         capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stderr
-    for name in ("house.usda", "house.glb"):
-        baked = shot / "out" / f"shot{Path(name).suffix}"
-        diff = subprocess.run([*blastvox, "diff", str(baked), str(ROOT / "examples" / "golden" /
-                                                                  name), "--atol", "1e-4"],
-                              capture_output=True, text=True, timeout=600)
-        assert diff.returncode == 0, diff.stdout + diff.stderr
+    return where / "out"
+
+
+def _meta(cache: SimCache) -> dict:
+    """The cache's and its model's meta, less the absolute mesh paths, which name the
+    checkout (issue 18)."""
+    model = dict(cache.model.meta)
+    model["objects"] = [{k: v for k, v in o.items() if k != "source"}
+                        for o in model.get("objects", [])]
+    return {**cache.meta, "model": model}
+
+
+def _arrays(cache: SimCache) -> dict[str, np.ndarray]:
+    return {**cache.arrays, **{f"model.{k}": v for k, v in cache.model.arrays.items()}}
+
+
+@pytest.mark.parametrize("shot", ["house", "building", "logo"])
+def test_shot_matches_its_golden_cache(tmp_path: Path, shot: str) -> None:
+    baked = SimCache.load(_bake(tmp_path, shot) / "sim.npz")
+    golden = SimCache.load(GOLDEN / f"{shot}.sim.npz")
+    assert _meta(baked) == _meta(golden)
+    a, b = _arrays(baked), _arrays(golden)
+    assert sorted(a) == sorted(b)
+    for name in sorted(a):
+        assert a[name].dtype == b[name].dtype and a[name].shape == b[name].shape, name
+        if a[name].dtype.kind == "f":
+            np.testing.assert_allclose(a[name], b[name], rtol=1e-6, atol=1e-4, err_msg=name)
+        else:
+            np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+
+
+def test_house_export_matches_its_golden_gltf(tmp_path: Path) -> None:
+    out = _bake(tmp_path, "house")
+    diff = subprocess.run([*BLASTVOX, "diff", str(out / "shot.glb"), str(GOLDEN / "house.glb"),
+                           "--atol", "1e-4"], capture_output=True, text=True, timeout=600)
+    assert diff.returncode == 0, diff.stdout + diff.stderr
