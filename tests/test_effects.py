@@ -11,10 +11,9 @@ import trimesh
 
 from blastvox.materials import MaterialLibrary
 from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
-from blastvox.simulate import run as simrun
-from blastvox.simulate.run import simulate
+from blastvox.simulate import engine
+from blastvox.simulate.engine import simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings
-from blastvox.simulate.state import build_model
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
 LIBRARY = MaterialLibrary.builtin().extended({
@@ -33,17 +32,16 @@ def wall(tmp_path: Path, material: str, extents=(3.0, 0.25, 3.0), size=0.25, gro
 def test_fire_climbs_faster_than_it_spreads_sideways(tmp_path):
     model = wall(tmp_path, "dry_wood", extents=(6.0, 0.25, 6.0))
     settings = SimSettings(fps=24.0, duration=10.0, charges=(ChargeSpec((1e5, 0, 0), 1e-3),))
-    sm = build_model(model)
-    state = simrun.initial_state(model, sm)
-    run = simrun._Run(sm, state, simrun.build_charges(settings.charges), settings,
-                      settings.step_seconds())
-    centre = sm.voxel_centroid
+    run = engine.Run.start(model, settings)
+    assert run.fire is not None  # wood burns: the run models fire
+    centre = run.model.voxels.centroid
     start = int(np.argmin(np.linalg.norm(centre - [0.0, 0.0, 1.0], axis=1)))
-    state.voxel_burning[start] = True
-    run.burning_count = 1
+    burning = run.state.voxels.burning
+    burning[start] = True  # one voxel set alight by hand
+    run.fire.burning = 1
     for step in range(1, int(10.0 / run.dt) + 1):
-        run.step(step, 0)
-    burnt = centre[state.voxel_burning]
+        engine.step(run, step, 0)
+    burnt = centre[burning]
     up = burnt[:, 2].max() - centre[start, 2]
     side = np.abs(burnt[:, 0] - centre[start, 0]).max()
     assert up > 1.5 * side > 0

@@ -1,10 +1,10 @@
 """Stability at the extremes (issue 6): finite, bounded, unit, deterministic, or a warning.
 
-Every scenario runs the real :func:`blastvox.simulate.run.simulate` twice with
-the step machinery replaced by :class:`Probe`, a subclass of the simulator's own
-``_Run`` that checks the float64 state after every step (the SimCache stores
-positions and orientations as float32, so the state is where unit quaternions
-to 1e-9 can be seen). Each scenario asserts:
+Every scenario runs the real :func:`blastvox.simulate.engine.simulate` twice
+watched by :class:`Probe`, which wraps the engine's public ``Run.start``,
+``step`` and blast phase and checks the float64 state after every step (the
+SimCache stores positions and orientations as float32, so the state is where
+unit quaternions to 1e-9 can be seen). Each scenario asserts:
 
 * **finite**: no NaN or Inf in any float array of either SimCache, in the
   energy of the bodies' float64 state after any step, or in any array of the
@@ -30,6 +30,7 @@ import subprocess
 import sys
 import tempfile
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from unittest import mock
@@ -48,10 +49,10 @@ from blastvox.geometry.quaternion import matrix_into
 from blastvox.io.npz import write_npz
 from blastvox.materials import MaterialLibrary, material_table
 from blastvox.model import VoxelModel
-from blastvox.simulate import limits
-from blastvox.simulate import run as simrun
+from blastvox.simulate import engine, limits
 from blastvox.simulate.integrate import angular_velocity
 from blastvox.simulate.settings import ChargeSpec, SimSettings
+from blastvox.simulate.state import State
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -166,35 +167,42 @@ def grid_model(shape: tuple[int, int, int], size: float, material: str,
 
 
 @nb.njit(cache=True)
-def _mechanics(body_quat, body_lin, body_ang, body_mass, body_inv_inertia, body_pos, body_live,
-               body_dust, n, up_axis, gravity, floor):
+def _mechanics(bodies, n, up_axis, gravity, floor):
     """(kinetic J, potential above ``floor`` J, lowest height above it m, worst ||q| - 1|)
-    of the live bodies (dust excluded from the energies): |p|^2/2m + L . omega / 2 and
-    m g (h - floor)."""
+    of the first n live bodies (dust excluded from the energies): |p|^2/2m + L . omega / 2
+    and m g (h - floor)."""
     rot = np.empty((3, 3))
     kinetic = potential = 0.0
     lowest = np.inf
     quat = 0.0
     for b in range(n):
-        if not body_live[b]:
+        if not bodies.live[b]:
             continue
-        q = body_quat[b]
+        q = bodies.quat[b]
         quat = max(quat, abs(math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2) - 1.0))
-        if body_dust[b]:
+        if bodies.dust[b]:
             continue
         matrix_into(q, rot)
-        wx, wy, wz = angular_velocity(rot, body_inv_inertia[b], body_ang[b])
-        p = body_lin[b]
-        kinetic += 0.5 * (p[0] ** 2 + p[1] ** 2 + p[2] ** 2) / body_mass[b]
-        kinetic += 0.5 * (wx * body_ang[b, 0] + wy * body_ang[b, 1] + wz * body_ang[b, 2])
-        height = body_pos[b, up_axis] - floor
-        potential += gravity * body_mass[b] * height
+        ang = bodies.ang[b]
+        wx, wy, wz = angular_velocity(rot, bodies.inv_inertia[b], ang)
+        p = bodies.lin[b]
+        kinetic += 0.5 * (p[0] ** 2 + p[1] ** 2 + p[2] ** 2) / bodies.mass[b]
+        kinetic += 0.5 * (wx * ang[0] + wy * ang[1] + wz * ang[2])
+        height = bodies.pos[b, up_axis] - floor
+        potential += gravity * bodies.mass[b] * height
         lowest = min(lowest, height)
     return kinetic, potential, lowest, quat
 
 
-class Probe(simrun._Run):
-    """The simulator's step, followed after every step by checks of its float64 state.
+class Probe:
+    """Checks of one run's float64 state after every step of the simulator's own step.
+
+    :meth:`watching` wraps the engine's public pieces while a scenario runs the
+    real :func:`~blastvox.simulate.engine.simulate`: :meth:`Run.start
+    <blastvox.simulate.engine.Run.start>` (a probe per run, which measures the
+    initial energy), :func:`~blastvox.simulate.forces.blast_phase` as the step
+    calls it (:meth:`blasted`: the work the step's blast impulses can do) and
+    :func:`~blastvox.simulate.engine.step` (:meth:`stepped`: the checks).
 
     **The energy bound.** Let v be the generalised velocity of all bodies and
     ||v||_M = sqrt(2 KE) its norm in the mass metric (|p|^2/m + L . I_w^-1 L summed
@@ -225,12 +233,13 @@ class Probe(simrun._Run):
 
     runs: list[Probe] = []
 
-    def __init__(self, *args, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        sm, s = self.sm, self.settings
-        assert s.gravity == 0.0 or self.ground is not None, "gravity needs a ground to bound"
-        self.floor = (self.ground - float(sm.voxel_radius.max(initial=0.0))
-                      if self.ground is not None else 0.0)
+    def __init__(self, run: engine.Run) -> None:
+        self.run = run
+        s = run.settings
+        assert s.gravity == 0.0 or run.ground is not None, "gravity needs a ground to bound"
+        self.floor = (run.ground - float(run.model.voxels.radius.max(initial=0.0))
+                      if run.ground is not None else 0.0)
+        self.quat_error = 0.0
         self.energy0 = self.energy()
         self.root = math.sqrt(2.0 * self.energy0)
         self.work = 0.0  # sum over steps of ||g||_{M^-1}, sqrt(J)
@@ -239,33 +248,68 @@ class Probe(simrun._Run):
         self.steps = 0
         Probe.runs.append(self)
 
+    @property
+    def state(self) -> State:
+        return self.run.state
+
+    @classmethod
+    @contextmanager
+    def watching(cls):
+        """While open, every run that :meth:`Run.start <blastvox.simulate.engine.Run.start>`
+        starts has a probe (in :attr:`runs`) that checks each of its steps."""
+        start, step, blast_phase = engine.Run.start, engine.step, engine.blast_phase
+
+        def probed_start(model, settings):
+            run = start(model, settings)
+            cls(run)
+            return run
+
+        def probed_blast_phase(model, state, charges, t0, t1, front_out):
+            blast_phase(model, state, charges, t0, t1, front_out)
+            cls.of(state).blasted()
+
+        def probed_step(run, n, frame_next):
+            step(run, n, frame_next)
+            cls.of(run.state).stepped(n)
+
+        with mock.patch.object(engine.Run, "start", probed_start), \
+                mock.patch.object(engine, "blast_phase", probed_blast_phase), \
+                mock.patch.object(engine, "step", probed_step):
+            yield
+
+    @classmethod
+    def of(cls, state: State) -> Probe:
+        """The probe of the run whose state this is."""
+        (probe,) = (p for p in cls.runs if p.state is state)
+        return probe
+
     def energy(self) -> float:
         """E' = kinetic + g sum m (h - h_floor) of the live, non-dust bodies (J); also
         updates the worst quaternion error."""
-        st = self.state
         kinetic, potential, lowest, quat = _mechanics(
-            st.body_quat, st.body_lin, st.body_ang, st.body_mass, st.body_inv_inertia,
-            st.body_pos, st.body_live, st.body_dust, self.n_bodies, self.sm.up_axis,
-            float(self.settings.gravity), self.floor)
-        if self.settings.gravity:
+            self.state.bodies, self.state.n_bodies, self.run.model.up_axis,
+            float(self.run.settings.gravity), self.floor)
+        if self.run.settings.gravity:
             assert lowest >= 0.0, "a body sank below the ground"
-        self.quat_error = max(getattr(self, "quat_error", 0.0), quat)
+        self.quat_error = max(self.quat_error, quat)
         return kinetic + potential
 
-    def _blast(self, t0: float, t1: float, front_out) -> None:
-        super()._blast(t0, t1, front_out)
-        st, n = self.state, self.n_bodies
-        if not (self.impulse[:n].any() or self.angular[:n].any()):
+    def blasted(self) -> None:
+        """After the blast phase: add ||g||_{M^-1} of the step's impulses (loads.impulse,
+        loads.angular) to the work."""
+        st, n = self.state, self.state.n_bodies
+        impulse, angular = st.loads.impulse[:n], st.loads.angular[:n]
+        if not (impulse.any() or angular.any()):
             return
-        hit = np.flatnonzero(self.impulse[:n].any(axis=1) | self.angular[:n].any(axis=1))
-        r, k = self.rot[hit], self.angular[hit]
-        turn = r @ (st.body_inv_inertia[hit] @ (np.swapaxes(r, 1, 2) @ k[:, :, None]))
-        norm2 = (np.sum(self.impulse[hit] ** 2, axis=1) / st.body_mass[hit]
+        hit = np.flatnonzero(impulse.any(axis=1) | angular.any(axis=1))
+        r, k = st.bodies.rot[hit], angular[hit]
+        turn = r @ (st.bodies.inv_inertia[hit] @ (np.swapaxes(r, 1, 2) @ k[:, :, None]))
+        norm2 = (np.sum(impulse[hit] ** 2, axis=1) / st.bodies.mass[hit]
                  + np.sum(turn[..., 0] * k, axis=1))
         self.work += math.sqrt(float(norm2.sum()))
 
-    def step(self, step: int, frame_next: int) -> None:
-        super().step(step, frame_next)
+    def stepped(self, step: int) -> None:
+        """After a step: finite energy, within the bound."""
         self.steps += 1
         # NaN or Inf in any position, orientation, momentum, mass or inertia shows here
         energy = self.energy()
@@ -279,14 +323,17 @@ class Probe(simrun._Run):
 
     def check_state(self) -> None:
         """Every float array of the final state: finite (yields: not NaN; +inf is 'never')."""
-        st, n = self.state, self.n_bodies
-        for name in ("body_pos", "body_quat", "body_lin", "body_ang", "body_com", "body_mass",
-                     "body_inertia", "body_inv_inertia", "body_radius", "voxel_damage"):
-            values = getattr(st, name)
-            values = values[:n] if name.startswith("body_") else values
-            assert np.isfinite(values).all(), f"non-finite {name}"
-        for name in ("voxel_yield", "voxel_foundation_yield", "link_yield", "voxel_combust"):
-            assert not np.isnan(getattr(st, name)).any(), f"NaN in {name}"
+        st, n = self.state, self.state.n_bodies
+        bodies, voxels = st.bodies, st.voxels
+        for name in ("pos", "quat", "lin", "ang", "com", "mass", "inertia", "inv_inertia",
+                     "radius"):
+            assert np.isfinite(getattr(bodies, name)[:n]).all(), f"non-finite bodies.{name}"
+        assert np.isfinite(voxels.damage).all(), "non-finite voxels.damage"
+        for name, values in (("voxels.yield_pa", voxels.yield_pa),
+                             ("voxels.foundation_pa", voxels.foundation_pa),
+                             ("links.yield_pa", st.links.yield_pa),
+                             ("voxels.combust", voxels.combust)):
+            assert not np.isnan(values).any(), f"NaN in {name}"
 
 
 @dataclass
@@ -312,17 +359,19 @@ def cache_bytes(cache: cache_module.SimCache, whole: bool = True) -> bytes:
 
 
 def set_motion(motion: dict[int, tuple[tuple[float, ...], tuple[float, ...]]]):
-    """Patch the initial state: object -> (velocity m/s, angular velocity rad/s)."""
-    original = simrun.initial_state
+    """Patch the initial state (:func:`engine.initial_state`, which ``Run.start`` calls):
+    object -> (velocity m/s, angular velocity rad/s)."""
+    original = engine.initial_state
 
-    def initial_state(model, sm):
-        state = original(model, sm)
+    def initial_state(model, sm, ground=True):
+        state = original(model, sm, ground=ground)
+        bodies = state.bodies
         for body, (v, w) in motion.items():
-            state.body_lin[body] = state.body_mass[body] * np.asarray(v, dtype=np.float64)
-            state.body_ang[body] = state.body_inertia[body] @ np.asarray(w, dtype=np.float64)
+            bodies.lin[body] = bodies.mass[body] * np.asarray(v, dtype=np.float64)
+            bodies.ang[body] = bodies.inertia[body] @ np.asarray(w, dtype=np.float64)
         return state
 
-    return mock.patch.object(simrun, "initial_state", initial_state)
+    return mock.patch.object(engine, "initial_state", initial_state)
 
 
 def run_twice(model: VoxelModel, settings: SimSettings, motion=None, whole: bool = True,
@@ -331,10 +380,10 @@ def run_twice(model: VoxelModel, settings: SimSettings, motion=None, whole: bool
     outputs = []
     for _ in range(2):
         Probe.runs.clear()
-        with mock.patch.object(simrun, "_Run", Probe), set_motion(motion or {}), \
+        with Probe.watching(), set_motion(motion or {}), \
                 warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            cache = simrun.simulate(model, settings)
+            cache = engine.simulate(model, settings)
         (probe,) = Probe.runs
         probe.check_state()
         issued = [str(w.message) for w in caught if issubclass(w.category,
@@ -477,8 +526,8 @@ def test_impulse_does_not_depend_on_a_step_longer_than_the_blast():
     for dt, fps, duration in ((1 / 24, 24.0, 1 / 24), (1e-4, 1000.0, 0.02)):  # both: whole wave
         checked = run_twice(model, replace(BASE, dt=dt, fps=fps, duration=duration,
                                            charges=charges))
-        st_ = checked.probe.state
-        speeds.append(st_.body_lin[0] / st_.body_mass[0])
+        bodies = checked.probe.state.bodies
+        speeds.append(bodies.lin[0] / bodies.mass[0])
     assert float(blast_parameters(2.5, 2.0).positive_duration_s) < 1 / 24 / 10
     assert speeds[0][0] > 0.01
     # equal but for the cube's own motion during the wave (5e-5 m of 2.5 m: 1e-5)
@@ -503,16 +552,17 @@ def test_collision_with_mass_ratio_one_to_a_million(mover):
     v = 10.0 if mover == "light" else -1.0  # towards the other, along x
     checked = run_twice(model, replace(BASE, duration=0.25, charges=FAR),
                         motion={moving: ((v, 0.0, 0.0), (0.0, 0.0, 0.0))})
-    st_ = checked.probe.state
-    assert int(st_.n_bodies[0]) == 2 and checked.cache.meta["collisions"] >= 1
+    state = checked.probe.state
+    bodies = state.bodies
+    assert state.n_bodies == 2 and checked.cache.meta["collisions"] >= 1
     p0 = m[moving] * v
-    np.testing.assert_allclose(st_.body_lin[:2].sum(axis=0), [p0, 0.0, 0.0], rtol=1e-12,
+    np.testing.assert_allclose(bodies.lin[:2].sum(axis=0), [p0, 0.0, 0.0], rtol=1e-12,
                                atol=1e-12 * abs(p0))
     e, total = 0.5, m[0] + m[1]
     expected = {other: m[moving] * (1 + e) * v / total,
                 moving: (m[moving] - e * m[other]) * v / total}
     for body, speed in expected.items():
-        np.testing.assert_allclose(st_.body_lin[body] / m[body], [speed, 0.0, 0.0], rtol=1e-9,
+        np.testing.assert_allclose(bodies.lin[body] / m[body], [speed, 0.0, 0.0], rtol=1e-9,
                                    atol=1e-9 * abs(v))
     assert honoured(checked), checked.warnings
 
@@ -535,8 +585,8 @@ def test_body_spinning_at_a_thousand_radians_per_second_for_ten_seconds():
     assert probe.steps == 2400
     low, high = probe.energy_range
     assert high / probe.energy0 - 1.0 <= 1e-9 and 1.0 - low / probe.energy0 <= 1e-9
-    st_ = probe.state
-    np.testing.assert_array_equal(st_.body_ang[0], st_.body_inertia[0] @ omega)
+    bodies = probe.state.bodies
+    np.testing.assert_array_equal(bodies.ang[0], bodies.inertia[0] @ omega)
     assert honoured(checked)
 
 
@@ -603,9 +653,9 @@ def test_spin_beyond_the_rotation_limit_warns_once_and_stays_bounded():
     (message,) = checked.warnings
     match = SPIN.match(message)
     assert match, message
-    st_ = checked.probe.state
-    ang = st_.body_ang[0]
-    i_min = np.linalg.eigvalsh(st_.body_inertia[0]).min()
+    bodies = checked.probe.state.bodies
+    ang = bodies.ang[0]
+    i_min = np.linalg.eigvalsh(bodies.inertia[0]).min()
     assert checked.probe.energy_range[1] <= ang @ ang / (2 * i_min) * (1 + 1e-12)
     fine = run_twice(model, replace(coarse, dt=float(match.group(3))),
                      motion={0: ((0.0, 0.0, 0.0), omega)})
@@ -633,7 +683,7 @@ def test_bundled_examples_warn_nothing(name):
     model = voxelize(requests_from_scene(scene), voxel_settings(scene))
     with warnings.catch_warnings():
         warnings.simplefilter("error", SimulationLimitWarning)
-        simrun.simulate(model, settings_from_scene(scene))
+        engine.simulate(model, settings_from_scene(scene))
 
 
 def test_cli_prints_a_limit_warning_once_as_one_line(tmp_path):
