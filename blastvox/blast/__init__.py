@@ -27,7 +27,6 @@ so ``import blastvox.blast`` costs nothing and ``tnt_equivalent`` loads no numba
 from __future__ import annotations
 
 import importlib
-from typing import Any
 
 _HOME = {
     "atmosphere": ("C0_M_S", "P0_PA"),
@@ -47,7 +46,7 @@ _MODULE_OF = {name: module for module, names in _HOME.items() for name in names}
 __all__ = sorted(_MODULE_OF)
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     module = _MODULE_OF.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
