@@ -1,4 +1,8 @@
-"""The ambient air every blast quantity refers to: sea-level standard atmosphere (ISA)."""
+"""The ambient air every blast quantity refers to: sea-level standard atmosphere (ISA).
+
+numba freezes these globals into the kernels that use them, so this module counts
+as numba code for :mod:`blastvox._kernel_cache`: editing it starts a fresh cache.
+"""
 
 from __future__ import annotations
 
