@@ -120,7 +120,7 @@ def test_camera_shakes_only_after_the_wave_arrives(tmp_path):
     camera = ((0.0, -40.0, 2.0), (0.0, 0.0, 1.0), 35.0)
     cache = simulate(model, SimSettings(fps=100.0, duration=0.5, camera=camera,
                                         charges=(ChargeSpec((0, -2.0, 1.0), 3.0),)))
-    from blastvox.blast.model import blast_parameters
+    from blastvox.blast import blast_parameters
 
     arrival = float(blast_parameters(np.linalg.norm(np.subtract(camera[0], (0, -2, 1))),
                                      3.0).arrival_time_s)

@@ -43,7 +43,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from blastvox import cache as cache_module
-from blastvox.blast.model import Z_MAX, Z_MIN, blast_parameters
+from blastvox.blast import Z_MAX, Z_MIN, blast_parameters
 from blastvox.errors import SimulationLimitWarning
 from blastvox.geometry.quaternion import matrix_into
 from blastvox.io.npz import write_npz
