@@ -45,7 +45,7 @@ from hypothesis import strategies as st
 from blastvox import cache as cache_module
 from blastvox.blast import Z_MAX, Z_MIN, blast_parameters
 from blastvox.errors import SimulationLimitWarning
-from blastvox.geometry.quaternion import matrix_into
+from blastvox.geometry.quaternion_nb import matrix_into
 from blastvox.io.npz import write_npz
 from blastvox.materials import MaterialLibrary, material_table
 from blastvox.model import VoxelModel

@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from blastvox.blast import blast_parameters
-from blastvox.geometry import quaternion
+from blastvox.geometry import quaternion_nb
 from blastvox.materials import MaterialLibrary
 from blastvox.simulate import topology
 from blastvox.simulate.engine import initial_state, simulate
@@ -229,9 +229,9 @@ def test_gravity_free_fall_matches_the_integrator_closed_form(tmp_path):
 
 @nb.njit
 def _spin(q, omega, dt, steps):
-    """quaternion.integrate (a helper: callable only from compiled code) ``steps`` times."""
+    """quaternion_nb.integrate (a helper: callable only from compiled code) ``steps`` times."""
     for _ in range(steps):
-        quaternion.integrate(q, omega[0], omega[1], omega[2], dt)
+        quaternion_nb.integrate(q, omega[0], omega[1], omega[2], dt)
 
 
 def test_fast_spin_keeps_unit_quaternions_and_exact_phase():

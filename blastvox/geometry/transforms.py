@@ -12,7 +12,7 @@ Piece-local coordinates are ``x_rest - c_rest`` (pass ``centre=None``).
 
 All functions take NumPy arrays that broadcast against each other (one body
 per row, or one body for many points) and return new float64 arrays. The
-numba kernels use :func:`blastvox.geometry.quaternion.matrix_into` and the
+numba face is :mod:`blastvox.geometry.transforms_nb`, with the
 same formula.
 """
 

@@ -16,12 +16,12 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from blastvox.geometry.transforms_nb import to_rest
 from blastvox.jit import helper
 from blastvox.simulate.bodies import apply_impulse, effective_inverse_mass, point_velocity
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.integrate import angular_velocity, moving, world_tensor_times
 from blastvox.simulate.kernels import damp_resting
-from blastvox.simulate.shell import to_rest
 from blastvox.simulate.spatial_hash import bucket, cell_key, cell_of, hash_buckets
 
 

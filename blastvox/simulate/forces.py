@@ -22,15 +22,13 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.geometry.transforms_nb import rotate_into, to_world_into
+from blastvox.geometry.voxel_faces import FACE_CORNERS
 from blastvox.jit import helper
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
 from blastvox.simulate.state import Front
 from blastvox.simulate.wave import point_impulse
-
-_FACE_CORNERS = np.array(
-    [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]],
-    dtype=np.int64)
 
 
 @helper
@@ -77,20 +75,6 @@ def _push(p, j, u, weight_area, vec_area, pivot, out_p, out_l, b):
     out_l[b, 0] += dy * fz - dz * fy
     out_l[b, 1] += dz * fx - dx * fz
     out_l[b, 2] += dx * fy - dy * fx
-
-
-@helper
-def _to_world(rot, pos, com, rest, out) -> None:
-    """out = pos + rot (rest - com), no allocation."""
-    x, y, z = rest[0] - com[0], rest[1] - com[1], rest[2] - com[2]
-    for a in range(3):
-        out[a] = pos[a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
-
-
-@helper
-def _rotate(rot, vec, out) -> None:
-    for a in range(3):
-        out[a] = rot[a, 0] * vec[0] + rot[a, 1] * vec[1] + rot[a, 2] * vec[2]
 
 
 @helper
@@ -169,7 +153,7 @@ def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, 
         if exposed == 0 and slot < 0:
             continue
         rot = body_rot[b]
-        _to_world(rot, body_pos[b], body_com[b], voxel_centroid[v], centre)
+        to_world_into(rot, body_pos[b], body_com[b], voxel_centroid[v], centre)
         # a free body sums about its centre of mass, a fixed one's voxels each keep theirs
         acc_p, acc_l, index, pivot = out_p, out_l, b, body_pos[b]
         if body_fixed[b]:
@@ -185,18 +169,18 @@ def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, 
                 for f in range(7):
                     if f < 6 and not (exposed >> f) & 1:
                         continue
-                    _rotate(rot, conform_area[slot, f], area)
-                    _to_world(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
+                    rotate_into(rot, conform_area[slot, f], area)
+                    to_world_into(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
                     _apply(point, 1.0, area, c, t0, t1, front, pivot, acc_p, acc_l, index)
                 continue
             corner_state[:] = 0
             for f in range(6):
                 if not (exposed >> f) & 1:
                     continue
-                q0 = voxel_vertices[v, _FACE_CORNERS[f, 0]]
-                q1 = voxel_vertices[v, _FACE_CORNERS[f, 1]]
-                q2 = voxel_vertices[v, _FACE_CORNERS[f, 2]]
-                q3 = voxel_vertices[v, _FACE_CORNERS[f, 3]]
+                q0 = voxel_vertices[v, FACE_CORNERS[f, 0]]
+                q1 = voxel_vertices[v, FACE_CORNERS[f, 1]]
+                q2 = voxel_vertices[v, FACE_CORNERS[f, 2]]
+                q3 = voxel_vertices[v, FACE_CORNERS[f, 3]]
                 # vector area of the quad = half the cross product of its diagonals
                 d1x = vertices[q2, 0] - vertices[q0, 0]
                 d1y = vertices[q2, 1] - vertices[q0, 1]
@@ -207,9 +191,9 @@ def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, 
                 rest_area[0] = 0.5 * (d1y * d2z - d1z * d2y)
                 rest_area[1] = 0.5 * (d1z * d2x - d1x * d2z)
                 rest_area[2] = 0.5 * (d1x * d2y - d1y * d2x)
-                _rotate(rot, rest_area, area)
+                rotate_into(rot, rest_area, area)
                 for k in range(4):
-                    q = _FACE_CORNERS[f, k]
+                    q = FACE_CORNERS[f, k]
                     if corner_state[q] == 0:
                         placed = _corner(voxel_vertices[v, q], q, c, bodies, b, vertices,
                                          charge_pos, corner_point, corner_u)

@@ -29,6 +29,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.shell import mark_in_shell
@@ -45,15 +46,6 @@ class FractureParams(NamedTuple):
     weakening: float
     damage_b: float
     damage_c: float
-
-
-@helper
-def _world(rest, body, body_pos, body_rot, body_com, out):
-    rot = body_rot[body]
-    for a in range(3):
-        out[a] = (body_pos[body, a] + rot[a, 0] * (rest[0] - body_com[body, 0])
-                  + rot[a, 1] * (rest[1] - body_com[body, 1])
-                  + rot[a, 2] * (rest[2] - body_com[body, 2]))
 
 
 @helper
@@ -234,7 +226,7 @@ def fracture_damage(front, params, geometry, link_geometry, links, voxels, bodie
         b = voxel_body[v]
         if not active[b]:
             continue
-        _world(voxel_centroid[v], b, body_pos, body_rot, body_com, centre)
+        to_world_into(body_rot[b], body_pos[b], body_com[b], voxel_centroid[v], centre)
         for c in range(charge_pos.shape[0]):
             r = crossing(centre, charge_pos, front_in, front_out, c)
             if r < 0.0:

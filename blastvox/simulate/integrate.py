@@ -32,7 +32,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.geometry import quaternion
+from blastvox.geometry import quaternion_nb
 from blastvox.jit import helper
 
 #: Spin (rad) of one rotation sub-step, measured as h |L| tr(I^-1) / 3 (|omega| h
@@ -152,14 +152,14 @@ def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
         return
     if spin > MAX_SPIN_PER_STEP:
         wx, wy, wz = angular_velocity(rot, inv, ang)
-        quaternion.integrate(q, wx, wy, wz, dt)
+        quaternion_nb.integrate(q, wx, wy, wz, dt)
         return
     k = max(1, int(math.ceil(spin / SUBSTEP_RAD)))
     h = dt / k
     for sub in range(k):
         r = rot
         if sub > 0:
-            quaternion.matrix_into(q, scratch)
+            quaternion_nb.matrix_into(q, scratch)
             r = scratch
         wx, wy, wz = world_tensor_times(r, inv, lx, ly, lz)
         for _ in range(_MAX_ITERATIONS):
@@ -170,4 +170,4 @@ def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
             wx, wy, wz = nx, ny, nz
             if change <= 1e-14 * (abs(wx) + abs(wy) + abs(wz)):
                 break
-        quaternion.integrate(q, wx, wy, wz, h)
+        quaternion_nb.integrate(q, wx, wy, wz, h)

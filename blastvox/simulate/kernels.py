@@ -7,7 +7,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.geometry.quaternion import matrix_into
+from blastvox.geometry.quaternion_nb import matrix_into
 from blastvox.simulate.integrate import angular_velocity, moving
 
 

@@ -15,10 +15,11 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from blastvox.geometry.voxel_faces import SURFACE_TAG
 from blastvox.model import VoxelModel
 from blastvox.simulate.shell import dense_grid
 
-CONFORM_FACES = 7  # cell faces 0..5 plus the original surface
+CONFORM_FACES = SURFACE_TAG + 1  # cell faces 0..5 plus the original surface
 
 
 class VoxelGeometry(NamedTuple):

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from blastvox.geometry import quaternion
 from blastvox.simulate.kernels import damage_levels
 from blastvox.simulate.state import State
 
@@ -123,7 +124,7 @@ class Recorder:
             row = slot[ancestor]
             q = quat[row]
             offset = pivot - com[row]
-            positions[f] = pos[row] + _rotate(q, offset)
+            positions[f] = pos[row] + quaternion.rotate(q, offset)
             orientations[f] = q
             slot[ids] = -1
         return positions, orientations
@@ -152,10 +153,3 @@ class Recorder:
                 "dust_position": np.concatenate([d[3] for d in self.dust]),
                 "dust_velocity": np.concatenate([d[4] for d in self.dust])}
 
-
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (K, 3) by unit quaternions q (K, 4) (w, x, y, z)."""
-    w = q[:, :1]
-    u = q[:, 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)

@@ -18,17 +18,8 @@ import math
 import numba as nb
 import numpy as np
 
+from blastvox.geometry.transforms_nb import to_rest
 from blastvox.jit import helper
-
-
-@helper
-def to_rest(rot, pos, com, x, y, z):
-    """A world point (m) in the rest frame of a body at ``pos`` with rotation ``rot``
-    and rest centre of mass ``com``: R^T (x - pos) + com."""
-    dx, dy, dz = x - pos[0], y - pos[1], z - pos[2]
-    return (rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz + com[0],
-            rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz + com[1],
-            rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz + com[2])
 
 
 @nb.njit(cache=True)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from blastvox.geometry.quaternion import matrix_into
+from blastvox.geometry.quaternion_nb import matrix_into
 from blastvox.jit import helper
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.integrate import angular_velocity, world_tensor_times
