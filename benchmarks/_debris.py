@@ -5,9 +5,10 @@ implementation). A piece is a 0.2 m cube of unbreakable stone (stone's density
 and restitution, infinite yields, so impacts never dust it and a run never
 changes topology) voxelized to exactly one voxel, so every voxel is a boundary
 voxel of a moving body. The pieces move under blastvox's own step
-(:class:`blastvox.simulate.run._Run`, as ``tests/test_contact.py`` drives it)
-with a charge too far away for its wave ever to arrive: gravity, ground contact
-and (optionally) collisions between pieces, nothing else.
+(:func:`blastvox.simulate.engine.step` of a :class:`~blastvox.simulate.engine.Run`,
+what ``simulate()`` loops over, without recording frames) with a charge too far
+away for its wave ever to arrive: gravity, ground contact and (optionally)
+collisions between pieces, nothing else.
 """
 
 from __future__ import annotations
@@ -22,9 +23,8 @@ import trimesh
 
 from blastvox.materials import MaterialLibrary
 from blastvox.model import VoxelModel
-from blastvox.simulate import run as simrun
+from blastvox.simulate.engine import Run, step
 from blastvox.simulate.settings import ChargeSpec, SimSettings
-from blastvox.simulate.state import build_model
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
 PIECE_M = 0.2  # edge of a piece, m
@@ -134,39 +134,39 @@ def debris_settings(collisions: bool = True, sleep: bool = True) -> SimSettings:
     return settings if sleep else replace(settings, sleep_speed=0.0)
 
 
-def runner(model: VoxelModel, settings: SimSettings, start: Debris) -> simrun._Run:
-    """blastvox's step machinery for ``model`` with its pieces set to ``start``.
+def runner(model: VoxelModel, settings: SimSettings, start: Debris) -> Run:
+    """blastvox's run of ``model`` with its pieces set to ``start``; advance it with
+    :func:`blastvox.simulate.engine.step`.
 
     Piece b is body b (one object per cube, in voxel order); its momenta are
     m v and I_world omega. Foundations are cleared: every piece is free.
     """
-    sm = build_model(model)
-    state = simrun.initial_state(model, sm)
-    k = start.count
-    if int(state.n_bodies[0]) != k:
-        raise RuntimeError(f"{int(state.n_bodies[0])} bodies for {k} pieces")
-    state.voxel_foundation[:] = False
-    state.body_fixed[:] = False
-    mass = state.body_mass[:k]
+    run = Run.start(model, settings)
+    state, k = run.state, start.count
+    if state.n_bodies != k:
+        raise RuntimeError(f"{state.n_bodies} bodies for {k} pieces")
+    bodies = state.bodies
+    state.voxels.foundation[:] = False
+    bodies.fixed[:] = False
+    mass = bodies.mass[:k]
     rot = rotations(start.quat)
-    inertia = rot @ state.body_inertia[:k] @ np.transpose(rot, (0, 2, 1))
-    state.body_pos[:k] = start.pos
-    state.body_quat[:k] = start.quat
-    state.body_lin[:k] = mass[:, None] * start.vel
-    state.body_ang[:k] = np.einsum("kij,kj->ki", inertia, start.omega)
-    return simrun._Run(sm, state, simrun.build_charges(settings.charges), settings,
-                       settings.step_seconds())
+    inertia = rot @ bodies.inertia[:k] @ np.transpose(rot, (0, 2, 1))
+    bodies.pos[:k] = start.pos
+    bodies.quat[:k] = start.quat
+    bodies.lin[:k] = mass[:, None] * start.vel
+    bodies.ang[:k] = np.einsum("kij,kj->ki", inertia, start.omega)
+    return run
 
 
 def ms_per_step(model: VoxelModel, start: Debris, collisions: bool, steps: int,
                 warm: int = 2) -> float:
     """Wall ms per step over ``steps`` steps, after ``warm`` untimed ones (compile / warm up)."""
     run = runner(model, debris_settings(collisions=collisions), start)
-    for step in range(1, warm + 1):
-        run.step(step, 0)
+    for n in range(1, warm + 1):
+        step(run, n, 0)
     started = time.perf_counter()
-    for step in range(warm + 1, warm + 1 + steps):
-        run.step(step, 0)
+    for n in range(warm + 1, warm + 1 + steps):
+        step(run, n, 0)
     return 1e3 * (time.perf_counter() - started) / steps
 
 

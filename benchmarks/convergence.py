@@ -21,7 +21,7 @@ import trimesh
 
 from blastvox.blast.model import blast_parameters
 from blastvox.materials import MaterialLibrary
-from blastvox.simulate.run import simulate
+from blastvox.simulate.engine import simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

@@ -26,10 +26,11 @@ Prints the machine line and load average, then markdown tables:
     blastvox's step when it is behind, and a check that both end alike. See
     ``FAIRNESS`` for how the two are set up alike.
 (d) Start-up: ``blastvox simulate`` of the house example with a fresh, empty
-    ``NUMBA_CACHE_DIR`` (cold: compiles every kernel) and warm, the floor any
+    ``NUMBA_CACHE_DIR`` (cold: numba compiles every kernel the house calls, on
+    first call, into that cache; no manifest) and warm, the floor any
     numba-run simulator pays before its own code (Python's start, ``import
-    numba`` with its target set-up, loading the house's kernels from the cache),
-    and ``blastvox --help``.
+    numba`` with its target set-up, loading the house's kernels from the cache:
+    a fresh process's first ``simulate()`` less a warm one), and ``blastvox --help``.
 
 Then the targets, pass or FAIL. The script reports, it does not gate: it exits
 0 even when a target is missed, and 1 only if a case crashes.
@@ -97,8 +98,9 @@ class Sweep:
     what: str
 
 
-#: The byte model: each kernel that sweeps voxels or links, as ``blastvox.simulate.run``
-#: calls it (module attribute), and what one call must at least touch per voxel / link.
+#: The byte model: each kernel that sweeps voxels or links (called by the engine's phases
+#: through the module attributes in ``_homes``), and what one call must at least touch per
+#: voxel / link.
 SWEEPS: dict[str, Sweep] = {
     "fracture_links": Sweep(8, 42, "links: alive 1, voxel pair 16, midpoint 24 read, "
                                    "broken flag 1 cleared; voxels: body 8 read"),
@@ -122,52 +124,64 @@ SWEEPS: dict[str, Sweep] = {
 BODY_BYTES = 8 + 72 + 4 + 8 + 2 * (24 + 32 + 24 + 24) + 72
 
 
-def _homes() -> dict[str, ModuleType]:
-    """The module through which ``run.py`` calls each swept kernel."""
-    from blastvox.simulate import contact, fracture, topology
-    from blastvox.simulate import run as simrun
+def _homes() -> dict[str, tuple[ModuleType, ...]]:
+    """The modules through which the step's phases call each swept kernel (a kernel
+    the engine also calls while building the run, outside the counted loop, is
+    wrapped there as well)."""
+    from blastvox.simulate import boundary, engine, forces, fracture, topology
 
-    return {"fracture_links": fracture, "fracture_voxels": fracture,
-            "blast_impulses": simrun, "link_masks": simrun, "split_bodies": topology,
-            "body_radii": simrun, "boundary_lists": contact, "link_alive_counts": simrun}
+    return {"fracture_links": (fracture,), "fracture_voxels": (fracture,),
+            "blast_impulses": (forces,), "link_masks": (topology, engine),
+            "split_bodies": (topology,), "body_radii": (topology, engine),
+            "boundary_lists": (boundary,), "link_alive_counts": (engine,)}
 
 
 @contextlib.contextmanager
-def patched(targets: list[tuple[object, str]], make: Callable[[str, Callable], Callable]
+def patched(targets: list[tuple], make: Callable[[str, Callable], Callable]
             ) -> Iterator[list[str]]:
-    """Replace ``getattr(obj, name)`` by ``make(name, original)`` for each target that
-    exists, restore them on exit; yields the names that were missing."""
+    """Replace ``getattr(obj, name)`` by ``make(label, original)`` for each target
+    ``(obj, name)`` or ``(obj, name, label)`` (label defaults to name) that exists, and
+    restore them on exit (a class's own descriptor, e.g. a classmethod, as it was);
+    yields the names that were missing."""
     saved, missing = [], []
-    for obj, name in targets:
+    for obj, name, *label in targets:
         original = getattr(obj, name, None)
         if original is None:
             missing.append(name)
             continue
-        saved.append((obj, name, original))
-        setattr(obj, name, make(name, original))
+        saved.append((obj, name, vars(obj).get(name, original)))
+        setattr(obj, name, make(label[0] if label else name, original))
     try:
         yield missing
     finally:
-        for obj, name, original in reversed(saved):
-            setattr(obj, name, original)
+        for obj, name, raw in reversed(saved):
+            setattr(obj, name, raw)
 
 
-#: Phases of a run for the profile: (module in blastvox.simulate, class or None, attribute).
-#: The step's own methods and the kernels it calls; a phase called inside another is
-#: listed under it.
-PHASES = (("run", None, "build_model"), ("run", None, "initial_state"),
-          ("run", "_Run", "__init__"), ("run", "_Run", "_fracture"),
-          ("fracture", None, "fracture_links"),
-          ("fracture", None, "fracture_voxels"), ("run", "_Run", "_topology"),
-          ("topology", None, "split_bodies"), ("run", None, "link_masks"),
-          ("run", None, "body_radii"), ("run", "_Run", "_blast"),
-          ("run", None, "blast_impulses"), ("run", None, "integrate_velocities"),
-          ("run", "_Run", "_collide"), ("contact", None, "static_hash"),
-          ("contact", None, "collide_bodies"), ("run", None, "damp_resting"),
-          ("run", "_Run", "_ground"), ("contact", None, "boundary_lists"),
-          ("contact", None, "ground_contacts"), ("run", None, "settle"),
-          ("run", None, "integrate_positions"), ("run", None, "body_rotations"),
-          ("recorder", "Recorder", "frame"), ("run", None, "link_alive_counts"),
+#: Phases of a run for the profile: (module in blastvox.simulate, class or None, attribute),
+#: each wrapped where the engine (``simulate``, ``Run.start``, ``step``, ``split``) or a
+#: phase calls it. A phase called inside another is listed under it.
+PHASES = (("engine", "Run", "start"), ("engine", None, "build_model"),
+          ("engine", None, "initial_state"), ("engine", None, "body_rotations"),
+          ("engine", None, "bodies_in_shell"), ("engine", None, "fracture_phase"),
+          ("fracture", None, "mark_in_shell"), ("fracture", None, "fracture_links"),
+          ("fracture", None, "fracture_damage"), ("fracture", None, "fracture_voxels"),
+          ("engine", None, "ignite_phase"), ("engine", None, "split"),
+          ("topology", None, "kill_links_of"), ("topology", None, "link_masks"),
+          ("topology", None, "split_bodies"), ("topology", None, "body_radii"),
+          ("recorder", "Recorder", "link_breaks"), ("recorder", "Recorder", "voxels_destroyed"),
+          ("engine", None, "burn_phase"), ("effects", "Effects", "shock_dust"),
+          ("effects", "Effects", "voxel_dust"), ("effects", "Effects", "collision_dust"),
+          ("effects", "Effects", "ground_ring"), ("effects", "Effects", "fireball"),
+          ("effects", "Effects", "flames"), ("engine", None, "blast_phase"),
+          ("forces", None, "blast_impulses"), ("boundary", None, "boundary_lists"),
+          ("engine", None, "integrate_velocities"), ("engine", None, "collide_phase"),
+          ("collide", None, "static_hash"), ("collide", None, "rest_grid"),
+          ("collide", None, "collide_bodies"), ("collide", None, "damp_resting"),
+          ("engine", None, "ground_phase"), ("ground", None, "ground_contacts"),
+          ("engine", None, "settle"), ("engine", None, "integrate_positions"),
+          ("engine", None, "_still_step"), ("recorder", "Recorder", "frame"),
+          ("engine", None, "link_alive_counts"), ("limits", "LimitMonitor", "check"),
           ("recorder", "Recorder", "pack"), ("cues", None, "shock_opacity"),
           ("cues", None, "camera_shake"))
 
@@ -203,7 +217,8 @@ class Phases:
         targets = []
         for module, cls, attribute in PHASES:
             home = importlib.import_module(f"blastvox.simulate.{module}")
-            targets.append((getattr(home, cls) if cls else home, attribute))
+            targets.append((getattr(home, cls), attribute, f"{cls}.{attribute}") if cls
+                           else (home, attribute))
         return patched(targets, self.wrap)
 
     def table(self, total: float) -> dict[str, float]:
@@ -234,11 +249,12 @@ def count_sweeps(model: VoxelModel, settings) -> dict:
     """One untimed ``simulate`` that counts each swept kernel's calls in its loop (from
     the first step's set-up to packing the cache) and the live bodies of every step;
     returns the counts and the byte total of the model."""
-    from blastvox.simulate import run as simrun
+    from blastvox.simulate import engine
+    from blastvox.simulate.recorder import Recorder
 
     calls = dict.fromkeys(SWEEPS, 0)
     bodies = [0, 0]  # live bodies summed over steps, steps
-    looping = [False]  # between the first step and packing the cache
+    looping = [False]  # between the first step's set-up and packing the cache
 
     def counting(name: str, original: Callable) -> Callable:
         def wrapper(*args, **kwargs):
@@ -246,30 +262,34 @@ def count_sweeps(model: VoxelModel, settings) -> dict:
             return original(*args, **kwargs)
         return wrapper
 
-    def flag(value: bool) -> Callable[[str, Callable], Callable]:
-        def make(name: str, original: Callable) -> Callable:
-            def wrapper(*args, **kwargs):
-                looping[0] = value
-                return original(*args, **kwargs)
-            return wrapper
-        return make
+    def started(name: str, original: Callable) -> Callable:
+        def wrapper(*args, **kwargs):
+            out = original(*args, **kwargs)
+            looping[0] = True  # the run is built (model, state, first link masks, radii)
+            return out
+        return wrapper
+
+    def stopped(name: str, original: Callable) -> Callable:
+        def wrapper(*args, **kwargs):
+            looping[0] = False
+            return original(*args, **kwargs)
+        return wrapper
 
     def counting_step(name: str, original: Callable) -> Callable:
-        def step(self, *args, **kwargs):
-            n = int(self.state.n_bodies[0])
-            bodies[0] += int(np.count_nonzero(self.state.body_live[:n]))
+        def wrapper(run, *args, **kwargs):
+            n = run.state.n_bodies
+            bodies[0] += int(np.count_nonzero(run.state.bodies.live[:n]))
             bodies[1] += 1
-            return original(self, *args, **kwargs)
-        return step
+            return original(run, *args, **kwargs)
+        return wrapper
 
     homes = _homes()
-    from blastvox.simulate.recorder import Recorder
-
-    with patched([(homes[name], name) for name in SWEEPS], counting) as missing, \
-            patched([(simrun._Run, "step")], counting_step), \
-            patched([(simrun._Run, "__init__")], flag(True)), \
-            patched([(Recorder, "pack")], flag(False)):
-        simrun.simulate(model, settings)
+    kernels = [(home, name) for name in SWEEPS for home in homes[name]]
+    missing = sorted(name for name in SWEEPS
+                     if not any(hasattr(home, name) for home in homes[name]))
+    with patched(kernels, counting), patched([(engine, "step")], counting_step), \
+            patched([(engine.Run, "start")], started), patched([(Recorder, "pack")], stopped):
+        engine.simulate(model, settings)
     n, links = model.voxel_count, len(model.arrays["link_voxels"])
     total = sum(calls[k] * (s.per_voxel * n + s.per_link * links) for k, s in SWEEPS.items())
     total += BODY_BYTES * bodies[0]
@@ -301,15 +321,14 @@ def stream_gbs(mib: int = 256, repeat: int = 3) -> float:
 def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) -> dict:
     """Count, then time ``simulate`` of one block; measure its bandwidth bound; with
     ``profile``, one more run timed phase by phase (called in a worker process)."""
-    from blastvox.simulate.precompile import ensure_compiled, features_of
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate import engine
+    from blastvox.simulate.recorder import Recorder
 
     model = VoxelModel.load(model_path)
     settings = settings_for(Case(f"block{cells}", cells=cells, duration=BLOCK_DURATION))
-    # compile a cold cache now: the counting run below wraps the kernels, and the
-    # precompiler would find wrappers where it looks for numba dispatchers
-    ensure_compiled(features_of(settings, model))
-    counted = count_sweeps(model, settings)  # also loads the numba cache
+    # also loads numba's cache, or compiles: the wrapped kernels are called from Python
+    # only (no compiled function calls them), so compiling does not see the wrappers
+    counted = count_sweeps(model, settings)
     seconds, loops = [], []
     loop = [0.0]
 
@@ -322,15 +341,12 @@ def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) 
                 loop[0] += time.perf_counter() - started
         return wrapper
 
-    from blastvox.simulate import run as simrun
-    from blastvox.simulate.recorder import Recorder
-
     for _ in range(repeat):
         loop[0] = 0.0
-        with patched([(simrun._Run, "step"), (Recorder, "frame"),
-                      (simrun, "link_alive_counts")], timed):
+        with patched([(engine, "step"), (Recorder, "frame"), (engine, "link_alive_counts")],
+                     timed):
             started = time.perf_counter()
-            cache = simulate(model, settings)
+            cache = engine.simulate(model, settings)
             seconds.append(time.perf_counter() - started)
         loops.append(loop[0])
     steps = int(cache.meta["steps"])
@@ -339,7 +355,7 @@ def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) 
         profiler = Phases()
         with profiler.installed():
             started = time.perf_counter()
-            simulate(model, settings)
+            engine.simulate(model, settings)
             total = time.perf_counter() - started
         phases = {"total": total, "spent": profiler.table(total)}
     return {"phases": phases, "voxels": model.voxel_count,
@@ -419,7 +435,7 @@ How the two are set up alike:
 * PyBullet: `p.DIRECT`, maximal-coordinate rigid bodies (`btRigidBody`, box shapes),
   `setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, numSolverIterations=8)`
   (blastvox's ground solve does 8 Gauss-Seidel sweeps; pybullet's default is 50), a
-  `stepSimulation()` loop; blastvox: `_Run.step` in a loop (what `simulate()` runs,
+  `stepSimulation()` loop; blastvox: `engine.step` in a loop (what `simulate()` runs,
   without recording frames);
 * restitution {e:g} and friction {mu:g} at the ground in both: Bullet multiplies the two
   bodies' coefficients, so box and plane each get sqrt(e) and sqrt(mu) (box on box in
@@ -535,18 +551,20 @@ def blastvox_run(model: VoxelModel, start: Debris, steps: int, sleep: bool,
                  profile: bool = False) -> tuple[Outcome, dict[str, float]]:
     """blastvox's run of ``start``: the outcome and, with ``profile``, seconds per phase
     (:class:`Phases`)."""
+    from blastvox.simulate.engine import step
+
     run = runner(model, debris_settings(sleep=sleep), start)
     phases = Phases()
     with phases.installed() if profile else contextlib.nullcontext():
         started = time.perf_counter()
-        for step in range(1, steps + 1):
-            run.step(step, 0)
+        for n in range(1, steps + 1):
+            step(run, n, 0)
         seconds = time.perf_counter() - started
-    st = run.state
+    bodies = run.state.bodies
     k = start.count
-    mass = st.body_mass[:k, None]
-    return Outcome(seconds, st.body_pos[:k].copy(), st.body_quat[:k].copy(),
-                   st.body_lin[:k] / mass), phases.table(seconds) if profile else {}
+    mass = bodies.mass[:k, None]
+    return Outcome(seconds, bodies.pos[:k].copy(), bodies.quat[:k].copy(),
+                   bodies.lin[:k] / mass), phases.table(seconds) if profile else {}
 
 
 def pybullet_side_by_side(directory: Path, quick: bool) -> tuple[dict[int, dict], bool]:
@@ -630,7 +648,7 @@ def start_ups(directory: Path, quick: bool) -> tuple[dict | None, bool]:
         result = start_up(model, directory, scene=HOUSE, duration=None, cold=not quick,
                           warm_runs=3)
         result["in_process"] = house_in_process(model)
-        result["floor"] = numba_floor(model)
+        result["floor"] = numba_floor(model, result["in_process"])
     except (RuntimeError, subprocess.CalledProcessError) as exc:
         print(f"start-up measurement failed: {exc}\n")
         return None, True
@@ -648,8 +666,8 @@ def start_ups(directory: Path, quick: bool) -> tuple[dict | None, bool]:
     print(f"| floor of any numba program with these kernels (best of 3): Python start | "
           f"{floor['python']:.2f} |")
     print(f"| + `import numba` and numba's target set-up | {floor['numba']:.2f} |")
-    print(f"| + loading the house's {floor['count']} kernels from numba's cache | "
-          f"{floor['kernels']:.2f} |")
+    print(f"| + loading the house's {floor['count']} kernels from numba's cache (first "
+          f"`simulate()` of a fresh process less a warm one) | {floor['kernels']:.2f} |")
     print(f"| + the shot itself (`simulate()` in-process, above) | {result['in_process']:.2f} |")
     print(f"| = floor of a numba-run simulate of the house, before any other code (CLI, "
           f"scene, model, output) | {floor['total'] + result['in_process']:.2f} |")
@@ -664,25 +682,32 @@ import numba
 from numba.core.registry import cpu_target
 cpu_target.target_context.refresh()
 imported = time.perf_counter()
-from blastvox.simulate.precompile import compile_kernels, load_manifest
-kernels = [k for k in load_manifest() if k.feature in set(sys.argv[1].split(","))]
-loading = time.perf_counter()
-compiled = compile_kernels(kernels)
-print(json.dumps({"numba": imported - started, "kernels": time.perf_counter() - loading,
-                  "count": len(kernels), "compiled": compiled}))
+from numba.core.dispatcher import Dispatcher
+from blastvox.model import VoxelModel
+from blastvox.scene import load_scene
+from blastvox.simulate.engine import simulate
+from blastvox.simulate.settings import settings_from_scene
+model = VoxelModel.load(sys.argv[1])
+settings = settings_from_scene(load_scene(sys.argv[2]))
+first = time.perf_counter()
+simulate(model, settings)
+first = time.perf_counter() - first
+kernels = {id(d): d for name, module in list(sys.modules.items())
+           if name.startswith("blastvox") for d in vars(module).values()
+           if isinstance(d, Dispatcher) and d.overloads}
+compiled = sum(sum(d.stats.cache_misses.values()) for d in kernels.values())
+print(json.dumps({"numba": imported - started, "first": first, "count": len(kernels),
+                  "compiled": compiled}))
 """
 
 
-def numba_floor(model_path: Path, repeat: int = 3) -> dict:
+def numba_floor(model_path: Path, in_process: float, repeat: int = 3) -> dict:
     """What any warm numba-run ``simulate`` of the house pays before its own code, in
     fresh processes (best of ``repeat`` each): Python's start, ``import numba`` with
-    numba's target set-up, and loading the kernels the house needs from the cache
-    (``precompile.compile_kernels``: all cache hits after the warm runs)."""
-    from blastvox.scene import load_scene
-    from blastvox.simulate.precompile import features_of
-    from blastvox.simulate.settings import settings_from_scene
-
-    features = features_of(settings_from_scene(load_scene(HOUSE)), VoxelModel.load(model_path))
+    numba's target set-up, and loading the kernels the house needs from numba's cache:
+    the first ``simulate()`` of a fresh process (imports done) less ``in_process``, a
+    warm one (s). The kernels are the blastvox dispatchers that run (numba's own
+    cache, no manifest); it raises if any had to compile (the cache was not warm)."""
     python = math.inf
     for _ in range(repeat + 1):  # the first one warms the file system
         started = time.perf_counter()
@@ -690,13 +715,13 @@ def numba_floor(model_path: Path, repeat: int = 3) -> dict:
         python = min(python, time.perf_counter() - started)
     runs = []
     for _ in range(repeat):
-        proc = subprocess.run([sys.executable, "-c", _FLOOR, ",".join(sorted(features))],
+        proc = subprocess.run([sys.executable, "-c", _FLOOR, str(model_path), str(HOUSE)],
                               capture_output=True, text=True, check=True)
         runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     if any(r["compiled"] for r in runs):
         raise RuntimeError("the floor measurement compiled kernels: the cache is not warm")
     numba_s = min(r["numba"] for r in runs)
-    kernels = min(r["kernels"] for r in runs)
+    kernels = max(0.0, min(r["first"] for r in runs) - in_process)
     return {"python": python, "numba": numba_s, "kernels": kernels, "count": runs[0]["count"],
             "total": python + numba_s + kernels}
 
@@ -704,7 +729,7 @@ def numba_floor(model_path: Path, repeat: int = 3) -> dict:
 def house_in_process(model_path: Path, repeat: int = 3) -> float:
     """Best of ``repeat`` warm ``simulate()`` calls of the house in this process, s."""
     from blastvox.scene import load_scene
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import settings_from_scene
 
     model = VoxelModel.load(model_path)

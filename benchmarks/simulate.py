@@ -16,13 +16,13 @@ Cases (each in its own Python process, models made beforehand with
 
 ``--quick`` replaces the blocks by ~100k and ~10k voxels (46^3 and 22^3).
 A worker first does one short warm-up run (imports, numba compilation or cache
-load), then times ``blastvox.simulate.run.simulate(model, settings)`` N times
+load), then times ``blastvox.simulate.engine.simulate(model, settings)`` N times
 (the best counts; loading the model and writing the cache are not timed).
 voxel-steps/s = voxels x steps / seconds.
 
 Start-up: ``blastvox simulate`` of the building in a subprocess with a fresh,
-empty ``NUMBA_CACHE_DIR`` (cold: includes compiling every kernel the run needs,
-spread over the available CPUs by blastvox.simulate.precompile), then again
+empty ``NUMBA_CACHE_DIR`` (cold: includes numba compiling every kernel the run
+calls, on first call, into that cache), then again
 with the same cache directory (warm), with every effect on and with collisions
 and effects off; and ``blastvox --help``.
 
@@ -154,7 +154,7 @@ def run_case(case: Case, model_path: Path, repeat: int) -> dict:
     from dataclasses import replace
 
     from blastvox.model import VoxelModel
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
 
     model = VoxelModel.load(model_path)
     settings = settings_for(case)

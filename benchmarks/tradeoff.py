@@ -14,7 +14,7 @@ divides every edge) and simulated at dt = 1/60, 1/240, 1/1000 and 1/4000 s with
 ``fracture = "yield"`` and ``"damage"``.
 
 Everything runs in this process through the real API
-(``blastvox.voxelize.pipeline.voxelize`` then ``blastvox.simulate.run.simulate``),
+(``blastvox.voxelize.pipeline.voxelize`` then ``blastvox.simulate.engine.simulate``),
 after one warm-up run per fracture model (imports and numba compilation, or
 loading numba's cache, are not timed). ``wall s`` is ``simulate()`` alone.
 
@@ -130,7 +130,7 @@ def settings_for(fracture: str, steps_per_s: int):
 
 def sweep(sizes: tuple[float, ...], steps: tuple[int, ...], repeat: int) -> list[Run]:
     """Voxelize, warm up, then simulate every configuration; errors filled in."""
-    from blastvox.simulate.run import simulate
+    from blastvox.simulate.engine import simulate
 
     runs: list[Run] = []
     with tempfile.TemporaryDirectory(prefix="blastvox-tradeoff-") as tmp:
