@@ -369,9 +369,11 @@ def test_triangle_culling_and_near_clipping() -> None:
     depth = np.zeros((40, 40), np.float32)
 
     def draw(tri) -> int:
-        raster.fill_background(color, depth, np.zeros(3), np.zeros(3))
-        return raster.draw_triangles(color, depth, np.asarray([tri], float),
-                                     np.ones((1, 3), np.float32), 40.0, 20.0, 20.0, 0.05)
+        target = raster.Target(color, depth)
+        raster.fill_background(target, np.zeros(3), np.zeros(3))
+        camera = raster.Pinhole(np.eye(3), np.zeros(3), fpx=40.0, cx=20.0, cy=20.0, near=0.05)
+        return raster.draw_triangles(target, camera, np.asarray([tri], float),
+                                     np.ones((1, 3), np.float32))
 
     # view space: x right, y up, z forward; a triangle at z = 2 facing the camera is
     # counter-clockwise seen from the camera (the outward normal points at it)

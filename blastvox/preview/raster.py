@@ -1,7 +1,8 @@
 """A small z-buffer rasteriser in numba: background, ground, triangles, splats, spheres.
 
-Every kernel draws into the same two buffers, in *view space* (the camera at the
-origin, x right, y up, z forward along the line of sight, metres):
+Every kernel draws into the same two buffers, a :class:`Target`, in *view
+space* (the camera at the origin, x right, y up, z forward along the line of
+sight, metres):
 
 * ``color`` (H, W, 3) float32: linear RGB, 0..1 (emissive splats may exceed 1;
   :func:`resolve` clips);
@@ -9,21 +10,25 @@ origin, x right, y up, z forward along the line of sight, metres):
   nothing opaque has been drawn (infinitely far), so *greater is nearer* and
   1/z interpolates linearly in screen space (perspective-correct depth).
 
-A pixel (px, py) is sampled at its centre; the pinhole maps a view-space point
-to ``sx = cx + f x / z``, ``sy = cy - f y / z`` with ``f`` the focal length in
-pixels. Opaque triangles are culled when they face away, clipped against the
-near plane ``z = near`` and filled with the z-test; splats (particles) and the
-translucent spheres (shock fronts) are z-tested against the opaque surfaces
-but do not write depth, and are alpha-blended in the order given.
+A pixel (px, py) is sampled at its centre; the pinhole (a :class:`Pinhole`)
+maps a view-space point to ``sx = cx + f x / z``, ``sy = cy - f y / z`` with
+``f`` the focal length in pixels. Opaque triangles are culled when they face
+away, clipped against the near plane ``z = near`` and filled with the z-test;
+splats (particles) and the translucent spheres (shock fronts) are z-tested
+against the opaque surfaces but do not write depth, and are alpha-blended in
+the order given.
 
 Kernels are serial and use no fast-math, so the same input gives the same
 pixels on every run (previews are byte-reproducible). They are compiled once
-and cached beside this file (``cache=True``).
+and cached beside this file (``cache=True``). Their arguments are grouped into
+a few NamedTuples of arrays and scalars (as :mod:`blastvox.simulate.state`
+does); a kernel unpacks the fields it uses at its top.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -32,10 +37,102 @@ EDGE_TOL_PX = 1e-3  #: a pixel centre this close outside a triangle edge is insi
 EDGE_DEPTH_BIAS = 1.0 - 1e-6  #: and loses a depth tie against a triangle it is inside
 
 
+class Target(NamedTuple):
+    """The buffers every kernel draws into (H, W: the supersampled image's pixels).
+
+    color (H, W, 3) float32 linear RGB; depth (H, W) float32 1/z of the nearest
+    opaque surface, 1/m, 0 where nothing opaque has been drawn.
+    """
+
+    color: np.ndarray
+    depth: np.ndarray
+
+
+class Pinhole(NamedTuple):
+    """The camera as the kernels see it.
+
+    rotation (3, 3) world -> view (rows: right, up, forward); eye (3,) m, its
+    position; fpx: focal length, pixels; cx, cy: the image centre, pixels;
+    near: the near clipping plane, m. Only :func:`draw_ground` (which works in
+    world space) reads rotation and eye.
+    """
+
+    rotation: np.ndarray
+    eye: np.ndarray
+    fpx: float
+    cx: float
+    cy: float
+    near: float
+
+
+class Ground(NamedTuple):
+    """The infinite ground plane ``dot(up, x) = height`` and how it looks.
+
+    up, axis_u, axis_v (3,): the plane's unit normal and two in-plane axes of
+    its grid lines, one every ``grid_step`` m; height, m. ``shade`` scales
+    ``albedo`` (3,) linear RGB (the lighting of the flat plane); beyond the
+    camera the plane fades into ``fog_color`` (3,) as 1 - exp(-z / fog_distance)
+    (z view depth, m).
+    """
+
+    up: np.ndarray
+    height: float
+    axis_u: np.ndarray
+    axis_v: np.ndarray
+    grid_step: float
+    albedo: np.ndarray
+    shade: float
+    fog_distance: float
+    fog_color: np.ndarray
+
+
+class Triangles(NamedTuple):
+    """Triangles (T) in their pieces' frames: local (T, 3, 3) corners, m; normals (T, 3)
+    unit; piece (T,) the index of their piece; albedo (T, 3) linear RGB."""
+
+    local: np.ndarray
+    normals: np.ndarray
+    piece: np.ndarray
+    albedo: np.ndarray
+
+
+class Poses(NamedTuple):
+    """Pieces (P) at one frame: rotation (P, 3, 3) piece -> world; matrix (P, 3, 3)
+    piece -> view (the camera's rotation times the piece's); offset (P, 3) m, the
+    piece's origin in view space; alive (P,) bool."""
+
+    rotation: np.ndarray
+    matrix: np.ndarray
+    offset: np.ndarray
+    alive: np.ndarray
+
+
+class Lighting(NamedTuple):
+    """Flat shading: a face of world normal n gets ``ambient + sky (1 + n.up) / 2 +
+    key max(0, n.light)`` times its albedo; up and light (3,) unit vectors."""
+
+    up: np.ndarray
+    light: np.ndarray
+    ambient: float
+    sky: float
+    key: float
+
+
+class Splats(NamedTuple):
+    """Particles (K), in the order they are blended: centres (K, 3) view space, m;
+    radius (K,) m; colors (K, 3) linear RGB; alpha (K,) 0..1."""
+
+    centres: np.ndarray
+    radius: np.ndarray
+    colors: np.ndarray
+    alpha: np.ndarray
+
+
 @nb.njit(cache=True)
-def fill_background(color, depth, top, bottom) -> None:
-    """Clear ``depth`` to 0 and ``color`` to a vertical gradient from ``top`` (3,) at the
-    first row to ``bottom`` (3,) at the last (linear RGB)."""
+def fill_background(target, top, bottom) -> None:
+    """Clear the ``target``'s depth to 0 and its colour to a vertical gradient from
+    ``top`` (3,) at the first row to ``bottom`` (3,) at the last (linear RGB)."""
+    color, depth = target.color, target.depth
     h, w = depth.shape
     for y in range(h):
         s = (y + 0.5) / h
@@ -50,16 +147,15 @@ def fill_background(color, depth, top, bottom) -> None:
 
 
 @nb.njit(cache=True)
-def draw_ground(color, depth, view_rot, eye, up, height, axis_u, axis_v, fpx, cx, cy, near,
-                albedo, shade, grid_step, fog_distance, fog_color) -> None:
-    """The infinite ground plane ``dot(up, x) = height`` (m), per pixel by ray casting.
-
-    view_rot (3, 3): world -> view rotation (rows: right, up, forward); eye (3,) m;
-    up, axis_u, axis_v (3,): the plane's normal and two in-plane axes of its grid
-    lines, every ``grid_step`` m. ``shade`` scales ``albedo`` (3,) (lighting of the
-    flat plane); beyond the camera the plane fades into ``fog_color`` (3,) as
-    1 - exp(-z / fog_distance). Writes depth.
-    """
+def draw_ground(target, camera, ground) -> None:
+    """The infinite :class:`Ground` plane seen through ``camera`` (a :class:`Pinhole`),
+    per pixel by ray casting. Writes depth."""
+    color, depth = target.color, target.depth
+    view_rot, eye = camera.rotation, camera.eye
+    fpx, cx, cy, near = camera.fpx, camera.cx, camera.cy, camera.near
+    up, height, axis_u, axis_v = ground.up, ground.height, ground.axis_u, ground.axis_v
+    grid_step, albedo, shade = ground.grid_step, ground.albedo, ground.shade
+    fog_distance, fog_color = ground.fog_distance, ground.fog_color
     h, w = depth.shape
     d_eye = height - (up[0] * eye[0] + up[1] * eye[1] + up[2] * eye[2])
     line = 0.03 * grid_step
@@ -106,8 +202,9 @@ def draw_ground(color, depth, view_rot, eye, up, height, axis_u, axis_v, fpx, cx
 
 
 @nb.njit(cache=True)
-def _fill_triangle(color, depth, x0, y0, w0, x1, y1, w1, x2, y2, w2, r, g, b) -> None:
-    """Fill one projected triangle (pixel coordinates, 1/z per corner) with the z-test.
+def _fill_triangle(target, corner0, corner1, corner2, rgb) -> None:
+    """Fill one projected triangle with the z-test: each corner a tuple (sx, sy, 1/z) of
+    pixel coordinates and inverse depth, ``rgb`` a tuple (r, g, b).
 
     Edge functions are stepped incrementally along each row. A pixel centre on
     an edge shared by two triangles (or a hair's breadth outside both, from
@@ -117,6 +214,11 @@ def _fill_triangle(color, depth, x0, y0, w0, x1, y1, w1, x2, y2, w2, r, g, b) ->
     edge-on could come out nearer than the face in front of it), pushed back by
     ``EDGE_DEPTH_BIAS``, so that a triangle the centre is really inside wins.
     """
+    color, depth = target.color, target.depth
+    x0, y0, w0 = corner0
+    x1, y1, w1 = corner1
+    x2, y2, w2 = corner2
+    r, g, b = rgb
     area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
     if area == 0.0 or not math.isfinite(area):
         return
@@ -174,18 +276,19 @@ def _fill_triangle(color, depth, x0, y0, w0, x1, y1, w1, x2, y2, w2, r, g, b) ->
 
 
 @nb.njit(cache=True)
-def transform_triangles(local, normals, piece, albedo, rotation, matrix, offset, alive, up,
-                        light, ambient, sky, key, out_view, out_color) -> int:
+def transform_triangles(triangles, poses, lighting, out_view, out_color) -> int:
     """Rigidly moved, flat-shaded triangles of the alive pieces, in view space.
 
-    Per triangle (T): ``local`` (T, 3, 3) m and ``normals`` (T, 3) in its piece's
-    frame, ``piece`` (T,) index, ``albedo`` (T, 3). Per piece (P): ``rotation``
-    (P, 3, 3) piece -> world, ``matrix`` (P, 3, 3) piece -> view (camera rotation
-    times piece rotation), ``offset`` (P, 3) m its origin in view space, ``alive``
-    (P,). Colour = albedo * (ambient + sky (1 + n.up) / 2 + key max(0, n.light))
-    with n the world normal. Writes the first K rows of ``out_view`` (T, 3, 3)
-    and ``out_color`` (T, 3) and returns K, the number of alive triangles.
+    ``triangles`` (:class:`Triangles`, T) are moved by their piece's pose
+    (:class:`Poses`) and shaded by ``lighting`` (:class:`Lighting`, with n the
+    world normal). Writes the first K rows of ``out_view`` (T, 3, 3) and
+    ``out_color`` (T, 3) and returns K, the number of alive triangles.
     """
+    local, normals = triangles.local, triangles.normals
+    piece, albedo = triangles.piece, triangles.albedo
+    rotation, matrix, offset, alive = poses.rotation, poses.matrix, poses.offset, poses.alive
+    up, light = lighting.up, lighting.light
+    ambient, sky, key = lighting.ambient, lighting.sky, lighting.key
     k = 0
     for t in range(local.shape[0]):
         p = piece[t]
@@ -211,8 +314,9 @@ def transform_triangles(local, normals, piece, albedo, rotation, matrix, offset,
 
 
 @nb.njit(cache=True)
-def draw_triangles(color, depth, vertices, colors, fpx, cx, cy, near) -> int:
-    """Opaque triangles ``vertices`` (T, 3, 3) in view space (m), flat ``colors`` (T, 3).
+def draw_triangles(target, camera, vertices, colors) -> int:
+    """Opaque triangles ``vertices`` (T, 3, 3) in view space (m), flat ``colors`` (T, 3),
+    seen through ``camera`` (a :class:`Pinhole`).
 
     Corners are counter-clockwise seen from outside (outward normals, as
     :func:`blastvox.export.pieces.piece_meshes` makes them); triangles seen from
@@ -220,6 +324,7 @@ def draw_triangles(color, depth, vertices, colors, fpx, cx, cy, near) -> int:
     triangle faces the camera when ``dot(cross(b - a, c - a), a) > 0``. Parts in
     front of ``z = near`` are clipped away. Returns the number of triangles drawn.
     """
+    fpx, cx, cy, near = camera.fpx, camera.cx, camera.cy, camera.near
     drawn = 0
     poly = np.empty((4, 3))
     for t in range(vertices.shape[0]):
@@ -238,9 +343,9 @@ def draw_triangles(color, depth, vertices, colors, fpx, cx, cy, near) -> int:
             continue
         r, g, b = colors[t, 0], colors[t, 1], colors[t, 2]
         if inside == 3:
-            _fill_triangle(color, depth, cx + fpx * ax / az, cy - fpx * ay / az, 1.0 / az,
-                           cx + fpx * bx / bz, cy - fpx * by / bz, 1.0 / bz,
-                           cx + fpx * qx / qz, cy - fpx * qy / qz, 1.0 / qz, r, g, b)
+            _fill_triangle(target, (cx + fpx * ax / az, cy - fpx * ay / az, 1.0 / az),
+                           (cx + fpx * bx / bz, cy - fpx * by / bz, 1.0 / bz),
+                           (cx + fpx * qx / qz, cy - fpx * qy / qz, 1.0 / qz), (r, g, b))
             drawn += 1
             continue
         # Sutherland-Hodgman against z >= near: a triangle or a quad remains
@@ -260,24 +365,26 @@ def draw_triangles(color, depth, vertices, colors, fpx, cx, cy, near) -> int:
                 poly[n, 2] = near
                 n += 1
         for k in range(1, n - 1):
-            _fill_triangle(color, depth,
-                           cx + fpx * poly[0, 0] / poly[0, 2], cy - fpx * poly[0, 1] / poly[0, 2],
-                           1.0 / poly[0, 2],
-                           cx + fpx * poly[k, 0] / poly[k, 2], cy - fpx * poly[k, 1] / poly[k, 2],
-                           1.0 / poly[k, 2],
-                           cx + fpx * poly[k + 1, 0] / poly[k + 1, 2],
-                           cy - fpx * poly[k + 1, 1] / poly[k + 1, 2], 1.0 / poly[k + 1, 2],
-                           r, g, b)
+            _fill_triangle(target,
+                           (cx + fpx * poly[0, 0] / poly[0, 2], cy - fpx * poly[0, 1] / poly[0, 2],
+                            1.0 / poly[0, 2]),
+                           (cx + fpx * poly[k, 0] / poly[k, 2], cy - fpx * poly[k, 1] / poly[k, 2],
+                            1.0 / poly[k, 2]),
+                           (cx + fpx * poly[k + 1, 0] / poly[k + 1, 2],
+                            cy - fpx * poly[k + 1, 1] / poly[k + 1, 2], 1.0 / poly[k + 1, 2]),
+                           (r, g, b))
         drawn += 1
     return drawn
 
 
 @nb.njit(cache=True)
-def draw_splats(color, depth, centres, radius, colors, alpha, fpx, cx, cy, near,
-                min_radius_px, max_radius_px) -> None:
-    """Round, soft-edged particles: centres (K, 3) view space (m), radius (K,) m,
-    colors (K, 3) linear RGB, alpha (K,) 0..1, blended in the given order (pass them
-    far to near). The on-screen radius is clamped to [min_radius_px, max_radius_px]."""
+def draw_splats(target, camera, splats, min_radius_px, max_radius_px) -> None:
+    """Round, soft-edged particles (:class:`Splats`) seen through ``camera`` (a
+    :class:`Pinhole`), blended in the given order (pass them far to near). The
+    on-screen radius is clamped to [min_radius_px, max_radius_px]."""
+    color, depth = target.color, target.depth
+    fpx, cx, cy, near = camera.fpx, camera.cx, camera.cy, camera.near
+    centres, radius, colors, alpha = splats.centres, splats.radius, splats.colors, splats.alpha
     h, w = depth.shape
     for k in range(centres.shape[0]):
         z = centres[k, 2]
@@ -310,11 +417,14 @@ def draw_splats(color, depth, centres, radius, colors, alpha, fpx, cx, cy, near,
 
 
 @nb.njit(cache=True)
-def draw_spheres(color, depth, centres, radius, opacity, tint, fpx, cx, cy, near) -> None:
-    """Translucent spheres (shock fronts): centres (S, 3) view space (m), radius (S,) m,
-    opacity (S,) 0..1, colour ``tint`` (3,). Both the far and the near side are drawn
-    where they are in front of the opaque surfaces; a surface's alpha grows towards
-    the silhouette, so a front reads as a bright ring with a faint veil inside."""
+def draw_spheres(target, camera, centres, radius, opacity, tint) -> None:
+    """Translucent spheres (shock fronts) seen through ``camera`` (a :class:`Pinhole`):
+    centres (S, 3) view space (m), radius (S,) m, opacity (S,) 0..1, colour ``tint``
+    (3,). Both the far and the near side are drawn where they are in front of the
+    opaque surfaces; a surface's alpha grows towards the silhouette, so a front reads
+    as a bright ring with a faint veil inside."""
+    color, depth = target.color, target.depth
+    fpx, cx, cy, near = camera.fpx, camera.cx, camera.cy, camera.near
     h, w = depth.shape
     for s in range(centres.shape[0]):
         if opacity[s] <= 0.0 or radius[s] <= 0.0:

@@ -75,6 +75,7 @@ class Renderer:
         self.big = (settings.height * ss, settings.width * ss)
         self.color = np.empty((*self.big, 3), dtype=np.float32)
         self.depth = np.empty(self.big, dtype=np.float32)
+        self.target = raster.Target(self.color, self.depth)
         self.lut = raster.srgb_lut()
         up = scene.up
         self.axis_u = np.roll(up, 1)
@@ -84,22 +85,23 @@ class Renderer:
         self._backdrop_key: tuple | None = None
         self._backdrop_color = self._backdrop_depth = None
 
-    def _backdrop(self, camera: Camera, fpx: float, cx: float, cy: float) -> None:
+    def _backdrop(self, camera: Camera, pinhole: raster.Pinhole) -> None:
         """Sky and ground into the buffers; kept and copied while the camera stands still
         (they depend on nothing else)."""
-        key = (camera.eye.tobytes(), camera.rotation.tobytes(), fpx)
+        key = (camera.eye.tobytes(), camera.rotation.tobytes(), pinhole.fpx)
         if self._backdrop_key == key:
             np.copyto(self.color, self._backdrop_color)
             np.copyto(self.depth, self._backdrop_depth)
             return
         scene = self.scene
-        raster.fill_background(self.color, self.depth, SKY_TOP, SKY_HORIZON)
+        raster.fill_background(self.target, SKY_TOP, SKY_HORIZON)
         if "ground" in self.settings.layers and scene.ground_height is not None:
             ground_shade = float(shade(scene.up[None, :], scene.up, self.light)[0])
-            raster.draw_ground(self.color, self.depth, camera.rotation, camera.eye, scene.up,
-                               scene.ground_height, self.axis_u, self.axis_v, fpx, cx, cy,
-                               NEAR_M, GROUND_ALBEDO, ground_shade, self.grid_m, self.fog_m,
-                               SKY_HORIZON)
+            ground = raster.Ground(
+                up=scene.up, height=scene.ground_height, axis_u=self.axis_u, axis_v=self.axis_v,
+                grid_step=self.grid_m, albedo=GROUND_ALBEDO, shade=ground_shade,
+                fog_distance=self.fog_m, fog_color=SKY_HORIZON)
+            raster.draw_ground(self.target, pinhole, ground)
         self._backdrop_key = key
         self._backdrop_color = self.color.copy()
         self._backdrop_depth = self.depth.copy()
@@ -108,36 +110,36 @@ class Renderer:
         """(height, width, 3) uint8 sRGB image of ``frame`` seen through ``camera``."""
         s, scene = self.settings, self.scene
         hb, wb = self.big
-        fpx = camera.focal_px(wb)
-        cx, cy = wb / 2.0, hb / 2.0
-        self._backdrop(camera, fpx, cx, cy)
+        pinhole = raster.Pinhole(rotation=camera.rotation, eye=camera.eye,
+                                 fpx=camera.focal_px(wb), cx=wb / 2.0, cy=hb / 2.0, near=NEAR_M)
+        self._backdrop(camera, pinhole)
         if "pieces" in s.layers and len(scene.tri_local):
             p = scene.pieces_at(frame)
             # view = Rc (Rp x + t - eye): one matrix and one offset per piece
             matrix = np.ascontiguousarray(camera.rotation[None] @ p.rotation)   # (P, 3, 3)
             offset = (p.position - camera.eye) @ camera.rotation.T              # (P, 3)
             count = raster.transform_triangles(
-                p.local, p.normals, p.piece, p.albedo, p.rotation, matrix, offset, p.alive,
-                scene.up, self.light, AMBIENT, SKY, KEY, self.view, self.shaded)
-            raster.draw_triangles(self.color, self.depth, self.view[:count],
-                                  self.shaded[:count], fpx, cx, cy, NEAR_M)
+                raster.Triangles(p.local, p.normals, p.piece, p.albedo),
+                raster.Poses(p.rotation, matrix, offset, p.alive),
+                raster.Lighting(scene.up, self.light, AMBIENT, SKY, KEY), self.view, self.shaded)
+            raster.draw_triangles(self.target, pinhole, self.view[:count], self.shaded[:count])
         if "particles" in s.layers and len(scene.particle_birth):
             q = scene.particles_at(frame)
             if len(q.position):
                 view = camera.to_view(q.position)
                 order = np.argsort(-view[:, 2], kind="stable")  # far to near
                 ss = s.supersample
-                raster.draw_splats(self.color, self.depth, view[order], q.radius[order],
-                                   q.color[order].astype(np.float32),
-                                   q.alpha[order].astype(np.float32), fpx, cx, cy, NEAR_M,
-                                   0.75 * ss, hb / MAX_SPLAT_FRACTION)
+                splats = raster.Splats(view[order], q.radius[order],
+                                       q.color[order].astype(np.float32),
+                                       q.alpha[order].astype(np.float32))
+                raster.draw_splats(self.target, pinhole, splats, 0.75 * ss,
+                                   hb / MAX_SPLAT_FRACTION)
         if "shock" in s.layers:
             centres, radius, opacity = scene.shock_at(frame)
             live = (radius > 0) & (opacity > 0)
             if live.any():
-                raster.draw_spheres(self.color, self.depth, camera.to_view(centres[live]),
-                                    radius[live], opacity[live], SHOCK_TINT, fpx, cx, cy,
-                                    NEAR_M)
+                raster.draw_spheres(self.target, pinhole, camera.to_view(centres[live]),
+                                    radius[live], opacity[live], SHOCK_TINT)
         out = np.empty((s.height, s.width, 3), dtype=np.uint8)
         raster.resolve(self.color, s.supersample, self.lut, out)
         return out
