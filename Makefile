@@ -111,4 +111,4 @@ bench: $(STAMP)
 clean:
 	rm -rf out .pytest_cache
 	find blastvox -name '*.nbi' -delete -o -name '*.nbc' -delete
-	[ ! -x $(BIN)/python ] || rm -rf "$$($(BIN)/python -c 'import blastvox; print(blastvox.KERNEL_CACHE)')"
+	[ ! -x $(BIN)/python ] || rm -rf "$$($(BIN)/python -c 'import blastvox.jit; print(blastvox.jit.KERNEL_CACHE)')"

@@ -5,11 +5,4 @@ Stages: :mod:`blastvox.voxelize` (meshes -> VoxelModel), :mod:`blastvox.simulate
 Importing this package is cheap; heavy modules are imported by the stages.
 """
 
-from pathlib import Path as _Path
-
-from blastvox import _kernel_cache
-
 __version__ = "0.1.0"
-
-#: numba's compiled kernels of this source tree (see :mod:`blastvox._kernel_cache`)
-KERNEL_CACHE = _kernel_cache.configure(_Path(__file__).resolve().parent)

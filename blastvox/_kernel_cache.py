@@ -18,23 +18,54 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import sys
 from pathlib import Path
 
 KEEP = 3
 _MARKERS = (b"numba", b"blastvox.jit")
+#: ``from pkg.x.y import a, b`` or ``from pkg.x import (a,\n b)``: the module and the
+#: names; ``import pkg.x.y``: the module. For the package's name ``pkg``.
+_FROM = r"^[ \t]*from[ \t]+({0}(?:\.\w+)*)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)"
+_PLAIN = r"^[ \t]*import[ \t]+({0}(?:\.\w+)*)"
 
 
 def source_hash(package: Path) -> str:
     """Hash (16 hex digits) of the contents of every module under ``package`` that
-    holds or calls numba code, in path order."""
+    holds or calls numba code, and of every package module those import (their
+    constants, e.g. face tables, are frozen into the compiled code), in path order."""
     digest = hashlib.blake2b(digest_size=8)
-    for path in sorted(package.rglob("*.py")):
+    for path in sorted(_kernel_sources(package)):
         text = path.read_bytes()
-        if any(marker in text for marker in _MARKERS):
-            digest.update(path.relative_to(package).as_posix().encode() + b"\0" + text + b"\0")
+        digest.update(path.relative_to(package).as_posix().encode() + b"\0" + text + b"\0")
     return digest.hexdigest()
+
+
+def _kernel_sources(package: Path) -> set[Path]:
+    """The numba modules of ``package`` and, transitively, the package modules they import."""
+    texts = {path: path.read_bytes() for path in package.rglob("*.py")}
+    name = re.escape(package.name)
+    froms, plains = re.compile(_FROM.format(name), re.M), re.compile(_PLAIN.format(name), re.M)
+    todo = [path for path, text in texts.items() if any(m in text for m in _MARKERS)]
+    found: set[Path] = set()
+    while todo:
+        path = todo.pop()
+        if path in found:
+            continue
+        found.add(path)
+        text = texts[path].decode("utf-8", "replace")
+        modules = [m.split(".")[1:] for m in plains.findall(text)]
+        for source, names in froms.findall(text):
+            parts = source.split(".")[1:]
+            modules.append(parts)
+            modules += [parts + [n.split()[0]] for n in names.strip("()").split(",") if n.split()]
+        for module in modules:
+            for target in (package.joinpath(*module).with_suffix(".py"),
+                           package.joinpath(*module, "__init__.py")):
+                if target in texts and target not in found:
+                    todo.append(target)
+    return found
 
 
 def cache_directory(package: Path, environ: dict[str, str] | None = None) -> Path:

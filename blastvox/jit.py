@@ -1,6 +1,12 @@
-"""How the simulator's numba functions are compiled: kernels and helpers.
+"""How blastvox's numba functions are compiled: kernels and helpers, and where they are cached.
 
-A *kernel* is called from Python (``@nb.njit(cache=True)``). A *helper* is
+Every numba function of blastvox is decorated here, so importing this module
+first points numba's on-disk cache at a directory keyed on the source
+(:data:`KERNEL_CACHE`, see :mod:`blastvox._kernel_cache`): editing any numba
+module, or a module one imports, recompiles everything once, and nothing is
+ever stale. Modules that do not use numba never pay for computing the key.
+
+A *kernel* is called from Python (:func:`kernel`, ``@nb.njit(cache=True)``). A *helper* is
 called only from other compiled functions (:func:`helper`): numba then builds no
 CPython wrapper for it, the code that unboxes each argument from a Python
 object. That wrapper is never used for a helper, yet costs about 60 ms plus
@@ -14,9 +20,16 @@ helper raises a TypeError instead; its ``py_func`` is the plain Python function.
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 
 import numba as nb
 from numba.core.registry import CPUDispatcher
+
+from blastvox import _kernel_cache
+
+#: numba's compiled kernels of this source tree; set before any blastvox function
+#: is decorated (numba picks a function's cache directory when it is decorated)
+KERNEL_CACHE = _kernel_cache.configure(Path(__file__).resolve().parent)
 
 
 class HelperDispatcher(CPUDispatcher):
@@ -25,6 +38,11 @@ class HelperDispatcher(CPUDispatcher):
     def __call__(self, *args, **kwargs):
         raise TypeError(f"{self.py_func.__module__}.{self.py_func.__qualname__} is compiled "
                         "for other numba functions only; call its .py_func from Python")
+
+
+def kernel(func: Callable) -> Callable:
+    """``@nb.njit(cache=True)``: a numba function called from Python (and compiled code)."""
+    return nb.njit(cache=True)(func)
 
 
 def helper(func: Callable) -> Callable:

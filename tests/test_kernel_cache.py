@@ -38,6 +38,41 @@ def test_the_key_changes_with_numba_modules_only(tmp_path):
     assert _kernel_cache.source_hash(pkg) != key
 
 
+def test_a_module_a_kernel_imports_is_part_of_the_key(tmp_path):
+    # constants such as face tables are frozen into the compiled code
+    pkg = _package(tmp_path, "2 * x")
+    (pkg / "tables.py").write_text("FACTOR = 2\n")
+    kernels = (pkg / "kernels.py").read_text()
+    (pkg / "kernels.py").write_text(kernels.replace(
+        "from pkg.helpers import twice\n",
+        "from pkg.helpers import twice\nfrom pkg import tables\n"))
+    key = _kernel_cache.source_hash(pkg)
+    (pkg / "tables.py").write_text("FACTOR = 3\n")
+    assert _kernel_cache.source_hash(pkg) != key
+
+
+def test_every_numba_function_of_blastvox_caches_under_the_keyed_directory():
+    # a module that decorated with numba before importing blastvox.jit would cache
+    # beside its source, where edits of its helpers go unnoticed
+    import importlib
+    import pkgutil
+
+    import blastvox
+    from blastvox.jit import KERNEL_CACHE
+
+    seen = 0
+    for info in pkgutil.walk_packages(blastvox.__path__, "blastvox."):
+        if info.name.startswith("blastvox.cli") or info.name.endswith("__main__"):
+            continue
+        module = importlib.import_module(info.name)
+        for value in vars(module).values():
+            cache = getattr(getattr(value, "_cache", None), "_cache_path", None)
+            if cache is not None and getattr(value, "__module__", "") == info.name:
+                assert Path(cache).is_relative_to(KERNEL_CACHE), (info.name, cache)
+                seen += 1
+    assert seen > 30
+
+
 def test_the_directory_follows_numba_cache_dir(tmp_path):
     pkg = _package(tmp_path, "2 * x")
     key = _kernel_cache.source_hash(pkg)

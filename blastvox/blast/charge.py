@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numba as nb
 import numpy as np
 
 from blastvox.blast._numeric import flat_arrays
@@ -20,9 +19,10 @@ from blastvox.blast.explosives import tnt_equivalent
 from blastvox.blast.friedlander import decay_coefficient_nb, impulse, overpressure
 from blastvox.blast.kingery_bulmash import reference_parameters_nb
 from blastvox.errors import BlastvoxError
+from blastvox.jit import kernel
 
 
-@nb.njit(cache=True)  # also called from Python (tests)
+@kernel  # also called from Python (tests)
 def blast_parameters_nb(distance_m, charge_tnt_kg):
     """(Z, Ps, ta, Td, b, I) at distance_m of charge_tnt_kg kg *TNT-equivalent* (SI)."""
     cube = np.cbrt(charge_tnt_kg)
@@ -32,7 +32,7 @@ def blast_parameters_nb(distance_m, charge_tnt_kg):
     return z, ps, ta * cube, td * cube, b, imp * cube
 
 
-@nb.njit(cache=True)
+@kernel
 def _blast_parameters_kernel(distance_m, charge_tnt_kg, out):
     for i in range(distance_m.shape[0]):
         z, ps, ta, td, b, imp = blast_parameters_nb(distance_m[i], charge_tnt_kg[i])

@@ -65,12 +65,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numba as nb
 import numpy as np
 
 from blastvox.blast._numeric import horner_nb, run_kernel
 from blastvox.blast.atmosphere import P0_PA
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 
 B_MIN = 1.0e-3          #: decay coefficient floor where I >= Ps Td / 2
 NEG_CUTOFF = 0.01       #: the negative lobe ends when back within 1 % of its extremum
@@ -156,7 +155,7 @@ def _decay_step_nb(b, k):
     return (_gfun_nb(b) - k) / _gprime_nb(b)
 
 
-@nb.njit(cache=True)  # also called from Python (tests)
+@kernel  # also called from Python (tests)
 def decay_coefficient_nb(ps, td, imp):
     """Friedlander b >= B_MIN with Ps Td (b - 1 + e^-b)/b^2 = I; B_MIN where
     I >= Ps Td g(B_MIN) (in particular I >= Ps Td / 2)."""
@@ -169,7 +168,7 @@ def decay_coefficient_nb(ps, td, imp):
     return max(b, B_MIN)
 
 
-@nb.njit(cache=True)
+@kernel
 def _decay_kernel(ps, td, imp, out):
     """:func:`decay_coefficient_nb` on all elements together: every b takes Newton steps
     until all have converged."""
@@ -202,7 +201,7 @@ def positive_impulse_nb(ps, td, b):
     return ps * td * _gfun_nb(b)
 
 
-@nb.njit(cache=True)
+@kernel
 def _positive_impulse_kernel(ps, td, b, out):
     for i in range(ps.shape[0]):
         out[0, i] = positive_impulse_nb(ps[i], td[i], b[i])
@@ -217,7 +216,7 @@ def positive_impulse(peak_overpressure: Any, positive_duration: Any, decay: Any)
 # --- negative phase, profile, exact impulse -----------------------------------------------
 
 
-@nb.njit(cache=True)  # also called from Python (tests)
+@kernel  # also called from Python (tests)
 def negative_phase_nb(ps, b):
     """(sigma, tau_end) of the bounded negative lobe: scale in (0, 1] and end in tau."""
     y_end = min(X_EPS / b, NEG_MAX_DURATION)
@@ -230,7 +229,7 @@ def negative_phase_nb(ps, b):
     return sigma, 1.0 + y_end
 
 
-@nb.njit(cache=True)
+@kernel
 def _negative_phase_kernel(ps, b, out):
     for i in range(ps.shape[0]):
         sigma, tau_end = negative_phase_nb(ps[i], b[i])
@@ -244,7 +243,7 @@ def negative_phase(peak_overpressure: Any, decay: Any) -> tuple[np.ndarray, np.n
     return sigma, tau_end
 
 
-@nb.njit(cache=True)  # also called from Python (tests)
+@kernel  # also called from Python (tests)
 def overpressure_nb(t, ta, td, ps, b):
     """p(t) - p0 (Pa) of the bounded modified Friedlander wave; 0 before arrival."""
     tau = (t - ta) / td
@@ -259,7 +258,7 @@ def overpressure_nb(t, ta, td, ps, b):
     return sigma * ps * shape
 
 
-@nb.njit(cache=True)
+@kernel
 def _overpressure_kernel(t, ta, td, ps, b, out):
     for i in range(t.shape[0]):
         out[0, i] = overpressure_nb(t[i], ta[i], td[i], ps[i], b[i])
@@ -283,7 +282,7 @@ def _cumulative_nb(tau, b, sigma, tau_end):
     return pos - sigma * math.exp(-b) * y * y * _qfun_nb(b * y)
 
 
-@nb.njit(cache=True)  # also called from Python (tests)
+@kernel  # also called from Python (tests)
 def impulse_nb(t0, t1, ta, td, ps, b):
     """Exact integral of p - p0 over [t0, t1] (Pa s), closed form; negative if t1 < t0."""
     tau0 = (t0 - ta) / td
@@ -295,7 +294,7 @@ def impulse_nb(t0, t1, ta, td, ps, b):
                       - _cumulative_nb(tau0, b, sigma, tau_end))
 
 
-@nb.njit(cache=True)
+@kernel
 def _impulse_kernel(t0, t1, ta, td, ps, b, out):
     for i in range(t0.shape[0]):
         out[0, i] = impulse_nb(t0[i], t1[i], ta[i], td[i], ps[i], b[i])

@@ -47,12 +47,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numba as nb
 import numpy as np
 
 from blastvox.blast._numeric import horner_nb, run_kernel
 from blastvox.blast.atmosphere import C0_M_S
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 
 Z_MIN = 0.0531   #: lower end of the KB free-air fits (m/kg^(1/3))
 Z_MAX = 40.0     #: upper end of the KB free-air fits (m/kg^(1/3))
@@ -129,7 +128,7 @@ def reference_parameters_nb(z):
     return ps, ta, td, imp
 
 
-@nb.njit(cache=True)
+@kernel
 def _reference_kernel(z, out):
     for i in range(z.shape[0]):
         ps, ta, td, imp = reference_parameters_nb(z[i])

@@ -14,13 +14,12 @@ from __future__ import annotations
 import functools
 import math
 
-import numba as nb
 import numpy as np
 
 from blastvox.blast.atmosphere import C0_M_S
 from blastvox.blast.friedlander import decay_coefficient, exceedance_nb, impulse_nb
 from blastvox.blast.kingery_bulmash import Z_MAX, Z_MIN, reference_parameters
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 
 _GRID = 4096
 _LOG_LO = math.log10(Z_MIN)
@@ -66,7 +65,7 @@ def params_at(table: np.ndarray, r: float, scale: float):
     return ps, ta * scale, td * scale, b
 
 
-@nb.njit(cache=True)
+@kernel
 def peak_overpressure(table: np.ndarray, r: float, scale: float) -> float:
     """Peak incident overpressure (Pa) at r (m)."""
     return params_at(table, r, scale)[0]

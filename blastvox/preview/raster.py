@@ -20,7 +20,7 @@ the order given.
 
 Kernels are serial and use no fast-math, so the same input gives the same
 pixels on every run (previews are byte-reproducible). They are compiled once
-and cached beside this file (``cache=True``). Their arguments are grouped into
+and cached by numba (``cache=True``, see blastvox._kernel_cache). Their arguments are grouped into
 a few NamedTuples of arrays and scalars (as :mod:`blastvox.simulate.state`
 does); a kernel unpacks the fields it uses at its top.
 """
@@ -30,8 +30,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba as nb
 import numpy as np
+
+from blastvox.jit import kernel
 
 EDGE_TOL_PX = 1e-3  #: a pixel centre this close outside a triangle edge is inside
 EDGE_DEPTH_BIAS = 1.0 - 1e-6  #: and loses a depth tie against a triangle it is inside
@@ -128,7 +129,7 @@ class Splats(NamedTuple):
     alpha: np.ndarray
 
 
-@nb.njit(cache=True)
+@kernel
 def fill_background(target, top, bottom) -> None:
     """Clear the ``target``'s depth to 0 and its colour to a vertical gradient from
     ``top`` (3,) at the first row to ``bottom`` (3,) at the last (linear RGB)."""
@@ -146,7 +147,7 @@ def fill_background(target, top, bottom) -> None:
             depth[y, x] = 0.0
 
 
-@nb.njit(cache=True)
+@kernel
 def draw_ground(target, camera, ground) -> None:
     """The infinite :class:`Ground` plane seen through ``camera`` (a :class:`Pinhole`),
     per pixel by ray casting. Writes depth."""
@@ -201,7 +202,7 @@ def draw_ground(target, camera, ground) -> None:
             depth[y, x] = inv
 
 
-@nb.njit(cache=True)
+@kernel
 def _fill_triangle(target, corner0, corner1, corner2, rgb) -> None:
     """Fill one projected triangle with the z-test: each corner a tuple (sx, sy, 1/z) of
     pixel coordinates and inverse depth, ``rgb`` a tuple (r, g, b).
@@ -275,7 +276,7 @@ def _fill_triangle(target, corner0, corner1, corner2, rgb) -> None:
             e2 += a2
 
 
-@nb.njit(cache=True)
+@kernel
 def transform_triangles(triangles, poses, lighting, out_view, out_color) -> int:
     """Rigidly moved, flat-shaded triangles of the alive pieces, in view space.
 
@@ -313,7 +314,7 @@ def transform_triangles(triangles, poses, lighting, out_view, out_color) -> int:
     return k
 
 
-@nb.njit(cache=True)
+@kernel
 def draw_triangles(target, camera, vertices, colors) -> int:
     """Opaque triangles ``vertices`` (T, 3, 3) in view space (m), flat ``colors`` (T, 3),
     seen through ``camera`` (a :class:`Pinhole`).
@@ -377,7 +378,7 @@ def draw_triangles(target, camera, vertices, colors) -> int:
     return drawn
 
 
-@nb.njit(cache=True)
+@kernel
 def draw_splats(target, camera, splats, min_radius_px, max_radius_px) -> None:
     """Round, soft-edged particles (:class:`Splats`) seen through ``camera`` (a
     :class:`Pinhole`), blended in the given order (pass them far to near). The
@@ -416,7 +417,7 @@ def draw_splats(target, camera, splats, min_radius_px, max_radius_px) -> None:
                     color[py, px, ch] += (colors[k, ch] - color[py, px, ch]) * a
 
 
-@nb.njit(cache=True)
+@kernel
 def draw_spheres(target, camera, centres, radius, opacity, tint) -> None:
     """Translucent spheres (shock fronts) seen through ``camera`` (a :class:`Pinhole`):
     centres (S, 3) view space (m), radius (S,) m, opacity (S,) 0..1, colour ``tint``
@@ -464,7 +465,7 @@ def draw_spheres(target, camera, centres, radius, opacity, tint) -> None:
                         color[y, x, ch] += (tint[ch] - color[y, x, ch]) * a
 
 
-@nb.njit(cache=True)
+@kernel
 def resolve(color, factor, lut, out) -> None:
     """Average ``factor`` x ``factor`` blocks of ``color`` (H*f, W*f, 3) linear RGB into
     ``out`` (H, W, 3) uint8 through ``lut`` (L,) uint8, the sRGB encoding of L even

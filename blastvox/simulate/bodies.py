@@ -17,14 +17,13 @@ Martins 2001 eqs. 4-6/4-7, which lose the orbital part.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 from blastvox.simulate.integrate import world_tensor_times
 
 
-@nb.njit(cache=True)
+@kernel
 def aggregate(members: np.ndarray, voxel_mass: np.ndarray, voxel_centroid: np.ndarray,
               voxel_inertia: np.ndarray):
     """Mass (kg), centre of mass (3,) and inertia (3, 3) about it of the voxels ``members``.
@@ -55,7 +54,7 @@ def aggregate(members: np.ndarray, voxel_mass: np.ndarray, voxel_centroid: np.nd
     return mass, com, inertia
 
 
-@nb.njit(cache=True)
+@kernel
 def inverse_inertia(inertia: np.ndarray) -> np.ndarray:
     """I^-1 (3, 3) of a rest-frame inertia tensor by its adjugate; zeros if singular.
 

@@ -3,11 +3,12 @@ the only ones that take blast pressure or touch anything."""
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from blastvox.jit import kernel
 
-@nb.njit(cache=True)
+
+@kernel
 def boundary_lists(voxels, conform_slot, n_bodies):
     """CSR (offsets (B+1,), voxels) of each body's alive boundary voxels, in voxel order.
 

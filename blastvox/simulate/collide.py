@@ -13,11 +13,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.transforms_nb import to_rest
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 from blastvox.simulate.bodies import apply_impulse, effective_inverse_mass, point_velocity
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.integrate import angular_velocity, moving, world_tensor_times
@@ -25,7 +24,7 @@ from blastvox.simulate.kernels import damp_resting
 from blastvox.simulate.spatial_hash import bucket, cell_key, cell_of, hash_buckets
 
 
-@nb.njit(cache=True)
+@kernel
 def static_hash(geometry, offsets, members, bodies, cell):
     """Spatial hash of the boundary voxels of bodies that do not move (fixed or asleep).
 
@@ -97,7 +96,7 @@ def _rest_key(body, i, j, k) -> int:
         + (k & (_FIELD - 1))
 
 
-@nb.njit(cache=True)
+@kernel
 def rest_grid(voxel_centroid, voxel_body, members, cell):
     """Boundary voxels hashed by (body, cell of their rest centroid).
 
@@ -198,7 +197,7 @@ def _near_voxels(voxel_centroid, offsets, members, bodies, cell, rest, world, ne
     return count
 
 
-@nb.njit(cache=True)
+@kernel
 def collide_bodies(geometry, voxels, bodies, contacts, marks, params, boundary, static,
                    rest) -> int:
     """Find and resolve voxel-sphere contacts between different bodies, once each.

@@ -73,6 +73,7 @@ from blastvox.simulate.state import (
     empty_bodies,
 )
 from blastvox.simulate.topology import split_phase
+from blastvox.simulate.warmup import compile_ahead
 from blastvox.simulate.wave import Charges, build_charges
 
 
@@ -262,10 +263,20 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     """Run the blast simulation of ``model`` with ``settings``."""
     progress = progress or Progress()
     warn = warn or (lambda message: None)
-    if not _compiled_before():
+    cold = not _compiled_before()
+    if cold:
         progress.note("first run of this blastvox source: compiling the simulator's kernels "
                       "into numba's cache (about half a minute, once)")
     run = Run.start(model, settings)
+    join = compile_ahead(run) if cold else (lambda: None)  # the late phases, on another core
+    try:
+        return _simulate(run, model, settings, progress, warn)
+    finally:
+        join()
+
+
+def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Progress,
+              warn: Callable[[str], None]) -> SimCache:
     state, dt = run.state, run.dt
     if dt < settings.dt * (1 - 1e-12):
         warn(f"dt {settings.dt:g} s does not divide the frame interval 1/{settings.fps:g} s; "
@@ -289,9 +300,9 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
 
 
 def _compiled_before() -> bool:
-    """Does the kernel cache of this source tree (blastvox.KERNEL_CACHE) hold the step's
-    first kernel already?"""
-    from blastvox import KERNEL_CACHE
+    """Does the kernel cache of this source tree (blastvox.jit.KERNEL_CACHE) hold the
+    step's first kernel already?"""
+    from blastvox.jit import KERNEL_CACHE
 
     return next(KERNEL_CACHE.rglob("kernels.body_rotations-*.nbi"), None) is not None
 

@@ -18,9 +18,9 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import numba as nb
 import numpy as np
 
+from blastvox.jit import kernel
 from blastvox.simulate.wave import peak_overpressure
 
 
@@ -36,7 +36,7 @@ class FireParams(NamedTuple):
     up: np.ndarray
 
 
-@nb.njit(cache=True)
+@kernel
 def ignite_by_blast(front, scale, voxel_centroid, voxels, bodies, active) -> int:
     """Erode combustibility by ``scale`` x the peak of waves crossing voxel centres this
     step; returns how many voxels caught fire."""
@@ -71,7 +71,7 @@ def ignite_by_blast(front, scale, voxel_centroid, voxels, bodies, active) -> int
     return ignited
 
 
-@nb.njit(cache=True)
+@kernel
 def burn(params, model_voxels, model_links, voxels, links, initial, body_rot, marks,
          ignite_scratch) -> int:
     """One step of burning and spreading; returns the number of burning voxels.

@@ -19,12 +19,11 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.transforms_nb import rotate_into, to_world_into
 from blastvox.geometry.voxel_faces import FACE_CORNERS
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
 from blastvox.simulate.state import Front
@@ -100,7 +99,7 @@ def _corner(vertex, slot, c, bodies, b, vertices, charge_pos, corner_point, corn
     return True
 
 
-@nb.njit(cache=True)
+@kernel
 def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, active,
                    loads) -> None:
     """Accumulate the blast impulse (N s) and angular impulse (N m s) of [t0, t1] per body.

@@ -26,11 +26,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.transforms_nb import to_world_into
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.topology import refresh_fixed
@@ -82,7 +81,7 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
     return -1.0
 
 
-@nb.njit(cache=True)
+@kernel
 def fracture_links(front, params, geometry, links, voxels, bodies, candidate, marks) -> int:
     """Break or weaken links crossed by a front this step; returns the number broken.
 
@@ -139,7 +138,7 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
     return count
 
 
-@nb.njit(cache=True)
+@kernel
 def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, marks) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
@@ -196,7 +195,7 @@ def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, ma
     return released
 
 
-@nb.njit(cache=True)
+@kernel
 def fracture_damage(front, params, geometry, link_geometry, links, voxels, bodies,
                     marks) -> int:
     """Davison-Stevens compound damage accumulation (Mazarak 1999 eqs. 2.2, 3.2).

@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba as nb
 import numpy as np
 
+from blastvox.jit import kernel
 from blastvox.simulate.bodies import apply_impulse, effective_inverse_mass, point_velocity
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.integrate import angular_velocity
@@ -44,7 +44,7 @@ class GroundParams(NamedTuple):
     sleep_speed: float
 
 
-@nb.njit(cache=True)  # also called from Python, by balanced()
+@kernel  # also called from Python, by balanced()
 def _hull_contains(px, py, count, qx, qy, tol) -> bool:
     """Is (qx, qy) inside the convex hull of the first ``count`` 2-D points (px, py)?
 
@@ -87,7 +87,7 @@ def balanced(points: np.ndarray, centre: np.ndarray, tol: float = 0.0) -> bool:
                                float(centre[1]), tol))
 
 
-@nb.njit(cache=True)
+@kernel
 def ground_contacts(geometry, offsets, members, bodies, contacts, params) -> int:
     """Resolve ground contacts of every moving body; returns the number of contact points.
 

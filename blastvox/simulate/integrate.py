@@ -29,11 +29,10 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry import quaternion_nb
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 
 #: Spin (rad) of one rotation sub-step, measured as h |L| tr(I^-1) / 3 (|omega| h
 #: for a body of isotropic inertia): small enough that the fixed-point iteration
@@ -55,7 +54,7 @@ def moving(b, body_live, body_fixed, body_dust, body_asleep) -> bool:
     return body_live[b] & (not (body_fixed[b] | body_dust[b] | body_asleep[b]))
 
 
-@nb.njit(cache=True)
+@kernel
 def integrate_velocities(dt: float, gravity: np.ndarray, linear_drag: float,
                          angular_drag: float, loads, bodies) -> None:
     """Momenta after this step's blast impulse (loads.impulse, loads.angular: N s, N m s;
@@ -75,7 +74,7 @@ def integrate_velocities(dt: float, gravity: np.ndarray, linear_drag: float,
             body_ang[b, a] = (body_ang[b, a] + angular_impulse[b, a]) * ang_decay
 
 
-@nb.njit(cache=True)
+@kernel
 def integrate_positions(dt: float, bodies) -> None:
     """Move bodies by their current velocities for ``dt`` seconds.
 

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.quaternion_nb import matrix_into
+from blastvox.jit import kernel
 from blastvox.simulate.integrate import angular_velocity, moving
 
 
-@nb.njit(cache=True)
+@kernel
 def body_rotations(bodies) -> None:
     """Refresh ``bodies.rot`` (B, 3, 3) from the live bodies' quaternions."""
     body_quat, body_live, n_bodies, out = bodies.quat, bodies.live, bodies.count[0], bodies.rot
@@ -20,7 +20,7 @@ def body_rotations(bodies) -> None:
             matrix_into(body_quat[b], out[b])
 
 
-@nb.njit(cache=True)
+@kernel
 def link_masks(geometry, links, voxels) -> None:
     """Bit f of voxels.link_mask[v] set iff an alive link leaves voxel v across face f.
 
@@ -35,7 +35,7 @@ def link_masks(geometry, links, voxels) -> None:
             voxel_link_mask[link_voxels[link, 1]] |= np.uint8(1 << (f - 1))
 
 
-@nb.njit(cache=True)
+@kernel
 def link_alive_counts(offsets, link_ids, link_alive) -> np.ndarray:
     """Number of alive links per voxel (N,)."""
     n = offsets.shape[0] - 1
@@ -47,7 +47,7 @@ def link_alive_counts(offsets, link_ids, link_alive) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@kernel
 def bodies_in_shell(bodies, charge_pos, inner, outer, out) -> bool:
     """Flag in ``out`` (B,) the live bodies whose bounding sphere meets a charge's shell
     (inner, outer] (C,) m about charge_pos (C, 3).
@@ -74,7 +74,7 @@ def bodies_in_shell(bodies, charge_pos, inner, outer, out) -> bool:
     return found
 
 
-@nb.njit(cache=True)
+@kernel
 def body_radii(geometry, voxels, bodies) -> None:
     """bodies.radius: a sphere (m) about each body's centre of mass holding all its voxels."""
     voxel_body, voxel_centroid, voxel_radius = voxels.body, geometry.centroid, geometry.radius
@@ -90,7 +90,7 @@ def body_radii(geometry, voxels, bodies) -> None:
             body_radius[b] = d
 
 
-@nb.njit(cache=True)
+@kernel
 def any_moving(bodies) -> bool:
     """Is any body free to move (live, not fixed, not dust, awake)?"""
     for b in range(bodies.count[0]):
@@ -99,7 +99,7 @@ def any_moving(bodies) -> bool:
     return False
 
 
-@nb.njit(cache=True)
+@kernel
 def wake_on_impulse(loads, bodies) -> None:
     """A sleeping body that the blast pushes (loads.impulse, loads.angular) wakes up."""
     impulse, angular, body_asleep, n_bodies = (loads.impulse, loads.angular, bodies.asleep,
@@ -111,7 +111,7 @@ def wake_on_impulse(loads, bodies) -> None:
             body_asleep[b] = False
 
 
-@nb.njit(cache=True)
+@kernel
 def settle(bodies, sleep_speed, still_steps) -> None:
     """Put to sleep bodies that have stayed slower than ``sleep_speed`` (m/s, at their
     rim) for ``still_steps`` steps in a row: debris resting on other debris or leaning
@@ -141,7 +141,7 @@ def settle(bodies, sleep_speed, still_steps) -> None:
             body_still[b] = 0
 
 
-@nb.njit(cache=True)
+@kernel
 def damp_resting(contacts, bodies, decay, limit) -> None:
     """Resting-contact damping between fragments (as the ground's, Martins 2001 §5.2).
 
@@ -168,7 +168,7 @@ def damp_resting(contacts, bodies, decay, limit) -> None:
             body_ang[b, a] *= decay
 
 
-@nb.njit(cache=True)
+@kernel
 def damage_levels(offsets, link_alive_count, voxel_yield, initial_yield, voxel_damage,
                   voxel_alive, out) -> None:
     """Per-voxel damage 0..1 quantised to 0..255 into ``out`` (N,) uint8.
@@ -190,7 +190,7 @@ def damage_levels(offsets, link_alive_count, voxel_yield, initial_yield, voxel_d
         out[v] = np.uint8(np.rint(damage * 255.0))
 
 
-@nb.njit(cache=True)
+@kernel
 def release_held(geometry, voxels, bodies, loads) -> None:
     """Give each freed piece the blast impulse its voxels took while they were held.
 

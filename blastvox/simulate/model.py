@@ -12,10 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.voxel_faces import SURFACE_TAG
+from blastvox.jit import kernel
 from blastvox.model import VoxelModel
 from blastvox.simulate.shell import dense_grid
 
@@ -144,7 +144,7 @@ def build_model(model: VoxelModel) -> SimModel:
         voxel_grid=dense_grid(voxel_centroid, grid_cell))
 
 
-@nb.njit(cache=True)
+@kernel
 def link_csr(link_voxels, n_voxels):
     """Links of each voxel as CSR: offsets (N+1,) and link ids (2L,).
 
@@ -167,7 +167,7 @@ def link_csr(link_voxels, n_voxels):
     return offsets, ids
 
 
-@nb.njit(cache=True)
+@kernel
 def corner_radius(vertices, voxel_vertices, voxel_centroid):
     """Distance (N,) m from each voxel's centroid to its farthest corner."""
     out = np.empty(voxel_vertices.shape[0])

@@ -15,14 +15,13 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.transforms_nb import to_rest
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 
 
-@nb.njit(cache=True)
+@kernel
 def dense_grid(points, cell):
     """CSR of point indices by the cell of a dense grid over their bounding box.
 
@@ -77,7 +76,7 @@ def _box_distances(x, y, z, lo0, lo1, lo2, size):
     return math.sqrt(n0 + n1 + n2), math.sqrt(f0 + f1 + f2)
 
 
-@nb.njit(cache=True)
+@kernel
 def mark_in_shell(grid, cell, owner_voxel, voxel_body, active, bodies, front, out) -> None:
     """Flag in ``out`` (P,) the grid points of active bodies whose cell meets a shell.
 

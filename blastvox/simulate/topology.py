@@ -11,11 +11,10 @@ body: frozen, invisible from then on, its momentum handed to dust particles.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.quaternion_nb import matrix_into
-from blastvox.jit import helper
+from blastvox.jit import helper, kernel
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.integrate import angular_velocity, world_tensor_times
 from blastvox.simulate.kernels import body_radii, body_rotations, link_masks, release_held
@@ -90,7 +89,7 @@ def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.n
     return count, start
 
 
-@nb.njit(cache=True)
+@kernel
 def split_bodies(dirty, step, geometry, link_geometry, voxels, links, bodies, component,
                  order) -> int:
     """Split every body flagged in ``dirty`` (B,) that fell apart, at step ``step``.
@@ -181,7 +180,7 @@ def split_bodies(dirty, step, geometry, link_geometry, voxels, links, bodies, co
     return created
 
 
-@nb.njit(cache=True)
+@kernel
 def refresh_fixed(voxels, bodies) -> None:
     """A body is fixed while it has a live foundation voxel; a freed body starts at rest."""
     voxel_body, voxel_alive, voxel_foundation = voxels.body, voxels.alive, voxels.foundation
@@ -231,7 +230,7 @@ def split_phase(model, state, step: int) -> tuple[np.ndarray, np.ndarray]:
     return broken, destroyed
 
 
-@nb.njit(cache=True)
+@kernel
 def kill_links_of(destroyed, voxel_link_offsets, voxel_link_ids, link_alive) -> None:
     """A dusted voxel's links vanish with it (not counted as breaks)."""
     for v in range(destroyed.shape[0]):

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 import trimesh
 
 from blastvox.errors import BudgetError, MeshError
+from blastvox.jit import kernel
 from blastvox.voxelize.lattice import Grid
 from blastvox.voxelize.mesh_io import Part
 from blastvox.voxelize.occupancy import winding_numbers
@@ -126,7 +126,7 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
                    inside=occupied[chosen], touched=touched[chosen])
 
 
-@nb.njit(cache=True)
+@kernel
 def _tri_box_overlap(v0, v1, v2, half) -> bool:
     """Separating-axis test of a triangle (vertices relative to the box centre) and a box.
 
@@ -154,7 +154,7 @@ def _tri_box_overlap(v0, v1, v2, half) -> bool:
     return abs(d) <= r
 
 
-@nb.njit(cache=True)
+@kernel
 def _mark_touched(tri, origin, spacing, shape, mark):
     """Mark cells that a triangle overlaps (exact separating-axis test per cell)."""
     half = 0.5 * spacing * (1.0 + 1e-9)

@@ -7,11 +7,12 @@ are links. Components are numbered in order of their lowest node index, as
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from blastvox.jit import kernel
 
-@nb.njit(cache=True)
+
+@kernel
 def _root(parent, v):
     """Union-find root of v, halving the path on the way."""
     while parent[v] != v:
@@ -20,7 +21,7 @@ def _root(parent, v):
     return v
 
 
-@nb.njit(cache=True)
+@kernel
 def union_find_labels(edges, n):
     """Component label of each of ``n`` nodes joined by undirected ``edges``.
 

@@ -10,13 +10,13 @@ kg*m^2), about the centroid, as full symmetric (3, 3) tensors.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
 from blastvox.geometry.voxel_faces import FACE_CORNERS
+from blastvox.jit import kernel
 
 
-@nb.njit(cache=True)
+@kernel
 def _subexpressions(w0: float, w1: float, w2: float):
     temp0 = w0 + w1
     f1 = temp0 + w2
@@ -30,7 +30,7 @@ def _subexpressions(w0: float, w1: float, w2: float):
     return f1, f2, f3, g0, g1, g2
 
 
-@nb.njit(cache=True)
+@kernel
 def _accumulate(acc: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
                 ref: np.ndarray) -> None:
     """Add one outward triangle's contribution to the 10 integrals in ``acc``."""
@@ -57,7 +57,7 @@ def _accumulate(acc: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
     acc[9] += d2 * (x0 * g0z + x1 * g1z + x2 * g2z)
 
 
-@nb.njit(cache=True)
+@kernel
 def _finish(acc: np.ndarray, ref: np.ndarray, volume: np.ndarray, centroid: np.ndarray,
             inertia: np.ndarray, i: int) -> None:
     vol = acc[0] / 6.0
@@ -94,7 +94,7 @@ def _finish(acc: np.ndarray, ref: np.ndarray, volume: np.ndarray, centroid: np.n
     inertia[i, 0, 2] = inertia[i, 2, 0] = izx
 
 
-@nb.njit(cache=True)
+@kernel
 def _hex_kernel(vertices, voxel_vertices, face_corners, volume, centroid, inertia):
     acc = np.zeros(10)
     for i in range(voxel_vertices.shape[0]):
@@ -115,7 +115,7 @@ def _hex_kernel(vertices, voxel_vertices, face_corners, volume, centroid, inerti
         _finish(acc, ref, volume, centroid, inertia, i)
 
 
-@nb.njit(cache=True)
+@kernel
 def _soup_kernel(triangles, offsets, volume, centroid, inertia):
     acc = np.zeros(10)
     for i in range(offsets.shape[0] - 1):

@@ -16,11 +16,12 @@ counted by exactly one of the two triangles.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from blastvox.jit import kernel
 
-@nb.njit(cache=True)
+
+@kernel
 def _edge(ax: float, ay: float, bx: float, by: float, px: float, py: float) -> float:
     """Signed area (b - a) x (p - a), evaluated with a canonical endpoint order."""
     if (ax, ay) <= (bx, by):
@@ -28,7 +29,7 @@ def _edge(ax: float, ay: float, bx: float, by: float, px: float, py: float) -> f
     return -((ax - bx) * (py - by) - (ay - by) * (px - bx))
 
 
-@nb.njit(cache=True)
+@kernel
 def _owns(w: float, ex: float, ey: float) -> bool:
     """Top-left rule: is a point with edge function ``w`` inside for edge vector (ex, ey)?"""
     if w > 0.0:
@@ -38,7 +39,7 @@ def _owns(w: float, ex: float, ey: float) -> bool:
     return ey > 0.0 or (ey == 0.0 and ex < 0.0)
 
 
-@nb.njit(cache=True)
+@kernel
 def _axis_crossings(tri: np.ndarray, origin: np.ndarray, spacing: np.ndarray,
                     shape: np.ndarray, axis: int, diff: np.ndarray) -> None:
     """Accumulate signed crossings of column rays along ``axis`` into ``diff``.

@@ -1,0 +1,80 @@
+"""First-run compilation on two cores: a forked child compiles the phases a run needs last.
+
+numba compiles a kernel on its first call, one after another (its compiler
+lock), so a first run pays the sum of every kernel's compile time: about a
+minute for a shot with every effect on two busy cores. The kernels a step
+needs last (contacts, ground, sleeping, integration, fire) do not depend on
+what the first (fracture, splits, blast loading) compute, only on the types
+of the run's arrays, which the run itself fixes.
+
+So when the kernel cache is cold, :func:`compile_ahead` forks the process
+just after the run is built: the child calls those late phases once on its
+own copy of the run (compiling them into numba's on-disk cache) while the
+parent starts stepping and compiles the early ones; when the parent reaches
+a late phase, numba loads it from the cache instead of compiling it. Nothing
+here is recorded or listed by hand: the child calls the phases themselves,
+with the run's own arrays, so a new kernel or a changed signature is covered
+by the same calls. The child writes only the cache; the parent waits for it
+at the end of the run. Forking is used only on Linux, with a single thread
+alive (no progress bar yet), as numba's documentation requires of fork.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+from collections.abc import Callable
+
+from blastvox.simulate import collide, fire, ground, integrate, kernels
+
+
+def compile_ahead(run) -> Callable[[], None]:
+    """Fork a child that compiles ``run``'s late phases (see the module docstring).
+
+    Returns a function that waits for the child (a no-op where no child was
+    started). Call only when the kernel cache is cold: with a warm one the
+    child would only load what the parent loads anyway.
+    """
+    if not _can_fork():
+        return lambda: None
+    pid = os.fork()
+    if pid == 0:  # the child: compile, never return into the caller's code
+        code = 1
+        try:
+            compile_late_phases(run)
+            code = 0
+        finally:
+            os._exit(code)
+
+    def join() -> None:
+        try:
+            os.waitpid(pid, 0)
+        except ChildProcessError:
+            pass
+
+    return join
+
+
+def compile_late_phases(run) -> None:
+    """Call, once each and in the reverse of the order a step needs them, the phases
+    after the blast loading that ``run``'s settings switch on. Changes ``run``'s state:
+    call it on a copy (the forked child's)."""
+    model, state, s, dt = run.model, run.state, run.settings, run.dt
+    if s.collisions:
+        collide.collide_phase(model, state, s, dt)
+    if run.ground is not None:
+        ground.ground_phase(model, state, s, dt, run.ground)
+    if s.collisions or run.ground is not None:
+        kernels.settle(state.bodies, s.sleep_speed, run.still_steps)
+    integrate.integrate_positions(dt, state.bodies)
+    integrate.integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag,
+                                   state.loads, state.bodies)
+    if run.fire is not None:
+        fire.burn_phase(model, state, run.fire, s, dt, 0)
+
+
+def _can_fork() -> bool:
+    return (sys.platform.startswith("linux") and hasattr(os, "fork")
+            and threading.active_count() == 1
+            and os.environ.get("BLASTVOX_COMPILE_AHEAD", "1") != "0")
