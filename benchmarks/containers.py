@@ -24,7 +24,8 @@ quaternion, linear and angular momentum, impulses, four flags and the count),
 unpacked at the top of the kernel; two helpers called per body that take the
 container and the body's index (a moving test and the rotation: omega = R I^-1
 R^T L, quaternion step, rotation matrix), as ``blastvox.jit.helper`` functions
-(no CPython wrapper). Each candidate's module is generated from the same body
+(no CPython wrapper; copied, so that nothing imports blastvox, whose import
+moves numba's cache directory). Each candidate's module is generated from the same body
 of code, so they differ only in how the arrays reach it; a checksum of the end
 state after 20 calls shows that all four compute the same bits.
 
@@ -44,21 +45,25 @@ Best of ``--repeat`` (default 3, 1 with ``--quick``), each repeat with new cache
 directories. Prints the machine line, the table, the breakdown and the load
 average at the end. Exits 1 only if a worker crashes.
 
-Two runs on 2 busy cores (AMD EPYC, numba 0.68.1, load average 1.4 to 3.0),
-(a) / (b) / (c) / (d): cold 1.4 / 1.6 / 1.9 / 3.3 s; warm 0.03 / 0.03 / 0.04 /
-3.3 s; dispatch 3.5 / 6.2 / 2.8 / 2.2 to 3.2 µs; run 7.4 / 5.2 / 5.3 to 5.5 /
-5.3 to 5.9 ms. Hence NamedTuples in ``blastvox.simulate.state``: numba caches
-them like plain arrays (as fast warm), they need no compiled constructor and
-no compiled accessors (Python reads fields and replaces them directly), and
-the kernel runs as fast as with a structref or a jitclass (faster than with 20
-positional arrays here). Their price: about 0.2 s (15 %) more compilation than
-positional arrays for this kernel, and about 3 µs more per call from Python:
-numba's dispatcher types a NamedTuple argument more slowly than the same arrays
-passed one by one (at ~20 kernel calls a step, ~60 µs a step). A structref
-dispatches faster, but needs a compiled constructor (+0.6 s cold) and a
-compiled getter or setter for each field Python touches; a jitclass compiles
-again in every process (3.3 s for this one kernel), which the start-up
-targets rule out.
+Three runs on 2 shared cores (AMD EPYC, numba 0.68.1, load average 0.7 to
+3.0), (a) / (b) / (c) / (d): cold 1.4 / 1.6 / 1.9 / 3.3 s; warm 0.03 / 0.03 /
+0.04 / 3.3 s; dispatch 3.5 / 6.2 to 6.4 / 2.8 / 2.0 to 3.2 µs; run 7.4 / 5.2
+to 5.4 / 5.3 to 5.5 / 5.3 to 5.9 ms.
+
+For the NamedTuples of ``blastvox.simulate.state`` that means: numba caches
+them like plain arrays (as fast warm), they need no compiled constructor and no
+compiled accessors (Python reads and replaces fields directly), and the kernel
+runs as fast as with a structref or a jitclass (faster than with 20 positional
+arrays here). Their price: about 0.2 s (15 %) more compilation than positional
+arrays for this kernel, and about 3 µs more per call from Python: numba's
+dispatcher types a NamedTuple argument more slowly than the same arrays passed
+one by one. In the simulator that shows on small shots: ``any_moving`` takes
+6.6 µs a call with the 19-array ``Bodies`` against 2.1 µs with the four flag
+arrays it took before, a step of 5 debris pieces 76 µs against 40 µs, the
+house's 960 steps 0.22 s in-process against 0.15 s. A structref dispatches
+faster, but needs a compiled constructor (+0.6 s cold) and a compiled getter
+or setter for each field Python touches; a jitclass compiles again in every
+process (3.3 s for this one kernel), which the start-up targets rule out.
 """
 
 from __future__ import annotations
@@ -141,6 +146,24 @@ _LOOP = """\
 
 _SCALARS = "dt, gx, gy, gz, lin_decay, ang_decay"
 
+#: ``blastvox.jit.helper``, copied so that no candidate imports blastvox (whose import
+#: points numba's cache at a directory keyed on blastvox's own sources)
+_HELPER = '''from numba.core.registry import CPUDispatcher
+
+
+class HelperDispatcher(CPUDispatcher):
+    def __call__(self, *args, **kwargs):
+        raise TypeError("compiled for other numba functions only")
+
+
+def helper(func):
+    dispatcher = HelperDispatcher(py_func=func, locals={}, targetoptions={
+        "nopython": True, "boundscheck": None, "no_cpython_wrapper": True,
+        "no_cfunc_wrapper": True})
+    dispatcher.enable_caching()
+    return dispatcher
+'''
+
 
 def _container_functions(cache: str) -> str:
     """Helpers and kernel taking one container ``bodies``."""
@@ -168,8 +191,8 @@ def call_args(container, scalars):
 
 def _source(name: str) -> str:
     """The candidate module ``name``'s source."""
-    head = ("import math\n\nimport numba as nb\nimport numpy as np  # noqa: F401\n\n"
-            "from blastvox.jit import helper\n")
+    head = ("import math\n\nimport numba as nb\nimport numpy as np  # noqa: F401\n"
+            + _HELPER + "\n\n")
     if name == "positional":
         return head + f'''
 
@@ -236,13 +259,8 @@ def build(arrays):
     if name == "jitclass":
         spec = ", ".join(f"({f!r}, nb.{JITCLASS_SPEC[f]})" for f in FIELDS)
         init = "\n".join(f"        self.{f} = {f}" for f in FIELDS)
-        head = head.replace("from blastvox.jit import helper\n", "")
+        head = head.replace("    dispatcher.enable_caching()\n", "")  # see the module doc
         return head + f'''from numba.experimental import jitclass
-
-
-def helper(func):
-    """Like blastvox.jit.helper (no CPython wrapper), without numba's cache."""
-    return nb.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True)(func)
 
 
 @jitclass([{spec}])
@@ -306,8 +324,6 @@ def worker(name: str, directory: Path, measure: bool, repeat: int) -> dict:
     """First use of candidate ``name`` (imported from ``directory``); with ``measure``,
     also dispatch overhead, run time and the end-state checksum."""
     import numba
-
-    import blastvox.jit  # noqa: F401
 
     # numba's one-off set-up (LLVM, the CPU target) is not the candidate's: done first,
     # by compiling a trivial function (never cached)
