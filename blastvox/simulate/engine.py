@@ -192,10 +192,11 @@ def step(run: Run, n: int, frame_next: int) -> None:
     this step leads to (for event records)."""
     model, state, s, charges, dt = run.model, run.state, run.settings, run.charges, run.dt
     t0, t1 = (n - 1) * dt, n * dt
-    body_rotations(state.bodies)
+    bodies, n_bodies = state.bodies, state.n_bodies
+    body_rotations(bodies.quat, bodies.live, n_bodies, bodies.rot)
     front = _front(charges, t0, t1)
-    if bodies_in_shell(state.bodies, front.position, front.inner, front.outer,
-                       state.marks.active):
+    if bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n_bodies, front.position,
+                       front.inner, front.outer, state.marks.active):
         fracture_phase(model, state, front, s)
         if run.fire is not None:
             ignite_phase(model, state, run.fire, front, s, frame_next)
@@ -211,7 +212,7 @@ def step(run: Run, n: int, frame_next: int) -> None:
     if s.dust and run.ground is not None:
         run.effects.ground_ring(model, charges, run.ground, t1, front.outer, dt)
     blast_phase(model, state, charges, t0, t1, front.outer)
-    if not any_moving(state.bodies):
+    if not any_moving(bodies.live, bodies.fixed, bodies.dust, bodies.asleep, state.n_bodies):
         _still_step(run)
         return
     integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag, state.loads,

@@ -224,7 +224,8 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
     loads.impulse[:n] = 0.0
     loads.angular[:n] = 0.0
     reach_in = charges.tail_radius(t0)
-    if not bodies_in_shell(bodies, charges.position, reach_in, front_out, state.marks.active):
+    if not bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n, charges.position,
+                           reach_in, front_out, state.marks.active):
         if state.holding:  # every wave has passed: what held voxels took is spent
             loads.held_p[:] = 0.0
             loads.held_l[:] = 0.0
@@ -235,4 +236,4 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
     blast_impulses(front, reach_in, t0, t1, boundary_of(model, state)[1], model.voxels,
                    state.voxels, bodies, state.marks.active, loads)
     state.holding = True
-    wake_on_impulse(loads, bodies)
+    wake_on_impulse(loads.impulse, loads.angular, bodies.asleep, n)

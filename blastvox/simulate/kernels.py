@@ -12,9 +12,15 @@ from blastvox.simulate.integrate import angular_velocity, moving
 
 
 @kernel
-def body_rotations(bodies) -> None:
-    """Refresh ``bodies.rot`` (B, 3, 3) from the live bodies' quaternions."""
-    body_quat, body_live, n_bodies, out = bodies.quat, bodies.live, bodies.count[0], bodies.rot
+def body_rotations(body_quat, body_live, n_bodies, out) -> None:
+    """Rotation matrices ``out`` (B, 3, 3) of the first n_bodies live bodies' quaternions
+    (B, 4): pass ``bodies.quat, bodies.live, state.n_bodies, bodies.rot``.
+
+    This and the other per-step bookkeeping kernels below take the few body arrays
+    they read rather than the Bodies container: a step calls them every time, and
+    numba types a NamedTuple argument field by field on each call from Python
+    (a few tenths of a microsecond per field), most of their cost on a small shot.
+    """
     for b in range(n_bodies):
         if body_live[b]:
             matrix_into(body_quat[b], out[b])
@@ -48,16 +54,17 @@ def link_alive_counts(offsets, link_ids, link_alive) -> np.ndarray:
 
 
 @kernel
-def bodies_in_shell(bodies, charge_pos, inner, outer, out) -> bool:
-    """Flag in ``out`` (B,) the live bodies whose bounding sphere meets a charge's shell
-    (inner, outer] (C,) m about charge_pos (C, 3).
+def bodies_in_shell(body_pos, body_radius, body_live, n_bodies, charge_pos, inner, outer,
+                    out) -> bool:
+    """Flag in ``out`` (B,) the live bodies whose bounding sphere (centre body_pos (B, 3),
+    radius body_radius (B,), m) meets a charge's shell (inner, outer] (C,) m about
+    charge_pos (C, 3).
 
     Returns whether any body does. Kernels then skip every voxel and link of
     unflagged bodies, so a step costs nothing once the waves have passed.
     """
-    body_pos, body_radius, body_live = bodies.pos, bodies.radius, bodies.live
     found = False
-    for b in range(bodies.count[0]):
+    for b in range(n_bodies):
         out[b] = False
         if not body_live[b]:
             continue
@@ -91,19 +98,17 @@ def body_radii(geometry, voxels, bodies) -> None:
 
 
 @kernel
-def any_moving(bodies) -> bool:
-    """Is any body free to move (live, not fixed, not dust, awake)?"""
-    for b in range(bodies.count[0]):
-        if moving(b, bodies.live, bodies.fixed, bodies.dust, bodies.asleep):
+def any_moving(body_live, body_fixed, body_dust, body_asleep, n_bodies) -> bool:
+    """Is any of the first n_bodies bodies free to move (live, not fixed, not dust, awake)?"""
+    for b in range(n_bodies):
+        if moving(b, body_live, body_fixed, body_dust, body_asleep):
             return True
     return False
 
 
 @kernel
-def wake_on_impulse(loads, bodies) -> None:
-    """A sleeping body that the blast pushes (loads.impulse, loads.angular) wakes up."""
-    impulse, angular, body_asleep, n_bodies = (loads.impulse, loads.angular, bodies.asleep,
-                                               bodies.count[0])
+def wake_on_impulse(impulse, angular, body_asleep, n_bodies) -> None:
+    """A sleeping body that the blast pushes (impulse, angular (B, 3)) wakes up."""
     for b in range(n_bodies):
         if body_asleep[b] and (impulse[b, 0] != 0.0 or impulse[b, 1] != 0.0
                                or impulse[b, 2] != 0.0 or angular[b, 0] != 0.0

@@ -132,7 +132,7 @@ class LimitMonitor:
         if len(self._rot) < n:
             self._rot = np.zeros((len(state.bodies.quat), 3, 3))
         # into the monitor's own matrices: the step's (bodies.rot) are its own business
-        body_rotations(state.bodies._replace(rot=self._rot))
+        body_rotations(state.bodies.quat, state.bodies.live, n, self._rot)
         rot = self._rot[moving]
         # omega = R I^-1 R^T L, three small contractions (one 4-operand einsum is slow)
         body_frame = np.einsum("blk,bl->bk", rot, ang)

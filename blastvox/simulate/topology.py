@@ -220,7 +220,7 @@ def split_phase(model, state, step: int) -> tuple[np.ndarray, np.ndarray]:
                  state.bodies, state.scratch.component, state.scratch.order)
     n = state.n_bodies
     state.bodies.asleep[:n][marks.dirty[:n]] = False
-    body_rotations(state.bodies)
+    body_rotations(state.bodies.quat, state.bodies.live, n, state.bodies.rot)
     if state.holding:
         release_held(model.voxels, state.voxels, state.bodies, state.loads)
     body_radii(model.voxels, state.voxels, state.bodies)
