@@ -52,6 +52,7 @@ import numpy as np
 
 from blastvox import __version__
 from blastvox.errors import ContractError
+from blastvox.geometry.frames import up_index
 from blastvox.geometry.voxel_faces import SURFACE_BIT as SURFACE_BIT  # voxel_boundary's bit 6
 from blastvox.io.npz import read_npz, write_npz
 
@@ -105,7 +106,7 @@ class VoxelModel:
     @property
     def up_index(self) -> int:
         """0, 1 or 2: the index of the up axis."""
-        return "XYZ".index(self.meta["up_axis"])
+        return up_index(self.meta["up_axis"])
 
     def hexahedra(self) -> np.ndarray:
         """Voxel corners (N, 8, 3) in metres."""

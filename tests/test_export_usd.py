@@ -23,6 +23,7 @@ from blastvox.export.api import ExportOptions, export  # noqa: E402
 from blastvox.export.pieces import animation, frame_change, piece_meshes  # noqa: E402
 from blastvox.export.usd import write_usd  # noqa: E402
 from blastvox.export.usd_validate import validate_usd  # noqa: E402
+from blastvox.geometry import quaternion  # noqa: E402
 
 F, FPS = 10, 10.0
 VANISH_PIECE, VANISH_FRAME = 2, 6
@@ -30,13 +31,6 @@ GRAVITY = 9.81
 
 
 # ----------------------------------------------------------------------------- caches
-
-def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate v (..., 3) by unit quaternions q (..., 4) (w, x, y, z)."""
-    w, u = q[..., :1], q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
 
 @pytest.fixture(scope="module")
 def synthetic(tmp_path_factory) -> SimCache:
@@ -78,7 +72,7 @@ def synthetic(tmp_path_factory) -> SimCache:
     dust = np.flatnonzero(destroyed >= 0).astype(np.int32)
     t_dust = t[VANISH_FRAME]
     q = orientation[VANISH_FRAME, VANISH_PIECE]
-    dust_pos = position[VANISH_FRAME, VANISH_PIECE] + _quat_rotate(
+    dust_pos = position[VANISH_FRAME, VANISH_PIECE] + quaternion.rotate(
         q, a["voxel_centroid"][dust] - pivot[VANISH_PIECE])
     dust_vel = np.tile(velocity[VANISH_PIECE] + g * t_dust, (len(dust), 1))
     # damage: a voxel of piece 1 steps to 128 at frame 2 and 255 at frame 5, another to
@@ -188,7 +182,7 @@ def test_world_transform_matches_cache(synthetic, tmp_path, up):
         local = np.asarray(mesh.GetPointsAttr().Get(), dtype=np.float64)
         got = np.array([world.Transform(pxr.Gf.Vec3d(*x)) for x in local])
         q = synthetic.piece_orientation[f, p].astype(np.float64)
-        want = (pos + _quat_rotate(q, local @ c)) @ c.T  # local = C (x - pivot)
+        want = (pos + quaternion.rotate(q, local @ c)) @ c.T  # local = C (x - pivot)
         assert np.allclose(got, want, atol=1e-5)
 
 
@@ -409,7 +403,7 @@ def test_instancer_layout(synthetic, tmp_path, up):
             rotation = np.array(xforms[p].ExtractRotationMatrix()).T  # USD: row vectors
             q = anim.orientation[f, p]
             for axis in np.eye(3):
-                assert np.allclose(rotation @ axis, _quat_rotate(q, axis), atol=1e-5)
+                assert np.allclose(rotation @ axis, quaternion.rotate(q, axis), atol=1e-5)
     # prototypes carry the same subsets and damage primvar as the xforms layout
     proto = stage.GetPrimAtPath(targets[1])
     assert UsdGeom.Mesh(proto)

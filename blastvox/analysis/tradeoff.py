@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from blastvox.geometry.frames import up_vector
+
 #: The metrics, in table order: (key, column heading).
 METRICS = (("momentum", "momentum rel. err"), ("com", "COM RMS / size"),
            ("mass", "mass W1 (decades)"), ("broken", "broken-link Δ"))
@@ -68,13 +70,6 @@ class RunErrors:
     def combined(self) -> float:
         """Mean of the COM, mass-distribution and broken-link errors (not momentum)."""
         return (self.com + self.mass + self.broken) / 3.0
-
-
-def up_vector(up_axis: str | None) -> np.ndarray:
-    """(3,) unit vector of the model's up axis ("X", "Y" or "Z"; default Y)."""
-    up = np.zeros(3)
-    up["XYZ".index((up_axis or "Y").upper())] = 1.0
-    return up
 
 
 def horizontal_momentum(arrays: Mapping[str, np.ndarray], up: np.ndarray,
@@ -128,7 +123,7 @@ def summarize(arrays: Mapping[str, np.ndarray], link_count: int, up: np.ndarray,
 
 def summarize_cache(cache, k: int = 5, momentum_frame: int = 1) -> RunSummary:
     """The :class:`RunSummary` of a :class:`blastvox.cache.SimCache`."""
-    up = up_vector(cache.meta.get("up_axis") or cache.model.meta.get("up_axis"))
+    up = up_vector(cache.meta.get("up_axis") or cache.model.meta.get("up_axis") or "Y")
     return summarize(cache.arrays, len(cache.model.arrays["link_voxels"]), up, k,
                      momentum_frame)
 
