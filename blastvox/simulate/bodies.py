@@ -85,9 +85,12 @@ def inverse_inertia(inertia: np.ndarray) -> np.ndarray:
 
 
 @helper
-def point_velocity(b, px, py, pz, bodies, omega):
-    """Velocity (m/s) of world point p (m) riding on body b spinning at omega (3,) rad/s."""
-    body_pos, body_lin, body_mass = bodies.pos, bodies.lin, bodies.mass
+def point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega):
+    """Velocity (m/s) of world point p (m) riding on body b spinning at omega (3,) rad/s.
+
+    This and :func:`apply_impulse` take the body arrays they use, not the Bodies
+    container: numba passes every field of a container to a compiled callee, and
+    helpers called in the innermost contact loops compile faster without them."""
     rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
     m = body_mass[b]
     return (body_lin[b, 0] / m + omega[1] * rz - omega[2] * ry,
@@ -105,10 +108,11 @@ def effective_inverse_mass(inv_mass, rot, inv, rx, ry, rz, nx, ny, nz):
 
 
 @helper
-def apply_impulse(b, jx, jy, jz, px, py, pz, bodies):
-    """Impulse (jx, jy, jz) (N s) on body b at world point p (m): momentum and angular
-    momentum about its centre of mass."""
-    body_pos, body_lin, body_ang = bodies.pos, bodies.lin, bodies.ang
+def apply_impulse(b, j, p, body_pos, body_lin, body_ang):
+    """Impulse j = (jx, jy, jz) (N s) on body b at world point p = (px, py, pz) (m):
+    momentum and angular momentum about its centre of mass."""
+    jx, jy, jz = j
+    px, py, pz = p
     body_lin[b, 0] += jx
     body_lin[b, 1] += jy
     body_lin[b, 2] += jz

@@ -303,6 +303,7 @@ def _resolve_pair(vi, vj, ci, cj, geometry, voxels, bodies, contacts, marks, par
     voxel_radius, voxel_restitution = geometry.contact_radius, geometry.restitution
     voxel_density, voxel_yield, voxel_alive = geometry.density, voxels.yield_pa, voxels.alive
     body_inv_inertia, body_rot, body_ang = bodies.inv_inertia, bodies.rot, bodies.ang
+    body_pos, body_lin, body_mass = bodies.pos, bodies.lin, bodies.mass
     body_fixed, body_asleep = bodies.fixed, bodies.asleep
     wake_speed, rest_speed, friction = params.wake_speed, params.rest_speed, params.friction
     weakening, up = params.weakening, params.up
@@ -319,8 +320,8 @@ def _resolve_pair(vi, vj, ci, cj, geometry, voxels, bodies, contacts, marks, par
     px, py, pz = 0.5 * (ci[0] + cj[0]), 0.5 * (ci[1] + cj[1]), 0.5 * (ci[2] + cj[2])
     wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
     wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
-    va = point_velocity(bi, px, py, pz, bodies, wi)
-    vb = point_velocity(bj, px, py, pz, bodies, wj)
+    va = point_velocity(bi, px, py, pz, body_pos, body_lin, body_mass, wi)
+    vb = point_velocity(bj, px, py, pz, body_pos, body_lin, body_mass, wj)
     vn = (vb[0] - va[0]) * nx + (vb[1] - va[1]) * ny + (vb[2] - va[2]) * nz
     if vn >= 0.0:
         return 0
@@ -369,8 +370,8 @@ def _resolve_pair(vi, vj, ci, cj, geometry, voxels, bodies, contacts, marks, par
     # Coulomb friction: remove the sliding velocity at the contact, within mu * j
     wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
     wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
-    va = point_velocity(bi, px, py, pz, bodies, wi)
-    vb = point_velocity(bj, px, py, pz, bodies, wj)
+    va = point_velocity(bi, px, py, pz, body_pos, body_lin, body_mass, wi)
+    vb = point_velocity(bj, px, py, pz, body_pos, body_lin, body_mass, wj)
     rx, ry, rz = vb[0] - va[0], vb[1] - va[1], vb[2] - va[2]
     rn = rx * nx + ry * ny + rz * nz
     tx, ty, tz = rx - rn * nx, ry - rn * ny, rz - rn * nz
@@ -461,9 +462,9 @@ def _impulse_pair(bi, bj, jx, jy, jz, px, py, pz, bodies, move_i, move_j) -> Non
     """Impulse (jx, jy, jz) (N s) on bj at point p, and its opposite on bi; a body that
     does not move here (fixed, asleep or holding a stack) takes none."""
     if move_i:
-        apply_impulse(bi, -jx, -jy, -jz, px, py, pz, bodies)
+        apply_impulse(bi, (-jx, -jy, -jz), (px, py, pz), bodies.pos, bodies.lin, bodies.ang)
     if move_j:
-        apply_impulse(bj, jx, jy, jz, px, py, pz, bodies)
+        apply_impulse(bj, (jx, jy, jz), (px, py, pz), bodies.pos, bodies.lin, bodies.ang)
 
 
 def begin_contacts(state) -> None:

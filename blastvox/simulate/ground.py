@@ -176,7 +176,7 @@ def ground_contacts(geometry, offsets, members, bodies, contacts, params) -> int
         target = np.zeros(count)
         for i in range(count):
             vel = point_velocity(b, contacts_out[i, 0], contacts_out[i, 1], contacts_out[i, 2],
-                                 bodies, omega)
+                                 body_pos, body_lin, body_mass, omega)
             vn = vel[up_axis]
             gap = contacts_out[i, up_axis] - ground
             if gap > 1e-9:
@@ -189,7 +189,7 @@ def ground_contacts(geometry, offsets, members, bodies, contacts, params) -> int
             for i in range(count):
                 px, py, pz = contacts_out[i, 0], contacts_out[i, 1], contacts_out[i, 2]
                 omega = angular_velocity(rot, inv, body_ang[b])
-                vel = point_velocity(b, px, py, pz, bodies, omega)
+                vel = point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
                 rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
                 k_n = effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, axes[0, 0],
                                               axes[0, 1], axes[0, 2])
@@ -197,11 +197,11 @@ def ground_contacts(geometry, offsets, members, bodies, contacts, params) -> int
                 old = acc_n[i]
                 acc_n[i] = max(old + dj, 0.0)
                 dj = acc_n[i] - old
-                apply_impulse(b, dj * axes[0, 0], dj * axes[0, 1], dj * axes[0, 2], px, py, pz,
-                              bodies)
+                apply_impulse(b, (dj * axes[0, 0], dj * axes[0, 1], dj * axes[0, 2]),
+                              (px, py, pz), body_pos, body_lin, body_ang)
                 # Coulomb friction on the two tangent axes, within mu * normal impulse
                 omega = angular_velocity(rot, inv, body_ang[b])
-                vel = point_velocity(b, px, py, pz, bodies, omega)
+                vel = point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
                 limit = friction * acc_n[i]
                 for t in range(2):
                     axis = e1 if t == 0 else e2
@@ -210,7 +210,8 @@ def ground_contacts(geometry, offsets, members, bodies, contacts, params) -> int
                     old_t = acc_t[i, t]
                     acc_t[i, t] = min(max(old_t - vel[axis] / k_t, -limit), limit)
                     dj = acc_t[i, t] - old_t
-                    apply_impulse(b, dj * tx, dj * ty, dj * tz, px, py, pz, bodies)
+                    apply_impulse(b, (dj * tx, dj * ty, dj * tz), (px, py, pz), body_pos, body_lin,
+                                  body_ang)
         # resting contact: damp, and clamp to rest when balanced on >= 3 points
         omega = angular_velocity(rot, inv, body_ang[b])
         speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
