@@ -269,11 +269,16 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
         progress.note("first run of this blastvox source: compiling the simulator's kernels "
                       "into numba's cache (about half a minute, once)")
     run = Run.start(model, settings)
-    join = compile_ahead(run) if cold else (lambda: None)  # the late phases, on another core
-    try:
+    finish = compile_ahead(run) if cold else None  # the late phases, on another core
+    if finish is None:
         return _simulate(run, model, settings, progress, warn)
-    finally:
-        join()
+    try:
+        cache = _simulate(run, model, settings, progress, warn)
+    except BaseException:
+        finish(cancel=True)
+        raise
+    finish()
+    return cache
 
 
 def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Progress,

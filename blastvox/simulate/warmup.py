@@ -21,7 +21,9 @@ alive (no progress bar yet), as numba's documentation requires of fork.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import sys
 import threading
 from collections.abc import Callable
@@ -29,31 +31,36 @@ from collections.abc import Callable
 from blastvox.simulate import collide, fire, ground, integrate, kernels
 
 
-def compile_ahead(run) -> Callable[[], None]:
+def compile_ahead(run) -> Callable[[bool], None]:
     """Fork a child that compiles ``run``'s late phases (see the module docstring).
 
-    Returns a function that waits for the child (a no-op where no child was
-    started). Call only when the kernel cache is cold: with a warm one the
-    child would only load what the parent loads anyway.
+    Returns ``finish(cancel)``: it waits for the child, after stopping it (SIGTERM)
+    if ``cancel`` (the run was interrupted: Ctrl-C must not wait for compilation;
+    numba replaces cache files whole, so a stopped child leaves none half
+    written). A no-op where no child was started. Call only when the kernel
+    cache is cold: with a warm one the child would only load what the parent
+    loads anyway.
     """
     if not _can_fork():
-        return lambda: None
+        return lambda cancel=False: None
     pid = os.fork()
     if pid == 0:  # the child: compile, never return into the caller's code
         code = 1
         try:
+            signal.signal(signal.SIGINT, signal.SIG_DFL)
             compile_late_phases(run)
             code = 0
         finally:
             os._exit(code)
 
-    def join() -> None:
-        try:
+    def finish(cancel: bool = False) -> None:
+        if cancel:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGTERM)
+        with contextlib.suppress(ChildProcessError):
             os.waitpid(pid, 0)
-        except ChildProcessError:
-            pass
 
-    return join
+    return finish
 
 
 def compile_late_phases(run) -> None:
