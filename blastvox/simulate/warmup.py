@@ -64,10 +64,12 @@ def compile_ahead(run) -> Callable[[bool], None]:
 
 
 def compile_late_phases(run) -> None:
-    """Call, once each and in the reverse of the order a step needs them, the phases
-    after the blast loading that ``run``'s settings switch on. Changes ``run``'s state:
-    call it on a copy (the forked child's)."""
+    """Call, once each, the phases after the blast loading that ``run``'s settings switch
+    on, the ones a step needs soonest first. Changes ``run``'s state: call it on a copy
+    (the forked child's)."""
     model, state, s, dt = run.model, run.state, run.settings, run.dt
+    integrate.integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag,
+                                   state.loads, state.bodies)
     if s.collisions:
         collide.collide_phase(model, state, s, dt)
     if run.ground is not None:
@@ -75,8 +77,6 @@ def compile_late_phases(run) -> None:
     if s.collisions or run.ground is not None:
         kernels.settle(state.bodies, s.sleep_speed, run.still_steps)
     integrate.integrate_positions(dt, state.bodies)
-    integrate.integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag,
-                                   state.loads, state.bodies)
     if run.fire is not None:
         fire.burn_phase(model, state, run.fire, s, dt, 0)
 
