@@ -22,6 +22,7 @@ from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.integrate import angular_velocity, moving, world_tensor_times
 from blastvox.simulate.kernels import damp_resting
 from blastvox.simulate.spatial_hash import bucket, cell_key, cell_of, hash_buckets
+from blastvox.simulate.state import Contacts
 
 
 @kernel
@@ -472,9 +473,10 @@ def begin_contacts(state) -> None:
     step's support flags become this step's, the next ones starting empty."""
     state.marks.destroyed[:] = False
     state.marks.dirty[:state.n_bodies] = False
-    c = state.contacts
-    state.contacts = c._replace(supported=c.supported_next, supported_next=c.supported)
-    state.contacts.supported_next[:] = False
+    c = state.contacts  # swap the two flag arrays (the constructor: _replace is ~10x slower)
+    state.contacts = Contacts(c.resting, c.supported_next, c.supported, c.hits, c.points,
+                              c.vertex_stamp)
+    c.supported[:] = False
 
 
 def collide_phase(model, state, settings, dt: float) -> int:
@@ -497,8 +499,9 @@ def collide_phase(model, state, settings, dt: float) -> int:
                               state.marks, params, boundary, _static(model, state, cell),
                               _rest_grid(model, state, cell))
     state.counters.collisions += int(resolved)
-    damp_resting(state.contacts, state.bodies, math.exp(-s.rest_damping * dt),
-                 4.0 * s.sleep_speed)
+    b = state.bodies
+    damp_resting(state.contacts.resting, b.mass, b.inv_inertia, b.rot, b.lin, b.ang, b.radius,
+                 state.n_bodies, math.exp(-s.rest_damping * dt), 4.0 * s.sleep_speed)
     return min(int(resolved), len(state.contacts.hits))
 
 

@@ -147,17 +147,16 @@ def settle(bodies, sleep_speed, still_steps) -> None:
 
 
 @kernel
-def damp_resting(contacts, bodies, decay, limit) -> None:
+def damp_resting(resting, body_mass, body_inv_inertia, body_rot, body_lin, body_ang,
+                 body_radius, n_bodies, decay, limit) -> None:
     """Resting-contact damping between fragments (as the ground's, Martins 2001 §5.2).
 
     Bodies flagged in ``resting`` (B,) (a gentle contact this step) that move
     slower than ``limit`` (m/s, centre speed and rim speed) lose the fraction
     1 - ``decay`` of their momenta; the flags are cleared. Only ever removes
-    energy, and lets piles settle and sleep instead of jittering.
+    energy, and lets piles settle and sleep instead of jittering. Called every
+    step with contacts: it takes the arrays it reads (see :func:`body_rotations`).
     """
-    resting, body_mass, body_inv_inertia = contacts.resting, bodies.mass, bodies.inv_inertia
-    body_rot, body_lin, body_ang, body_radius = bodies.rot, bodies.lin, bodies.ang, bodies.radius
-    n_bodies = bodies.count[0]
     for b in range(n_bodies):
         if not resting[b]:
             continue
