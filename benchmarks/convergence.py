@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from blastvox.blast.model import blast_parameters
+from blastvox.blast.charge import blast_parameters
 from blastvox.materials import MaterialLibrary
 from blastvox.simulate.engine import simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings

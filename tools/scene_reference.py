@@ -29,13 +29,9 @@ from typing import Annotated, Any, Literal, Union, get_args, get_origin
 from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
+from blastvox.blast import explosives as _explosives
 from blastvox.materials import _FIELD_KINDS, Material, MaterialLibrary
 from blastvox.scene import Scene, scene_from_dict
-
-try:  # the explosives' home in the blast package
-    from blastvox.blast import explosives as _explosives
-except ImportError:  # before blastvox/blast was split into modules
-    from blastvox.blast import model as _explosives
 
 TNT_EQUIVALENTS: dict[str, float] = _explosives.TNT_EQUIVALENTS
 EXPLOSIVE_ALIASES: dict[str, str] = getattr(_explosives, "_ALIASES", {})

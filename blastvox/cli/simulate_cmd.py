@@ -93,7 +93,7 @@ def simulate(
         overrides["charges"] = tuple(specs)
     settings = replace(settings, **overrides)
     if charge:
-        from blastvox.blast.model import tnt_equivalent
+        from blastvox.blast.explosives import tnt_equivalent
 
         try:
             tnt_equivalent(explosive)

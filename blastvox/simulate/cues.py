@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from blastvox.blast import model as blast
+from blastvox.blast.charge import blast_parameters
 
 _TAU_S = 0.25
 _FREQ_HZ = np.array([11.0, 13.0, 17.0])
@@ -28,7 +28,7 @@ def shock_opacity(radius: np.ndarray, tnt_kg: np.ndarray) -> np.ndarray:
         r = radius[:, c]
         live = r > 0
         if live.any():
-            ps = blast.blast_parameters(r[live], w).peak_overpressure_pa
+            ps = blast_parameters(r[live], w).peak_overpressure_pa
             out[live, c] = np.clip(np.log10(np.maximum(ps, 1e-9) / 1e3) / 3.0, 0.0, 1.0)
     return out
 
@@ -39,7 +39,7 @@ def camera_shake(camera_position: np.ndarray, times: np.ndarray, charge_position
     offset = np.zeros((len(times), 3))
     for c in range(len(tnt_kg)):
         r = float(np.linalg.norm(np.asarray(camera_position) - charge_position[c]))
-        p = blast.blast_parameters(r, tnt_kg[c])
+        p = blast_parameters(r, tnt_kg[c])
         arrival = charge_time[c] + float(p.arrival_time_s)
         amplitude = min(0.02 * np.sqrt(float(p.peak_overpressure_pa) / 1e3), 0.5)
         s = times - arrival
