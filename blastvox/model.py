@@ -52,7 +52,7 @@ import numpy as np
 
 from blastvox import __version__
 from blastvox.errors import ContractError
-from blastvox.geometry.frames import up_index
+from blastvox.geometry.frames import AXES, up_index
 from blastvox.geometry.voxel_faces import SURFACE_BIT as SURFACE_BIT  # voxel_boundary's bit 6
 from blastvox.io.npz import read_npz, write_npz
 
@@ -128,6 +128,9 @@ class VoxelModel:
         """Read and validate a VoxelModel file; :class:`ContractError` if it is not one."""
         meta, arrays = read_npz(path, SCHEMA, SCHEMA_VERSION, what="VoxelModel")
         _check_arrays(Path(path), arrays)
+        if meta.get("up_axis") not in AXES:
+            raise ContractError(f"{path}: up_axis is {meta.get('up_axis')!r}; expected one of "
+                                f"{', '.join(AXES)}")
         return cls(arrays=arrays, meta=meta)
 
     def summary(self) -> dict[str, Any]:
@@ -175,3 +178,5 @@ def _check_arrays(path: Path, arrays: dict[str, np.ndarray]) -> None:
     if arrays["link_voxels"].size and (arrays["link_voxels"].min() < 0
                                        or arrays["link_voxels"].max() >= n):
         raise ContractError(f"{path}: link_voxels refers to voxels that do not exist")
+    if arrays["voxel_object"].size and arrays["voxel_object"].min() < 0:
+        raise ContractError(f"{path}: voxel_object holds a negative object index")
