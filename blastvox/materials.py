@@ -64,6 +64,12 @@ class Material:
         color: Linear RGB 0..1 of outside faces.
         damage_color: Linear RGB 0..1 of faces that were inside the object.
         description: Free text, including the source of the values.
+        link_impulse: Pa s; impulse asymptote of the pressure-impulse criterion of a
+            link, for an element 0.25 m thick (scaled with the thickness); 0 = peak
+            pressure only (the papers' model). See docs/physics.md.
+        voxel_impulse: Pa s; the same for a voxel turning to dust.
+        pi_shape: K / (P0 I0) of the hyperbola (P - P0)(I - I0) = K (0 = two
+            independent asymptotes).
     """
 
     name: str
@@ -78,6 +84,9 @@ class Material:
     color: RGB
     damage_color: RGB
     description: str = ""
+    link_impulse: float = 0.0
+    voxel_impulse: float = 0.0
+    pi_shape: float = 0.0
 
 
 # Field name -> kind; the kind selects the check in _check_field.
@@ -93,8 +102,12 @@ _FIELD_KINDS: dict[str, str] = {
     "color": "rgb",
     "damage_color": "rgb",
     "description": "text",
+    "link_impulse": "impulse",
+    "voxel_impulse": "impulse",
+    "pi_shape": "impulse",
 }
-_REQUIRED = [k for k in _FIELD_KINDS if k != "description"]
+_OPTIONAL = ("description", "link_impulse", "voxel_impulse", "pi_shape")
+_REQUIRED = [k for k in _FIELD_KINDS if k not in _OPTIONAL]
 _SCALARS = [k for k, kind in _FIELD_KINDS.items() if kind not in ("rgb", "text")]
 _TOML_POSITION = re.compile(r"\s*\(at (line \d+, column \d+|end of document)\)$")
 
@@ -149,6 +162,8 @@ def _check_field(key: str, value: Any, where: str) -> Any:
     if kind == "threshold" and number < 0.0:
         raise MaterialError(f"{where}: must be >= 0 (inf allowed) (got {number})")
     if kind == "variance" and not (0.0 <= number < math.inf):
+        raise MaterialError(f"{where}: must be >= 0 and finite (got {number})")
+    if kind == "impulse" and not (0.0 <= number < math.inf):
         raise MaterialError(f"{where}: must be >= 0 and finite (got {number})")
     if kind == "unit" and not (0.0 <= number <= 1.0):
         raise MaterialError(f"{where}: must be in [0, 1] (got {number})")
@@ -350,7 +365,7 @@ def materials_from_table(names: list[str], arrays: Mapping[str, np.ndarray]) -> 
             continue
         key = f"material_{f.name}"
         if key not in arrays:
-            if f.name == "description":
+            if f.name in _OPTIONAL:
                 continue
             raise ContractError(f"material table: missing array {key!r}")
         column = np.asarray(arrays[key])
@@ -360,7 +375,7 @@ def materials_from_table(names: list[str], arrays: Mapping[str, np.ndarray]) -> 
         columns[f.name] = column
     result = []
     for i, name in enumerate(names):
-        values: dict[str, Any] = {k: float(columns[k][i]) for k in _SCALARS}
+        values: dict[str, Any] = {k: float(columns[k][i]) for k in _SCALARS if k in columns}
         for k in ("color", "damage_color"):
             values[k] = tuple(float(c) for c in columns[k][i])
         if "description" in columns:

@@ -284,6 +284,10 @@ class Charge(_Model):
     explosive: Name = Field("TNT", description=(
         "Explosive, converted to a TNT-equivalent mass (see Explosives)."))
     time_s: NonNegative = Field(0.0, description="Detonation time after the start of the shot.")
+    burst: Literal["auto", "air", "surface"] = Field("auto", description=(
+        "air: a spherical free-air burst; surface: a hemispherical burst on the ground "
+        "(stronger); auto: surface when the charge's centre is within 0.2 W^(1/3) m "
+        "(W in kg TNT) of the ground, else air."))
 
 
 class Simulation(_Model):
@@ -306,9 +310,13 @@ class Simulation(_Model):
     fps: Positive = Field(24.0, description="Output frames per second.")
     duration: Positive = Field(5.0, description=(
         "Length of the shot; frames run from t = 0 to the last frame at or before it."))
-    fracture: Annotated[Literal["yield", "damage"], _case("lower")] = Field("yield", description=(
-        "yield: a link breaks when the peak overpressure exceeds its yield; damage: "
-        "Davison-Stevens damage accumulation (Mazarak 1999)."))
+    fracture: Annotated[Literal["pressure-impulse", "yield", "damage"], _case("lower")] = Field(
+        "pressure-impulse", description=(
+            "pressure-impulse: a link or voxel breaks when the face load's peak and impulse "
+            "pass its material's pressure-impulse curve (reflection, clearing and "
+            "shielding included); yield: the papers' model, the incident peak "
+            "overpressure against the yield (Martins 2001); damage: Davison-Stevens "
+            "damage accumulation (Mazarak 1999)."))
     gravity: NonNegative = Field(9.81, description=(
         "Gravitational acceleration along -up_axis; 0 switches gravity off."))
     linear_drag: NonNegative = Field(0.0, description=(

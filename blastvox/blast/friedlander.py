@@ -282,6 +282,20 @@ def _cumulative_nb(tau, b, sigma, tau_end):
     return pos - sigma * math.exp(-b) * y * y * _qfun_nb(b * y)
 
 
+@helper
+def _positive_cumulative_nb(tau, b):
+    """integral_0^tau of the positive phase alone (in units of Ps Td), tau clamped to [0, 1]."""
+    tp = min(max(tau, 0.0), 1.0)
+    return tp * tp * _gfun_nb(b * tp) - tp * (tp - 1.0) * _hfun_nb(b * tp)
+
+
+@helper
+def positive_fraction_nb(tau0, tau1, b):
+    """Fraction (0..1) of the positive phase's impulse between tau0 <= tau1 (in units
+    of Td from arrival); consecutive windows telescope exactly."""
+    return (_positive_cumulative_nb(tau1, b) - _positive_cumulative_nb(tau0, b)) / _gfun_nb(b)
+
+
 @kernel  # also called from Python (tests)
 def impulse_nb(t0, t1, ta, td, ps, b):
     """Exact integral of p - p0 over [t0, t1] (Pa s), closed form; negative if t1 < t0."""

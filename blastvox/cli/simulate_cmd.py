@@ -3,11 +3,20 @@
 from __future__ import annotations
 
 import time
+from enum import StrEnum
 from pathlib import Path
 
 import typer
 
 from blastvox.errors import BlastvoxError
+
+
+class ChargeBurst(StrEnum):
+    """--burst choices."""
+
+    auto = "auto"
+    air = "air"
+    surface = "surface"
 
 
 def _parse_charge(text: str) -> tuple[tuple[float, float, float], float, float]:
@@ -42,8 +51,12 @@ def simulate(
     duration: float = typer.Option(None, "--duration", help="Simulated seconds [default: 5]."),
     gravity: float = typer.Option(None, "--gravity", help="m/s^2 along -up; 0 switches it off "
                                   "[default: 9.81]."),
-    fracture: str = typer.Option(None, "--fracture", help="yield or damage "
-                                 "(Davison-Stevens) [default: yield]."),
+    fracture: str = typer.Option(None, "--fracture", help="pressure-impulse, yield (the "
+                                 "papers' peak overpressure) or damage (Davison-Stevens) "
+                                 "[default: pressure-impulse]."),
+    burst: ChargeBurst = typer.Option(ChargeBurst.auto, "--burst", help="Burst of --charge "
+        "charges: air (free-air sphere), surface (hemisphere on the ground) or auto (surface within 0.2 W^(1/3) m of the "
+        "ground)."),
     no_ground: bool = typer.Option(False, "--no-ground", help="No ground: foundations are "
                                    "ignored and the model floats free."),
     seed: int = typer.Option(None, "--seed", help="Seed recorded in the cache [default: the "
@@ -81,15 +94,16 @@ def simulate(
             raise BlastvoxError(f"--{key} must be positive and finite (got {overrides[key]})")
     if "gravity" in overrides and not 0 <= overrides["gravity"] < float("inf"):
         raise BlastvoxError(f"--gravity must be >= 0 (got {overrides['gravity']})")
-    if overrides.get("fracture", "yield") not in ("yield", "damage"):
-        raise BlastvoxError(f"--fracture must be yield or damage (got {fracture!r})")
+    if overrides.get("fracture", "yield") not in ("pressure-impulse", "yield", "damage"):
+        raise BlastvoxError(f"--fracture must be pressure-impulse, yield or damage "
+                            f"(got {fracture!r})")
     if no_ground:
         overrides["ground"] = False
     if charge:
         specs = []
         for text in charge:
             position, kg, t = _parse_charge(text)
-            specs.append(ChargeSpec(position, kg, explosive, t))
+            specs.append(ChargeSpec(position, kg, explosive, t, ChargeBurst(burst).value))
         overrides["charges"] = tuple(specs)
     settings = replace(settings, **overrides)
     if charge:

@@ -61,6 +61,7 @@ from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
+from blastvox.simulate.shielding import build_occupancy, typical_edge
 from blastvox.simulate.state import (
     Contacts,
     Front,
@@ -137,7 +138,9 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
                           supported_next=np.zeros(capacity, dtype=bool),
                           hits=np.zeros((4096, 4)), points=np.zeros((64, 3)),
                           vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int64)),
-        scratch=Scratch.for_model(sm))
+        scratch=Scratch.for_model(sm),
+        shielding=build_occupancy(sm.voxels.vertices, sm.voxels.corners, sm.voxels.centroid,
+                                  typical_edge(a["voxel_volume"], sm.voxels.conform_slot >= 0)))
     return state
 
 
@@ -164,7 +167,8 @@ class Run:
     def start(cls, model: VoxelModel, settings: SimSettings) -> Run:
         sm = build_model(model)
         state = initial_state(model, sm, ground=settings.ground)
-        charges = build_charges(settings.charges)
+        charges = build_charges(settings.charges, sm.up,
+                                sm.ground_height if settings.ground else None)
         dt = settings.step_seconds()
         combustible = bool(np.isfinite(state.voxels.combust).any())
         return cls(
@@ -232,7 +236,7 @@ def step(run: Run, n: int, frame_next: int) -> None:
 
 def _front(charges: Charges, t0: float, t1: float) -> Front:
     """The fronts over [t0, t1] (see :class:`~blastvox.simulate.state.Front`)."""
-    return Front(charges.position, charges.time, charges.scale, charges.table,
+    return Front(charges.position, charges.time, charges.scale, charges.table, charges.burst,
                  charges.front_radius(t0, before=-1.0), charges.front_radius(t1))
 
 

@@ -63,7 +63,7 @@ def ignite_by_blast(front, scale, voxel_centroid, voxels, bodies, active) -> int
                           + (centre[2] - charge_pos[c, 2]) ** 2)
             if r <= front_in[c] or r > front_out[c]:
                 continue
-            combust[v] -= scale * peak_overpressure(table, r, charge_scale[c])
+            combust[v] -= scale * peak_overpressure(table[front.burst[c]], r, charge_scale[c])
             if combust[v] < 0.0:
                 burning[v] = True
                 ignited += 1

@@ -1,18 +1,20 @@
-"""Blast impulse on free bodies at the corners of exposed voxel faces.
+"""Blast impulse on free bodies over the exposed faces of their voxels.
 
-Martins 2001 §4.3: F = p(t) A R/|R| at voxel vertices, torque r x F, summed
-per body over boundary voxels. We apply it face by face: an exposed face with
-outward vector area a (m^2) that faces the charge has projected area
-A = |a| cos(theta) = -a . R_hat on the shock front; a quarter of it acts at
-each of the face's corners, where the overpressure is evaluated. Summed over a
-convex voxel this is exactly the voxel's projected area (s^2 to sqrt(3) s^2 for
-a cube), the papers' "area projected onto the shock front" without their
-constant-area approximation. Conform voxels use each face's area centroid.
+Martins 2001 §4.3 pushes each boundary voxel along the radius from the charge
+with the incident overpressure on its projected area. Here each exposed face
+takes the load of :mod:`blastvox.blast.face_load` - reflected by its angle
+of incidence and cleared by the piece's size when it faces the charge in
+line of sight, the diffracted side-on load when it is turned away or
+shadowed (:mod:`blastvox.simulate.shielding`), the negative phase on every
+loaded face - and the pressure pushes along the face's inward normal,
+F = -p A n. A quarter of a cube face's vector area acts at each of its
+corners, where the wave is evaluated (its distance, angle and timing);
+conform voxels use each face's area centroid.
 
 Nothing here samples the pressure at an instant: each point receives the
-exact integral of the overpressure over the step (closed form, see
-:mod:`blastvox.simulate.wave`), so a shock passing between two steps is never
-missed and the momentum converges as dt shrinks.
+exact integral of its load over the step (closed form), so a shock passing
+between two steps is never missed, consecutive steps telescope to the face's
+total and the momentum converges as dt shrinks.
 """
 
 from __future__ import annotations
@@ -21,107 +23,111 @@ import math
 
 import numpy as np
 
+from blastvox.blast.face_load import face_load_nb, face_params_at, face_step_impulse_nb
 from blastvox.geometry.transforms_nb import rotate_into, to_world_into
 from blastvox.geometry.voxel_faces import FACE_CORNERS
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
+from blastvox.simulate.clearing import clearing_of
 from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
+from blastvox.simulate.shielding import ray_blocked, refresh_occupancy
 from blastvox.simulate.state import Front
-from blastvox.simulate.wave import point_impulse
+
+_LIFT = 0.51  # a face's line of sight starts this many grid cells out of the face
 
 
 @helper
-def _apply(point, weight_area, vec_area, c, t0, t1, front, pivot, out_p, out_l, b):
-    """Add the impulse at one point for one charge of ``front`` to row b of the
-    accumulators, the angular part about ``pivot`` (3,) m."""
-    charge_pos = front.position
-    rx = point[0] - charge_pos[c, 0]
-    ry = point[1] - charge_pos[c, 1]
-    rz = point[2] - charge_pos[c, 2]
-    r = math.sqrt(rx * rx + ry * ry + rz * rz)
-    if r <= 0.0:
-        return
-    j = point_impulse(front.table, r, front.time[c], front.scale[c], t0, t1)
-    _push((point[0], point[1], point[2]), j, (rx / r, ry / r, rz / r), weight_area, vec_area,
-          pivot, out_p, out_l, b)
-
-
-@helper
-def _push(p, j, u, weight_area, vec_area, pivot, out_p, out_l, b):
-    """Add impulse j (Pa s) along the unit radius u = (ux, uy, uz) at point p = (px, py,
-    pz) (m) through a face of vector area ``vec_area`` x ``weight_area`` (its share at
-    this point), the angular part about ``pivot``. Tuples of scalars, not row views:
-    this runs for every exposed corner."""
-    px, py, pz = p
-    ux, uy, uz = u
-    body_pos_b = pivot
-    norm = math.sqrt(vec_area[0] ** 2 + vec_area[1] ** 2 + vec_area[2] ** 2)
-    if norm <= 0.0:
-        return
-    facing = -(vec_area[0] * ux + vec_area[1] * uy + vec_area[2] * uz)
-    if facing <= 0.0:
-        return
-    if j == 0.0:
-        return
-    mag = j * facing * weight_area
-    fx, fy, fz = mag * ux, mag * uy, mag * uz
+def _push(px, py, pz, j, vec_area, weight, pivot, out_p, out_l, b):
+    """Add the impulse of j (Pa s) on ``weight`` x the face of outward vector area
+    ``vec_area`` (m^2), at point (px, py, pz) m: -j A n, the angular part about pivot."""
+    fx = -j * weight * vec_area[0]
+    fy = -j * weight * vec_area[1]
+    fz = -j * weight * vec_area[2]
     out_p[b, 0] += fx
     out_p[b, 1] += fy
     out_p[b, 2] += fz
-    dx = px - body_pos_b[0]
-    dy = py - body_pos_b[1]
-    dz = pz - body_pos_b[2]
+    dx = px - pivot[0]
+    dy = py - pivot[1]
+    dz = pz - pivot[2]
     out_l[b, 0] += dy * fz - dz * fy
     out_l[b, 1] += dz * fx - dx * fz
     out_l[b, 2] += dx * fy - dy * fx
 
 
 @helper
-def _corner(vertex, slot, c, bodies, b, vertices, charge_pos, corner_point, corner_u) -> bool:
-    """World position and unit radius of a voxel corner of body b for charge c (False at
-    the charge's centre, where there is no direction). Indices, not row views: this
-    runs for every exposed corner, and a view costs two reference counts."""
-    body_rot, body_pos, body_com = bodies.rot, bodies.pos, bodies.com
-    x = vertices[vertex, 0] - body_com[b, 0]
-    y = vertices[vertex, 1] - body_com[b, 1]
-    z = vertices[vertex, 2] - body_com[b, 2]
-    for a in range(3):  # as _to_world
-        corner_point[slot, a] = (body_pos[b, a] + body_rot[b, a, 0] * x + body_rot[b, a, 1] * y
-                                 + body_rot[b, a, 2] * z)
-    rx = corner_point[slot, 0] - charge_pos[c, 0]
-    ry = corner_point[slot, 1] - charge_pos[c, 1]
-    rz = corner_point[slot, 2] - charge_pos[c, 2]
+def _sight(grid, point, area, charge_pos, c) -> bool:
+    """Is the line from a face (centre ``point``, outward vector area ``area``) to charge
+    c clear of solid? (Starts just outside the face: a face pressed against another
+    piece is shadowed.)"""
+    norm = math.sqrt(area[0] ** 2 + area[1] ** 2 + area[2] ** 2)
+    if norm <= 0.0:
+        return False
+    lift = _LIFT * grid.cell[0] / norm
+    return not ray_blocked(grid, point[0] + lift * area[0], point[1] + lift * area[1],
+                           point[2] + lift * area[2], charge_pos[c, 0], charge_pos[c, 1],
+                           charge_pos[c, 2], False)
+
+
+@helper
+def _point_load(front, c, px, py, pz, t0, t1, out):
+    """The wave of charge c at point p: out[0] distance m, out[1:4] unit radius,
+    out[4] positive step fraction, out[5] negative step fraction, out[6:15] ps, td, b,
+    is, pr, ir, q, u, i_neg (see face_params_at). Returns False if the wave has not
+    reached p by t1 or p is at the charge."""
+    rx = px - front.position[c, 0]
+    ry = py - front.position[c, 1]
+    rz = pz - front.position[c, 2]
     r = math.sqrt(rx * rx + ry * ry + rz * rz)
     if r <= 0.0:
         return False
-    corner_u[slot, 0], corner_u[slot, 1], corner_u[slot, 2] = rx / r, ry / r, rz / r
-    corner_u[slot, 3] = r
+    (ps, ta, td, b, imp, pr, ir, q, u, p_neg, i_neg,
+     td_neg) = face_params_at(front.table, front.burst[c], r, front.scale[c])
+    ta += front.time[c]
+    if t1 <= ta:
+        return False
+    out[0], out[1], out[2], out[3] = r, rx / r, ry / r, rz / r
+    out[4] = face_step_impulse_nb(1.0, 0.0, t0, t1, ta, td, b, td_neg)
+    out[5] = -face_step_impulse_nb(0.0, 1.0, t0, t1, ta, td, b, td_neg) if td_neg > 0.0 else 0.0
+    out[6], out[7], out[8], out[9], out[10] = ps, td, b, imp, pr
+    out[11], out[12], out[13], out[14] = ir, q, u, i_neg
     return True
 
 
+@helper
+def _face_impulse(load, area, direct, s_clear, g_clear) -> float:
+    """Step impulse (Pa s) on a face of outward vector area ``area`` from the wave
+    ``load`` (a :func:`_point_load` row)."""
+    norm = math.sqrt(area[0] ** 2 + area[1] ** 2 + area[2] ** 2)
+    if norm <= 0.0:
+        return 0.0
+    cos_a = -(area[0] * load[1] + area[1] * load[2] + area[2] * load[3]) / norm
+    wave = (load[6], load[7], load[8], load[9], load[10], load[11], load[12], load[13])
+    i_pos, _ = face_load_nb(wave, cos_a, direct, s_clear, g_clear)
+    return i_pos * load[4] - load[14] * load[5]
+
+
 @kernel
-def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, active,
-                   loads) -> None:
+def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, loads, grid,
+                   clearing) -> None:
     """Accumulate the blast impulse (N s) and angular impulse (N m s) of [t0, t1] per body.
 
     Into loads.impulse and loads.angular (B, 3). boundary (M,): the voxels with an
     exposed face (the others take no pressure), each body's in voxel order.
-    front.outer (C,): shock radius at t1 (m); reach_in (C,): radius behind which the
-    whole wave (positive and negative phase) has passed by t0. Points outside
-    that shell, and bodies not flagged in ``active`` (B,), are skipped without
-    evaluating the blast model.
+    front.outer (C,): shock radius at t1 (m); front.inner (C,): radius behind
+    which the whole wave (positive and negative phase) has passed by t0.
+    Points outside that shell, and bodies not flagged in ``active`` (B,), are
+    skipped without evaluating the blast model. grid: the shielding
+    :class:`~blastvox.simulate.shielding.Occupancy`; clearing (B, C, 2): each
+    body's silhouette half-extents S, G from each charge, m.
 
     A fixed body takes no momentum, but its voxels keep what the wave gave them
     in held_p (N, 3) (N s) and held_l (N, 3) (N m s, about the voxel's centroid):
     a piece that breaks free later in the same wave gets it (see
     :func:`blastvox.simulate.kernels.release_held`), so a piece's momentum does
     not depend on how many steps the front took to cross it before its links
-    broke (without this, small steps lost the part of the wave that arrived
-    while the piece was still held, and the momentum did not converge in dt).
+    broke.
     """
-    charge_pos, charge_time, charge_scale, table = (front.position, front.time, front.scale,
-                                                    front.table)
-    reach_out = front.outer
+    charge_pos, reach_in, reach_out = front.position, front.inner, front.outer
     vertices, voxel_vertices, voxel_centroid = (geometry.vertices, geometry.corners,
                                                 geometry.centroid)
     voxel_radius, conform_slot = geometry.radius, geometry.conform_slot
@@ -135,11 +141,10 @@ def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, 
     area = np.empty(3)
     rest_area = np.empty(3)
     centre = np.empty(3)
-    # a cube's 8 corners serve its 6 faces: each corner's impulse is evaluated once
+    # a cube's 8 corners serve its 6 faces: each corner's wave is evaluated once
     corner_point = np.empty((8, 3))
-    corner_u = np.empty((8, 4))  # unit radius and distance (m)
-    corner_j = np.empty(8)
-    corner_state = np.zeros(8, dtype=np.int64)  # 0 unknown, 1 placed, 2 impulse known, -1 at R=0
+    corner_load = np.empty((8, 15))
+    corner_state = np.zeros(8, dtype=np.int64)  # 0 unknown, 1 loaded, -1 no load
     for k in range(boundary.shape[0]):
         v = boundary[k]
         if not voxel_alive[v]:
@@ -164,13 +169,19 @@ def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, 
                           + (centre[2] - charge_pos[c, 2]) ** 2)
             if d - voxel_radius[v] > reach_out[c] or d + voxel_radius[v] < reach_in[c]:
                 continue
+            s_clear, g_clear = clearing[b, c, 0], clearing[b, c, 1]
             if slot >= 0:
                 for f in range(7):
                     if f < 6 and not (exposed >> f) & 1:
                         continue
                     rotate_into(rot, conform_area[slot, f], area)
                     to_world_into(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
-                    _apply(point, 1.0, area, c, t0, t1, front, pivot, acc_p, acc_l, index)
+                    if not _point_load(front, c, point[0], point[1], point[2], t0, t1,
+                                       corner_load[0]):
+                        continue
+                    direct = _sight(grid, point, area, charge_pos, c)
+                    j = _face_impulse(corner_load[0], area, direct, s_clear, g_clear)
+                    _push(point[0], point[1], point[2], j, area, 1.0, pivot, acc_p, acc_l, index)
                 continue
             corner_state[:] = 0
             for f in range(6):
@@ -191,23 +202,30 @@ def blast_impulses(front, reach_in, t0, t1, boundary, geometry, voxels, bodies, 
                 rest_area[1] = 0.5 * (d1z * d2x - d1x * d2z)
                 rest_area[2] = 0.5 * (d1x * d2y - d1y * d2x)
                 rotate_into(rot, rest_area, area)
-                for k in range(4):
-                    q = FACE_CORNERS[f, k]
+                for a in range(3):
+                    point[a] = 0.0
+                loaded = False
+                for n in range(4):
+                    q = FACE_CORNERS[f, n]
                     if corner_state[q] == 0:
-                        placed = _corner(voxel_vertices[v, q], q, c, bodies, b, vertices,
-                                         charge_pos, corner_point, corner_u)
+                        to_world_into(rot, body_pos[b], body_com[b],
+                                      vertices[voxel_vertices[v, q]], corner_point[q])
+                        placed = _point_load(front, c, corner_point[q, 0], corner_point[q, 1],
+                                             corner_point[q, 2], t0, t1, corner_load[q])
                         corner_state[q] = 1 if placed else -1
+                    for a in range(3):
+                        point[a] += 0.25 * corner_point[q, a]
+                    loaded = loaded or corner_state[q] > 0
+                if not loaded:
+                    continue
+                direct = _sight(grid, point, area, charge_pos, c)
+                for n in range(4):
+                    q = FACE_CORNERS[f, n]
                     if corner_state[q] < 0:
                         continue
-                    ux, uy, uz = corner_u[q, 0], corner_u[q, 1], corner_u[q, 2]
-                    if -(area[0] * ux + area[1] * uy + area[2] * uz) <= 0.0:
-                        continue  # faces away: no need for the (costly) impulse
-                    if corner_state[q] == 1:
-                        corner_j[q] = point_impulse(table, corner_u[q, 3], charge_time[c],
-                                                    charge_scale[c], t0, t1)
-                        corner_state[q] = 2
-                    _push((corner_point[q, 0], corner_point[q, 1], corner_point[q, 2]),
-                          corner_j[q], (ux, uy, uz), 0.25, area, pivot, acc_p, acc_l, index)
+                    j = _face_impulse(corner_load[q], area, direct, s_clear, g_clear)
+                    _push(corner_point[q, 0], corner_point[q, 1], corner_point[q, 2], j, area,
+                          0.25, pivot, acc_p, acc_l, index)
 
 
 def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarray) -> None:
@@ -231,9 +249,11 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
             loads.held_l[:] = 0.0
             state.holding = False
         return
-    front = Front(charges.position, charges.time, charges.scale, charges.table, reach_in,
-                  front_out)
-    blast_impulses(front, reach_in, t0, t1, boundary_of(model, state)[1], model.voxels,
-                   state.voxels, bodies, state.marks.active, loads)
+    front = Front(charges.position, charges.time, charges.scale, charges.table, charges.burst,
+                  reach_in, front_out)
+    refresh_occupancy(state.shielding, model.voxels, state.voxels, bodies)
+    clearing = clearing_of(model, state, charges.position, state.marks.active)
+    blast_impulses(front, t0, t1, boundary_of(model, state)[1], model.voxels, state.voxels,
+                   bodies, state.marks.active, loads, state.shielding, clearing)
     state.holding = True
     wake_on_impulse(loads.impulse, loads.angular, bodies.asleep, n)

@@ -28,10 +28,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel
+from blastvox.simulate.clearing import clearing_of
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.shell import mark_in_shell
+from blastvox.simulate.shielding import refresh_occupancy, sight_line
 from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
@@ -39,12 +42,50 @@ from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 class FractureParams(NamedTuple):
     """orientation: k of the orientation factor (0..1); weakening: fraction of a
     peak that wears a link's or voxel's yield; damage_b, damage_c: the
-    Davison-Stevens B (-) and C (1/(Pa s))."""
+    Davison-Stevens B (-) and C (1/(Pa s)); pressure_impulse: judge by the
+    pressure-impulse criterion on the face load (else the papers' incident peak)."""
 
     orientation: float
     weakening: float
     damage_b: float
     damage_c: float
+    pressure_impulse: bool
+
+
+REFERENCE_THICKNESS = 0.25  #: m: the element thickness a material's impulse asymptote is for
+
+
+@helper
+def element_load(front, c, r, px, py, pz, grid, s_clear, g_clear):
+    """(peak overpressure Pa, positive impulse Pa s, depth m) that the wave of charge c
+    puts on the element holding point p (in solid, at r m from the charge): the
+    face load (:func:`blastvox.blast.face_load.face_load_nb`) of the surface the
+    line from p to the charge leaves the element through, at that surface's angle
+    of incidence, or the diffracted load if solid shields the element; depth: p's
+    depth below that surface (half a grid cell when p is not in the grid)."""
+    qx, qy, qz = front.position[c, 0], front.position[c, 1], front.position[c, 2]
+    blocked, axis, depth = sight_line(grid, px, py, pz, qx, qy, qz, True)
+    cos_a = 1.0
+    if axis >= 0 and r > 0.0:
+        cos_a = abs((qx - px) if axis == 0 else ((qy - py) if axis == 1 else (qz - pz))) / r
+    if axis < 0:
+        depth = 0.5 * grid.cell[0]
+    (ps, _, td, b, imp, pr, ir, q, u, _, _,
+     _) = face_params_at(front.table, front.burst[c], r, front.scale[c])
+    i_pos, p_peak = face_load_nb((ps, td, b, imp, pr, ir, q, u), cos_a, not blocked, s_clear,
+                                 g_clear)
+    return p_peak, i_pos, depth
+
+
+@helper
+def pi_exceeded(p, i, p0, i0, shape) -> bool:
+    """Pressure-impulse criterion: (p - p0)(i - i0) >= shape p0 i0 with p > p0, i > i0
+    (Pa, Pa s); i0 = 0 is the peak-pressure criterion p > p0."""
+    if p <= p0:
+        return False
+    if i0 <= 0.0:
+        return True
+    return i > i0 and (p - p0) * (i - i0) >= shape * p0 * i0
 
 
 @helper
@@ -82,14 +123,18 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
 
 
 @kernel
-def fracture_links(front, params, geometry, links, voxels, bodies, candidate, marks) -> int:
+def fracture_links(front, params, geometry, links, voxels, bodies, candidate, marks,
+                   strength, grid, clearing) -> int:
     """Break or weaken links crossed by a front this step; returns the number broken.
 
     geometry: the model's LinkGeometry. marks.active (B,): bodies a front's
     shell can touch (others are skipped); candidate (L,): links that can be in
     a shell (:mod:`blastvox.simulate.shell`), the only ones tested;
     marks.broken (L,) is set True for links broken now, marks.dirty (B,) for
-    their bodies.
+    their bodies. With params.pressure_impulse, a link breaks by
+    :func:`pi_exceeded` on :func:`element_load` (strength: the model's
+    :class:`~blastvox.simulate.model.Strength`; grid: the shielding occupancy;
+    clearing (B, C, 2)); else by the incident peak alone.
     """
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out = front.inner, front.outer
@@ -125,10 +170,18 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
                                                     and r2 <= front_in[c] * front_in[c]):
                 continue
             r = math.sqrt(r2)
-            peak = peak_overpressure(table, r, charge_scale[c])
             limit = oriented_yield(link_yield[link], orientation, body_rot, b, link_direction,
                                    link, dx, dy, dz, r)
-            if peak > limit:
+            if params.pressure_impulse:
+                peak, imp, depth = element_load(front, c, r, mx, my, mz, grid, clearing[b, c, 0],
+                                                clearing[b, c, 1])
+                owner = link_voxels[link, 0]
+                i0 = strength.link_impulse[owner] * max(2.0 * depth, 0.0) / REFERENCE_THICKNESS
+                breaks = pi_exceeded(peak, imp, limit, i0, strength.pi_shape[owner])
+            else:
+                peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
+                breaks = peak > limit
+            if breaks:
                 link_alive[link] = False
                 broken[link] = True
                 dirty[b] = True
@@ -139,7 +192,8 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
 
 
 @kernel
-def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, marks) -> int:
+def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, marks, strength,
+                    grid, clearing) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
     candidate (N,): voxels that can be in a shell, the only ones tested.
@@ -179,9 +233,16 @@ def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, ma
                                                     and r2 <= front_in[c] * front_in[c]):
                 continue
             r = math.sqrt(r2)
-            peak = peak_overpressure(table, r, charge_scale[c])
+            if params.pressure_impulse:
+                peak, imp, depth = element_load(front, c, r, cx, cy, cz, grid, clearing[b, c, 0],
+                                                clearing[b, c, 1])
+                i0 = strength.voxel_impulse[v] * max(2.0 * depth, 0.0) / REFERENCE_THICKNESS
+                breaks = pi_exceeded(peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
+            else:
+                peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
+                breaks = peak > voxel_yield[v]
             crossed[v] = True
-            if peak > voxel_yield[v]:
+            if breaks:
                 voxel_alive[v] = False
                 destroyed[v] = True
                 dirty[b] = True
@@ -239,7 +300,7 @@ def fracture_damage(front, params, geometry, link_geometry, links, voxels, bodie
                     alive += 1
             if alive == 0:
                 continue
-            s = exceedance_integral(table, r, charge_scale[c], total / alive)
+            s = exceedance_integral(table[front.burst[c]], r, charge_scale[c], total / alive)
             if s <= 0.0:
                 continue
             before = math.floor(voxel_damage[v])
@@ -283,19 +344,24 @@ def fracture_phase(model, state, front, settings) -> None:
     marks.destroyed[:] = False
     marks.crossed[:] = False
     marks.dirty[:state.n_bodies] = False
-    params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c)
+    params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c,
+                            s.fracture == "pressure-impulse")
+    grid = state.shielding
+    refresh_occupancy(grid, model.voxels, state.voxels, state.bodies)
+    clearing = clearing_of(model, state, front.position, marks.active)
     if s.fracture == "damage":
         n = fracture_damage(front, params, model.voxels, model.links, state.links,
                             state.voxels, state.bodies, marks)
     else:
         n = fracture_links(front, params, model.links, state.links, state.voxels, state.bodies,
                            _candidates(model, state, model.link_grid, state.scratch.link_owner,
-                                       state.scratch.link_candidate, front), marks)
+                                       state.scratch.link_candidate, front), marks,
+                           model.strength, grid, clearing)
     state.counters.broken_links += int(n)
     released = fracture_voxels(
         front, params, model.voxels.centroid, state.voxels, state.bodies,
         _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
-                    state.scratch.voxel_candidate, front), marks)
+                    state.scratch.voxel_candidate, front), marks, model.strength, grid, clearing)
     if released:
         refresh_fixed(state.voxels, state.bodies)
         if state.holding:

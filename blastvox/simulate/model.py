@@ -65,11 +65,22 @@ class LinkGeometry(NamedTuple):
     direction: np.ndarray
 
 
+class Strength(NamedTuple):
+    """Pressure-impulse strength of each voxel's material (N,): link_impulse and
+    voxel_impulse, Pa s, the impulse asymptotes for a 0.25 m element; pi_shape,
+    K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`)."""
+
+    link_impulse: np.ndarray
+    voxel_impulse: np.ndarray
+    pi_shape: np.ndarray
+
+
 @dataclass(frozen=True)
 class SimModel:
     """Static data of a run.
 
-    voxels, links: see :class:`VoxelGeometry` and :class:`LinkGeometry`.
+    voxels, links, strength: see :class:`VoxelGeometry`, :class:`LinkGeometry` and
+    :class:`Strength`.
     material (N,), object (N,): indices from the VoxelModel. up (3,): unit up
     vector (axis index up_axis); ground_height: m along up, or None for no
     ground. link_grid, voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of
@@ -79,6 +90,7 @@ class SimModel:
 
     voxels: VoxelGeometry
     links: LinkGeometry
+    strength: Strength
     material: np.ndarray
     object: np.ndarray
     up: np.ndarray
@@ -136,12 +148,25 @@ def build_model(model: VoxelModel) -> SimModel:
         voxels=links, face=a["link_face"].astype(np.int64), midpoint=link_midpoint,
         direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
     return SimModel(
-        voxels=voxels, links=link_geometry,
+        voxels=voxels, links=link_geometry, strength=_strength(a),
         material=a["voxel_material"].astype(np.int64),
         object=a["voxel_object"].astype(np.int64),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
         grid_cell=grid_cell, link_grid=dense_grid(link_midpoint.reshape(-1, 3), grid_cell),
         voxel_grid=dense_grid(voxel_centroid, grid_cell))
+
+
+def _strength(arrays: dict) -> Strength:
+    """Per-voxel P-I strength from the material table (0 where a model predates it)."""
+    material = arrays["voxel_material"]
+
+    def column(name: str) -> np.ndarray:
+        values = arrays.get(f"material_{name}")
+        if values is None:
+            return np.zeros(len(material))
+        return np.ascontiguousarray(np.asarray(values, dtype=np.float64)[material])
+
+    return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"))
 
 
 @kernel

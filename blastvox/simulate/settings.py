@@ -10,12 +10,15 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ChargeSpec:
-    """A charge: ``mass_kg`` of ``explosive`` at ``position`` (m), detonated at ``time_s``."""
+    """A charge: ``mass_kg`` of ``explosive`` at ``position`` (m), detonated at ``time_s``;
+    burst: "air", "surface" or "auto" (surface when near the ground, see
+    :func:`blastvox.simulate.wave.build_charges`)."""
 
     position: tuple[float, float, float]
     mass_kg: float
     explosive: str = "TNT"
     time_s: float = 0.0
+    burst: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -35,7 +38,7 @@ class SimSettings:
     dt: float = 1.0 / 240.0
     fps: float = 24.0
     duration: float = 5.0
-    fracture: str = "yield"
+    fracture: str = "pressure-impulse"
     gravity: float = 9.81
     linear_drag: float = 0.0
     angular_drag: float = 0.0
@@ -89,14 +92,15 @@ class SimSettings:
             "position": list(self.camera[0]), "look_at": list(self.camera[1]),
             "focal_length_mm": self.camera[2]}
         d["charges"] = [{"position": list(c.position), "mass_kg": c.mass_kg,
-                         "explosive": c.explosive, "time_s": c.time_s} for c in self.charges]
+                         "explosive": c.explosive, "time_s": c.time_s, "burst": c.burst}
+                        for c in self.charges]
         return d
 
 
 def settings_from_scene(scene) -> SimSettings:
     """SimSettings from a validated :class:`blastvox.scene.Scene`."""
     s = scene.simulation
-    charges = tuple(ChargeSpec(tuple(c.position), c.mass_kg, c.explosive, c.time_s)
+    charges = tuple(ChargeSpec(tuple(c.position), c.mass_kg, c.explosive, c.time_s, c.burst)
                     for c in scene.charges)
     return SimSettings(dt=s.dt, fps=s.fps, duration=s.duration, fracture=s.fracture,
                        gravity=s.gravity, linear_drag=s.linear_drag, angular_drag=s.angular_drag,

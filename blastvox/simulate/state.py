@@ -16,6 +16,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blastvox.simulate.shielding import Occupancy
+
 
 class Bodies(NamedTuple):
     """Rigid bodies, by slot (B,). A body's rest frame is the VoxelModel's frame:
@@ -126,8 +128,9 @@ class Contacts(NamedTuple):
 
 class Front(NamedTuple):
     """The C charges' shock fronts over one step: position (C, 3) m, time (C,)
-    detonation s, scale (C,) W^(1/3) in kg^(1/3), table: the reference blast
-    table (:func:`blastvox.simulate.wave.reference_table`); inner (C,) radius at
+    detonation s, scale (C,) W^(1/3) in kg^(1/3), table: the face tables of
+    both bursts (:func:`blastvox.blast.face_load.face_tables`, (2, G, 12)),
+    burst (C,) int64: each charge's row of it; inner (C,) radius at
     the step's start (-1: nothing passed yet), outer (C,) radius at its end
     (<= 0: not detonated), m."""
 
@@ -135,6 +138,7 @@ class Front(NamedTuple):
     time: np.ndarray
     scale: np.ndarray
     table: np.ndarray
+    burst: np.ndarray
     inner: np.ndarray
     outer: np.ndarray
 
@@ -146,7 +150,8 @@ class Caches:
     boundary: (offsets (B+1,), voxels) each body's alive boundary voxels, or
     None after a topology change; version counts rebuilds. rest: the rest-grid
     hash of the boundary (version rest_version). static: the hash of resting
-    bodies' voxels, for ``static_key``."""
+    bodies' voxels, for ``static_key``. boxes: each body's rest bounding box
+    (:func:`blastvox.simulate.clearing.body_boxes`) at topology boxes_version."""
 
     boundary: tuple | None = None
     version: int = 0
@@ -154,6 +159,8 @@ class Caches:
     rest_version: int = -1
     static: tuple | None = None
     static_key: tuple | None = None
+    boxes: np.ndarray | None = None
+    boxes_version: int = -1
 
 
 @dataclass
@@ -200,6 +207,7 @@ class State:
     loads: Loads
     contacts: Contacts
     scratch: Scratch
+    shielding: Occupancy
     caches: Caches = field(default_factory=Caches)
     counters: Counters = field(default_factory=Counters)
     holding: bool = False  # do voxels hold blast impulse (Loads.held_*) now?

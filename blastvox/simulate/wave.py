@@ -20,7 +20,6 @@ import numpy as np
 from blastvox.blast import (
     C0_M_S,
     exceedance_integral,
-    negative_phase,
     params_at,
     peak_overpressure,
     point_impulse,
@@ -28,6 +27,12 @@ from blastvox.blast import (
     reference_table,
     tnt_equivalent,
 )
+from blastvox.blast.face_load import face_tables
+from blastvox.blast.kingery_bulmash import AIR, SURFACE
+
+#: a charge whose centre is at most this scaled height (m/kg^(1/3)) above the ground
+#: is a surface burst by default (its TNT sphere's radius is 0.053; a modelling choice)
+SURFACE_HEIGHT = 0.2
 
 __all__ = ["Charges", "build_charges", "exceedance_integral", "params_at", "peak_overpressure",
            "point_impulse", "reference_table"]
@@ -35,13 +40,15 @@ __all__ = ["Charges", "build_charges", "exceedance_integral", "params_at", "peak
 
 @dataclass(frozen=True)
 class Charges:
-    """The scene's charges. position (C, 3) m, tnt_kg (C,), time (C,) s, scale = W^(1/3)."""
+    """The scene's charges. position (C, 3) m, tnt_kg (C,), time (C,) s, scale = W^(1/3);
+    burst (C,) int64 (AIR or SURFACE), the row of ``table`` (face_tables()) to use."""
 
     position: np.ndarray
     tnt_kg: np.ndarray
     time: np.ndarray
     scale: np.ndarray
     table: np.ndarray
+    burst: np.ndarray
     _z: np.ndarray
     _arrive: np.ndarray
     _leave: np.ndarray
@@ -64,8 +71,8 @@ class Charges:
                 for c in range(len(self.time)):
                     tau = (t - self.time[c]) / self.scale[c]
                     if tau > 0.0:
-                        radius[c] = self.scale[c] * _invert(tau, self._z, self._arrive,
-                                                            leading=True)
+                        radius[c] = self.scale[c] * _invert(
+                            tau, self._z, self._arrive[self.burst[c]], leading=True)
                 cache[t] = radius
             out = np.array([before if math.isnan(r) else r for r in radius])
             cache[t, before] = out
@@ -73,7 +80,8 @@ class Charges:
 
     def peak(self, c: int, r: float) -> float:
         """Peak incident overpressure (Pa) of charge c at distance r (m)."""
-        return float(peak_overpressure(self.table, float(r), float(self.scale[c])))
+        return float(peak_overpressure(self.table[self.burst[c]], float(r),
+                                       float(self.scale[c])))
 
     def tail_radius(self, t: float) -> np.ndarray:
         """Radius (C,) within which the whole wave (negative phase included) has passed by t.
@@ -83,9 +91,10 @@ class Charges:
         out = np.full(len(self.time), -1.0)
         for c in range(len(self.time)):
             tau = (t - self.time[c]) / self.scale[c]
-            if tau <= self._leave[0]:
+            leave = self._leave[self.burst[c]]
+            if tau <= leave[0]:
                 continue
-            out[c] = self.scale[c] * _invert(tau, self._z, self._leave, leading=False)
+            out[c] = self.scale[c] * _invert(tau, self._z, leave, leading=False)
         return out
 
 
@@ -98,16 +107,36 @@ def _invert(tau: float, z: np.ndarray, times: np.ndarray, leading: bool) -> floa
     return float(np.interp(tau, times, z))
 
 
-def build_charges(specs) -> Charges:
-    """Tabulate the blast of each :class:`~blastvox.simulate.settings.ChargeSpec`."""
-    table = reference_table()
+def build_charges(specs, up: np.ndarray | None = None,
+                  ground: float | None = None) -> Charges:
+    """Tabulate the blast of each :class:`~blastvox.simulate.settings.ChargeSpec`.
+
+    A spec's burst "air" or "surface" is kept; "auto" is a surface burst when a
+    ground plane (height ``ground`` m along the unit ``up``) is within
+    SURFACE_HEIGHT W^(1/3) of the charge's centre, else air."""
+    table = face_tables()
     z = reference_grid()
-    _, tau_end = negative_phase(table[:, 0], table[:, 3])
-    arrive = np.maximum.accumulate(table[:, 1])
-    leave = np.maximum.accumulate(table[:, 1] + table[:, 2] * tau_end)
+    arrive = np.maximum.accumulate(table[:, :, 1], axis=1)
+    leave = np.maximum.accumulate(table[:, :, 1] + table[:, :, 2] + table[:, :, 11], axis=1)
     position = np.array([s.position for s in specs], dtype=np.float64).reshape(-1, 3)
     tnt = np.array([s.mass_kg * tnt_equivalent(s.explosive) for s in specs],
                    dtype=np.float64)
+    scale = np.cbrt(tnt)
+    burst = np.array([_burst(s, p, w, up, ground) for s, p, w in zip(specs, position, scale,
+                                                                      strict=True)],
+                     dtype=np.int64)
     return Charges(position=position, tnt_kg=tnt,
                    time=np.array([s.time_s for s in specs], dtype=np.float64),
-                   scale=np.cbrt(tnt), table=table, _z=z, _arrive=arrive, _leave=leave)
+                   scale=scale, table=table, burst=burst, _z=z, _arrive=arrive, _leave=leave)
+
+
+def _burst(spec, position: np.ndarray, scale: float, up, ground) -> int:
+    kind = getattr(spec, "burst", "auto")
+    if kind == "air":
+        return AIR
+    if kind == "surface":
+        return SURFACE
+    if up is None or ground is None:
+        return AIR
+    height = float(np.dot(position, up)) - ground
+    return SURFACE if height <= SURFACE_HEIGHT * scale else AIR
