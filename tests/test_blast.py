@@ -23,7 +23,8 @@ import blastvox.blast as B
 from blastvox.errors import BlastvoxError
 
 FIELDS = ["distance_m", "scaled_distance", "peak_overpressure_pa", "arrival_time_s",
-          "positive_duration_s", "decay_coefficient", "impulse_pa_s"]
+          "positive_duration_s", "decay_coefficient", "impulse_pa_s",
+          "reflected_overpressure_pa", "reflected_impulse_pa_s"]
 HYP = settings(deadline=None, max_examples=60)
 
 z_valid = st.floats(B.Z_MIN, B.Z_MAX)
