@@ -195,7 +195,7 @@ def test_defaults() -> None:
     assert obj.mesh == Path("a.obj")  # no base_dir: left as given
     assert scene.seed == 0 and scene.up_axis == "Y" and scene.ground == "auto"
     assert scene.charges == [] and scene.camera is None and scene.output.model is None
-    assert scene.simulation.dt == 1.0 / 240.0 and scene.simulation.fracture == "yield"
+    assert scene.simulation.dt == 1.0 / 240.0 and scene.simulation.fracture == "pressure-impulse"
     assert scene.simulation.weakening == 0.5 and scene.simulation.gravity == 9.81
     assert all(dict(scene.effects).values())
     assert scene.material_library() == MaterialLibrary.builtin()
@@ -228,7 +228,7 @@ def test_ground_forms(ground: Any) -> None:
     ({"objects": [{"mesh": "a.obj", "resolution": 2.5}]}, "objects[0].resolution",
      "must be an integer"),
     (minimal(simulation={"fracture": "foo"}), "simulation.fracture",
-     "must be one of 'yield', 'damage' (got 'foo')"),
+     "must be one of 'pressure-impulse', 'yield', 'damage' (got 'foo')"),
     (minimal(simulation={"fractur": "yield"}), "simulation.fractur",
      "unknown key (did you mean 'fracture'?)"),
     (minimal(simulaton={}), "simulaton", "unknown key (did you mean 'simulation'?)"),

@@ -102,6 +102,9 @@ MATERIAL_UNITS: dict[str, str] = {
     "color": "linear RGB",
     "damage_color": "linear RGB",
     "description": "",
+    "link_impulse": "Pa s",
+    "voxel_impulse": "Pa s",
+    "pi_shape": "-",
 }
 
 #: Meanings that replace the Material docstring's where it gives only a unit.
@@ -117,6 +120,7 @@ MATERIAL_KINDS: dict[str, str] = {
     "unit": "number in [0, 1]",
     "rgb": "3 numbers in [0, 1]",
     "text": "string",
+    "impulse": "number ≥ 0",
 }
 
 EXAMPLE = """\

@@ -59,9 +59,9 @@ from blastvox.blast._numeric import horner_nb
 from blastvox.blast.atmosphere import C0_M_S
 from blastvox.blast.friedlander import decay_coefficient, positive_fraction_nb
 from blastvox.blast.kingery_bulmash import AIR, SURFACE, Z_MAX, Z_MIN, burst_parameters
-from blastvox.blast.underpressure import negative_fraction_nb, negative_parameters
 from blastvox.blast.reflection import dynamic_pressure, front_velocity, oblique_nb
 from blastvox.blast.table import reference_grid, reference_table
+from blastvox.blast.underpressure import negative_fraction_nb, negative_parameters
 from blastvox.jit import helper
 
 #: the columns of a face table, per 1 kg TNT: incident peak Pa, arrival s/kg^(1/3),

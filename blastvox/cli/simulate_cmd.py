@@ -55,8 +55,8 @@ def simulate(
                                  "papers' peak overpressure) or damage (Davison-Stevens) "
                                  "[default: pressure-impulse]."),
     burst: ChargeBurst = typer.Option(ChargeBurst.auto, "--burst", help="Burst of --charge "
-        "charges: air (free-air sphere), surface (hemisphere on the ground) or auto (surface within 0.2 W^(1/3) m of the "
-        "ground)."),
+        "charges: air (free-air sphere), surface (hemisphere on the ground) or auto "
+        "(surface within 0.2 W^(1/3) m of the ground)."),
     no_ground: bool = typer.Option(False, "--no-ground", help="No ground: foundations are "
                                    "ignored and the model floats free."),
     seed: int = typer.Option(None, "--seed", help="Seed recorded in the cache [default: the "

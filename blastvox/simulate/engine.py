@@ -61,7 +61,7 @@ from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
-from blastvox.simulate.shielding import build_occupancy, typical_edge
+from blastvox.simulate.shielding import build_occupancy, refresh_occupancy, typical_edge
 from blastvox.simulate.state import (
     Contacts,
     Front,
@@ -201,6 +201,8 @@ def step(run: Run, n: int, frame_next: int) -> None:
     front = _front(charges, t0, t1)
     if bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n_bodies, front.position,
                        front.inner, front.outer, state.marks.active):
+        if not state.holding:  # a wave arrives: shielding sees the structure as it stands
+            refresh_occupancy(state.shielding, model.voxels, state.voxels, bodies)
         fracture_phase(model, state, front, s)
         if run.fire is not None:
             ignite_phase(model, state, run.fire, front, s, frame_next)

@@ -30,7 +30,7 @@ from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.clearing import clearing_of
 from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
-from blastvox.simulate.shielding import ray_blocked, refresh_occupancy
+from blastvox.simulate.shielding import ray_blocked
 from blastvox.simulate.state import Front
 
 _LIFT = 0.51  # a face's line of sight starts this many grid cells out of the face
@@ -251,7 +251,6 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
         return
     front = Front(charges.position, charges.time, charges.scale, charges.table, charges.burst,
                   reach_in, front_out)
-    refresh_occupancy(state.shielding, model.voxels, state.voxels, bodies)
     clearing = clearing_of(model, state, charges.position, state.marks.active)
     blast_impulses(front, t0, t1, boundary_of(model, state)[1], model.voxels, state.voxels,
                    bodies, state.marks.active, loads, state.shielding, clearing)

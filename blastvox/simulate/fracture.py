@@ -34,7 +34,7 @@ from blastvox.jit import helper, kernel
 from blastvox.simulate.clearing import clearing_of
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.shell import mark_in_shell
-from blastvox.simulate.shielding import refresh_occupancy, sight_line
+from blastvox.simulate.shielding import sight_line
 from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
@@ -347,7 +347,6 @@ def fracture_phase(model, state, front, settings) -> None:
     params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c,
                             s.fracture == "pressure-impulse")
     grid = state.shielding
-    refresh_occupancy(grid, model.voxels, state.voxels, state.bodies)
     clearing = clearing_of(model, state, front.position, marks.active)
     if s.fracture == "damage":
         n = fracture_damage(front, params, model.voxels, model.links, state.links,

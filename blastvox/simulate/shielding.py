@@ -14,8 +14,11 @@ an occupancy grid over the rest geometry:
 * a voxel leaves the grid when it turns to dust or when its body has moved
   more than a quarter cell from rest (debris in flight no longer shadows where
   it started; a moved body's own faces are then always directly loaded).
-  Nothing ever re-enters. This is the only update: the grid changes only where
-  something broke or moved, and every ray is cast afresh against it.
+  Nothing ever re-enters. The grid is refreshed when a wave arrives (the
+  first step a wave's front reaches a body, by the engine's step) and not
+  while it passes: a
+  wave sees the structure as it stood when it came, whatever the step, so
+  what breaks and the momenta converge in dt. Every ray is cast afresh.
 
 Rays are walked cell by cell (Amanatides & Woo 1987, "A fast voxel traversal
 algorithm for ray tracing", Eurographics), from the point towards the charge,
