@@ -89,11 +89,35 @@ def clearing_sizes(boxes, bodies, active, charge_pos, up):
 
 
 def clearing_of(model, state, charge_pos: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """:func:`clearing_sizes` of the state's bodies, with the rest boxes rebuilt only
-    after a topology change (kept in state.caches)."""
+    """(B, C, 2) :func:`clearing_sizes` of the state's bodies as they stood when the
+    current wave arrived: sizes are kept from the step a wave first reaches a body
+    (state.caches.clearing, reset by :func:`reset_clearing`), and a piece split off
+    during the wave keeps its parent's, so what a wave does does not depend on how
+    many steps it took to cross a structure."""
     caches = state.caches
-    version = state.counters.topology_version
-    if getattr(caches, "boxes_version", None) != version or caches.boxes is None:
-        caches.boxes = body_boxes(model.voxels, state.voxels, state.n_bodies)
-        caches.boxes_version = version
-    return clearing_sizes(caches.boxes, state.bodies, active, charge_pos, model.up)
+    n = state.n_bodies
+    known = caches.clearing
+    if known is None or known.shape[1] != len(charge_pos):
+        known = caches.clearing = np.full((len(state.bodies.mass), len(charge_pos), 2), np.nan)
+    missing = active[:n] & np.isnan(known[:n, 0, 0])
+    if missing.any():
+        inherit = missing & (state.bodies.parent[:n] >= 0)
+        for b in np.flatnonzero(inherit):  # a split's pieces are born in parent order
+            parent = state.bodies.parent[b]
+            if not np.isnan(known[parent, 0, 0]):
+                known[b] = known[parent]
+        missing = active[:n] & np.isnan(known[:n, 0, 0])
+    if missing.any():
+        version = state.counters.topology_version
+        if caches.boxes is None or caches.boxes_version != version:
+            caches.boxes = body_boxes(model.voxels, state.voxels, n)
+            caches.boxes_version = version
+        sizes = clearing_sizes(caches.boxes, state.bodies, missing, charge_pos, model.up)
+        known[:n][missing] = sizes[missing]
+    return known
+
+
+def reset_clearing(state) -> None:
+    """Forget the clearing sizes: a new wave arrives."""
+    if state.caches.clearing is not None:
+        state.caches.clearing[:] = np.nan

@@ -41,6 +41,7 @@ from blastvox.model import VoxelModel
 from blastvox.particles import particle_meta
 from blastvox.simulate import cues
 from blastvox.simulate.bodies import aggregate, inverse_inertia
+from blastvox.simulate.clearing import reset_clearing
 from blastvox.simulate.collide import begin_contacts, collide_phase
 from blastvox.simulate.effects import Effects
 from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
@@ -201,8 +202,9 @@ def step(run: Run, n: int, frame_next: int) -> None:
     front = _front(charges, t0, t1)
     if bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n_bodies, front.position,
                        front.inner, front.outer, state.marks.active):
-        if not state.holding:  # a wave arrives: shielding sees the structure as it stands
+        if not state.holding:  # a wave arrives: it sees the structure as it stands
             refresh_occupancy(state.shielding, model.voxels, state.voxels, bodies)
+            reset_clearing(state)
         fracture_phase(model, state, front, s)
         if run.fire is not None:
             ignite_phase(model, state, run.fire, front, s, frame_next)

@@ -34,7 +34,7 @@ from blastvox.jit import helper, kernel
 from blastvox.simulate.clearing import clearing_of
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.shell import mark_in_shell
-from blastvox.simulate.shielding import sight_line
+from blastvox.simulate.shielding import remove_voxel, sight_line
 from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
@@ -149,6 +149,8 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
     for link in range(link_voxels.shape[0]):
         if not candidate[link] or not link_alive[link]:
             continue
+        if not voxels.alive[link_voxels[link, 0]] or not voxels.alive[link_voxels[link, 1]]:
+            continue  # it dies with a voxel dusted this step (not counted as a break)
         b = voxel_body[link_voxels[link, 0]]
         if not active[b]:
             continue
@@ -192,11 +194,17 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
 
 
 @kernel
-def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, marks, strength,
-                    grid, clearing) -> int:
+def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, strength,
+                    grid, clearing, loads) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
-    candidate (N,): voxels that can be in a shell, the only ones tested.
+    candidate (N,): voxels that can be in a shell, the only ones tested, in order
+    of the wave's arrival (see :func:`_arrival_order`); a voxel dusted under
+    pressure-impulse fracture leaves the shielding grid at once, so the points
+    behind it see the gap (the same whatever the step), and leaves with the net
+    impulse of the wave on its face towards the charge in loads.held_p (N s,
+    replacing what it held; handed to its dust body by the split): dust carries
+    the momentum of the wave that destroyed it.
 
     Returns the number of foundation voxels that let go (the caller then
     re-checks which bodies are still fixed). marks.destroyed (N,) marks dusted
@@ -204,35 +212,22 @@ def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, ma
     """
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out, weakening = front.inner, front.outer, params.weakening
+    voxel_centroid = geometry.centroid
     voxel_alive, voxel_yield, voxel_body = voxels.alive, voxels.yield_pa, voxels.body
     voxel_foundation, voxel_foundation_yield = voxels.foundation, voxels.foundation_pa
     body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
     active, destroyed, dirty, crossed = marks.active, marks.destroyed, marks.dirty, marks.crossed
     released = 0
     n_charges = charge_pos.shape[0]
-    for v in range(voxel_centroid.shape[0]):
-        if not candidate[v] or not voxel_alive[v]:
-            continue
+    centre = np.empty(3)
+    for v in _arrival_order(front, voxel_centroid, voxels, bodies, candidate, active):
         b = voxel_body[v]
-        if not active[b]:
-            continue
-        x = voxel_centroid[v, 0] - body_com[b, 0]
-        y = voxel_centroid[v, 1] - body_com[b, 1]
-        z = voxel_centroid[v, 2] - body_com[b, 2]
-        cx = body_pos[b, 0] + body_rot[b, 0, 0] * x + body_rot[b, 0, 1] * y + body_rot[b, 0, 2] * z
-        cy = body_pos[b, 1] + body_rot[b, 1, 0] * x + body_rot[b, 1, 1] * y + body_rot[b, 1, 2] * z
-        cz = body_pos[b, 2] + body_rot[b, 2, 0] * x + body_rot[b, 2, 1] * y + body_rot[b, 2, 2] * z
+        to_world_into(body_rot[b], body_pos[b], body_com[b], voxel_centroid[v], centre)
+        cx, cy, cz = centre[0], centre[1], centre[2]
         for c in range(n_charges):
-            if front_out[c] <= 0.0:  # not detonated yet
+            r = crossing(centre, charge_pos, front_in, front_out, c)
+            if r < 0.0:
                 continue
-            dx = cx - charge_pos[c, 0]
-            dy = cy - charge_pos[c, 1]
-            dz = cz - charge_pos[c, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 > front_out[c] * front_out[c] or (front_in[c] >= 0.0
-                                                    and r2 <= front_in[c] * front_in[c]):
-                continue
-            r = math.sqrt(r2)
             if params.pressure_impulse:
                 peak, imp, depth = element_load(front, c, r, cx, cy, cz, grid, clearing[b, c, 0],
                                                 clearing[b, c, 1])
@@ -246,6 +241,14 @@ def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, ma
                 voxel_alive[v] = False
                 destroyed[v] = True
                 dirty[b] = True
+                if params.pressure_impulse:
+                    remove_voxel(grid, geometry, v)
+                    i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
+                    area = (2.0 * geometry.contact_radius[v]) ** 2
+                    for a in range(3):
+                        loads.held_p[v, a] = (imp - i_neg) * area * (centre[a]
+                                                                     - charge_pos[c, a]) / r
+                        loads.held_l[v, a] = 0.0
                 break
             voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * peak)
             if voxel_foundation[v]:
@@ -254,6 +257,37 @@ def fracture_voxels(front, params, voxel_centroid, voxels, bodies, candidate, ma
                     voxel_foundation[v] = False
                     released += 1
     return released
+
+
+@helper
+def _arrival_order(front, voxel_centroid, voxels, bodies, candidate, active):
+    """The alive candidate voxels of active bodies that a front crosses this step, in
+    order of the earliest crossing front's arrival time there (its time of
+    detonation plus the arrival time at that distance), ties by index."""
+    n = voxel_centroid.shape[0]
+    ids = np.empty(n, dtype=np.int64)
+    when = np.empty(n)
+    count = 0
+    centre = np.empty(3)
+    for v in range(n):
+        if not candidate[v] or not voxels.alive[v]:
+            continue
+        b = voxels.body[v]
+        if not active[b]:
+            continue
+        to_world_into(bodies.rot[b], bodies.pos[b], bodies.com[b], voxel_centroid[v], centre)
+        first = np.inf
+        for c in range(front.position.shape[0]):
+            r = crossing(centre, front.position, front.inner, front.outer, c)
+            if r >= 0.0:
+                ta = face_params_at(front.table, front.burst[c], r, front.scale[c])[1]
+                first = min(first, front.time[c] + ta)
+        if first < np.inf:
+            ids[count] = v
+            when[count] = first
+            count += 1
+    order = np.argsort(when[:count], kind="mergesort")
+    return ids[:count][order]
 
 
 @kernel
@@ -348,19 +382,22 @@ def fracture_phase(model, state, front, settings) -> None:
                             s.fracture == "pressure-impulse")
     grid = state.shielding
     clearing = clearing_of(model, state, front.position, marks.active)
+    released = fracture_voxels(
+        front, params, model.voxels, state.voxels, state.bodies,
+        _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
+                    state.scratch.voxel_candidate, front), marks, model.strength, grid, clearing,
+        state.loads)
+    if params.pressure_impulse and marks.destroyed.any():
+        state.holding = True  # the split hands the dust its impulse (release_held)
     if s.fracture == "damage":
         n = fracture_damage(front, params, model.voxels, model.links, state.links,
                             state.voxels, state.bodies, marks)
-    else:
+    else:  # after the voxels: a link behind a voxel dusted this step sees the gap
         n = fracture_links(front, params, model.links, state.links, state.voxels, state.bodies,
                            _candidates(model, state, model.link_grid, state.scratch.link_owner,
                                        state.scratch.link_candidate, front), marks,
                            model.strength, grid, clearing)
     state.counters.broken_links += int(n)
-    released = fracture_voxels(
-        front, params, model.voxels.centroid, state.voxels, state.bodies,
-        _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
-                    state.scratch.voxel_candidate, front), marks, model.strength, grid, clearing)
     if released:
         refresh_fixed(state.voxels, state.bodies)
         if state.holding:

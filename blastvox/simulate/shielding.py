@@ -14,11 +14,12 @@ an occupancy grid over the rest geometry:
 * a voxel leaves the grid when it turns to dust or when its body has moved
   more than a quarter cell from rest (debris in flight no longer shadows where
   it started; a moved body's own faces are then always directly loaded).
-  Nothing ever re-enters. The grid is refreshed when a wave arrives (the
-  first step a wave's front reaches a body, by the engine's step) and not
-  while it passes: a
-  wave sees the structure as it stood when it came, whatever the step, so
-  what breaks and the momenta converge in dt. Every ray is cast afresh.
+  Nothing ever re-enters. Moved pieces leave the grid when a wave arrives
+  (the first step a wave's front reaches a body, by the engine's step), not
+  while it passes: they move little within a wave. A voxel turned to dust
+  leaves at once, and fracture takes the points a step's front crosses in
+  order of distance from the charge, so a point behind a voxel the same wave
+  pulverized sees the gap whatever the step. Every ray is cast afresh.
 
 Rays are walked cell by cell (Amanatides & Woo 1987, "A fast voxel traversal
 algorithm for ray tracing", Eurographics), from the point towards the charge,
@@ -115,30 +116,38 @@ def refresh_occupancy(grid, geometry, voxels, bodies) -> int:
     """Take out of the grid the voxels that are dust or whose body has moved more
     than a quarter cell from rest; returns how many left. geometry: the model's
     VoxelGeometry; voxels, bodies: the state's."""
-    vertices, corners, centroid = geometry.vertices, geometry.corners, geometry.centroid
     member, alive, voxel_body = grid.member, voxels.alive, voxels.body
     tolerance = 0.25 * grid.cell[0]
-    lo = np.empty((1, 3))
-    hi = np.empty((1, 3))
-    one = np.empty((1, 3))
     removed = 0
     for v in range(member.shape[0]):
         if not member[v]:
             continue
         if alive[v] and not moved(bodies, voxel_body[v], tolerance):
             continue
-        for a in range(3):
-            lo[0, a] = _HUGE
-            hi[0, a] = -_HUGE
-            for c in range(8):
-                x = vertices[corners[v, c], a]
-                lo[0, a] = min(lo[0, a], x)
-                hi[0, a] = max(hi[0, a], x)
-            one[0, a] = centroid[v, a]
-        _cover(grid, lo, hi, one, 0, -1)
-        member[v] = False
+        remove_voxel(grid, geometry, v)
         removed += 1
     return removed
+
+
+@helper
+def remove_voxel(grid, geometry, v) -> None:
+    """Take voxel v out of the grid (if it is in)."""
+    if not grid.member[v]:
+        return
+    vertices, corners, centroid = geometry.vertices, geometry.corners, geometry.centroid
+    lo = np.empty((1, 3))
+    hi = np.empty((1, 3))
+    one = np.empty((1, 3))
+    for a in range(3):
+        lo[0, a] = _HUGE
+        hi[0, a] = -_HUGE
+        for c in range(8):
+            x = vertices[corners[v, c], a]
+            lo[0, a] = min(lo[0, a], x)
+            hi[0, a] = max(hi[0, a], x)
+        one[0, a] = centroid[v, a]
+    _cover(grid, lo, hi, one, 0, -1)
+    grid.member[v] = False
 
 
 @helper

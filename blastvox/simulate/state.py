@@ -151,7 +151,9 @@ class Caches:
     None after a topology change; version counts rebuilds. rest: the rest-grid
     hash of the boundary (version rest_version). static: the hash of resting
     bodies' voxels, for ``static_key``. boxes: each body's rest bounding box
-    (:func:`blastvox.simulate.clearing.body_boxes`) at topology boxes_version."""
+    (:func:`blastvox.simulate.clearing.body_boxes`) at topology boxes_version;
+    clearing: each body's clearing sizes for the current wave (see
+    :func:`blastvox.simulate.clearing.clearing_of`)."""
 
     boundary: tuple | None = None
     version: int = 0
@@ -161,6 +163,7 @@ class Caches:
     static_key: tuple | None = None
     boxes: np.ndarray | None = None
     boxes_version: int = -1
+    clearing: np.ndarray | None = None
 
 
 @dataclass
