@@ -46,7 +46,7 @@ def shots(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Path]
     model.save(tmp / "model.npz")
     out: dict[str, dict[str, Path]] = {"model": {"npz": tmp / "model.npz"}}
     # "moved": the charge moved, so the debris flies visibly differently
-    for name, x, kg in (("base", 0.0, 20.0), ("moved", 0.3, 20.0)):
+    for name, x, kg in (("base", 0.0, 8.0), ("moved", 0.3, 8.0)):
         cache = simulate(model, SimSettings(duration=0.3, fps=24,
                                             charges=(ChargeSpec((x, -3.0, 0.5), kg),)))
         folder = tmp / name
