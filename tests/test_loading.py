@@ -150,3 +150,13 @@ def test_same_peak_different_impulse(tmp_path, charge_kg, distance, breaches):
         assert broken > 0.5 * links, (broken, links)
     else:
         assert broken == 0, (broken, links)
+
+
+def test_charge_inside_solid_warns_once_naming_it(tmp_path):
+    model = _model(tmp_path, [((2.0, 2.0, 2.0), (0.0, 0.0, 0.0))], 0.5)
+    warnings: list[str] = []
+    simulate(model, _free(duration=0.05, charges=(ChargeSpec((5.0, 0.0, 0.0), 1.0),
+                                                   ChargeSpec((0.1, 0.1, 0.1), 1.0))),
+             warn=warnings.append)
+    buried = [w for w in warnings if "inside solid voxels" in w]
+    assert len(buried) == 1 and buried[0].startswith("charge 1 at (0.1, 0.1, 0.1) m")

@@ -62,7 +62,12 @@ from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import SimSettings, gravity_vector
-from blastvox.simulate.shielding import build_occupancy, refresh_occupancy, typical_edge
+from blastvox.simulate.shielding import (
+    build_occupancy,
+    inside_solid,
+    refresh_occupancy,
+    typical_edge,
+)
 from blastvox.simulate.state import (
     Contacts,
     Front,
@@ -298,6 +303,11 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
     per_frame = settings.steps_per_frame()
     frames = settings.frame_count()
     total_steps = (frames - 1) * per_frame
+    for c, position in enumerate(run.charges.position):
+        if inside_solid(state.shielding, position):
+            warn(f"charge {c} at ({position[0]:g}, {position[1]:g}, {position[2]:g}) m is inside "
+                 "solid voxels: its wave reaches no face in line of sight (a buried charge "
+                 "is not modelled); move it into the air")
     limits = LimitMonitor(run.model, settings, dt)  # warns once per limit the run passes
     counts, counted = _alive_counts(run), state.counters.topology_version
     run.recorder.frame(0, state, counts, run.charges.front_radius(0.0))

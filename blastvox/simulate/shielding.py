@@ -258,6 +258,18 @@ def sight_line(grid, px, py, pz, qx, qy, qz, skip_own):
 
 
 @kernel
+def inside_solid(grid, point) -> bool:
+    """Is ``point`` (3,) m in an occupied cell of the grid?"""
+    idx = np.empty(3, dtype=np.int64)
+    for a in range(3):
+        x = (point[a] - grid.origin[a]) / grid.cell[0]
+        if not x >= 0.0 or x >= grid.dims[a]:
+            return False
+        idx[a] = int(x)
+    return _occupied(grid, idx[0], idx[1], idx[2])
+
+
+@kernel
 def rays_blocked(grid, points, target, skip_own):
     """:func:`ray_blocked` from each of points (P, 3) to target (3,), m (for tests and
     tools); returns (P,) bool."""
