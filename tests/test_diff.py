@@ -1,8 +1,10 @@
 """``blastvox diff``: golden-file comparison of .npz, USD and glTF caches within tolerances.
 
-A small real shot (a 1 x 0.5 x 1 m brick wall, 0.25 m voxels, a 1 kg charge 3 m in front
-for 0.3 s, so the pieces fly off) is simulated twice: once as the golden shot and once with
-the charge moved 0.3 m sideways (the "real change"). Both are exported to .usda, .usdc,
+A small real shot (a 1 x 0.5 x 1 m brick wall, 0.25 m voxels, an 80 kg charge 4 m in front
+for 0.3 s, so the wall breaks and pieces fly off) is simulated twice: once as the golden
+shot and once with the charge moved 0.1 m sideways (the "real change": the same pieces
+break off and turn to dust in the same frames, so the files have the same structure,
+but the surviving pieces fly differently). Both are exported to .usda, .usdc,
 .glb and .gltf. Perturbed copies are made by editing one value in the file's own data: an
 npz array rewritten with write_npz, one USD time sample edited through Sdf, one float in
 the glTF binary buffer.
@@ -46,9 +48,9 @@ def shots(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Path]
     model.save(tmp / "model.npz")
     out: dict[str, dict[str, Path]] = {"model": {"npz": tmp / "model.npz"}}
     # "moved": the charge moved, so the debris flies visibly differently
-    for name, x, kg in (("base", 0.0, 8.0), ("moved", 0.3, 8.0)):
+    for name, x, kg in (("base", 0.0, 80.0), ("moved", 0.1, 80.0)):
         cache = simulate(model, SimSettings(duration=0.3, fps=24,
-                                            charges=(ChargeSpec((x, -3.0, 0.5), kg),)))
+                                            charges=(ChargeSpec((x, -4.0, 0.5), kg),)))
         folder = tmp / name
         folder.mkdir()
         out[name] = {"npz": folder / "sim.npz"}
@@ -59,6 +61,9 @@ def shots(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Path]
     base = SimCache.load(out["base"]["npz"])
     moved = SimCache.load(out["moved"]["npz"])
     assert base.piece_count == moved.piece_count
+    assert np.array_equal(base.piece_end_frame, moved.piece_end_frame), \
+        "the same pieces must vanish in the same frames, so the exports have the same layout"
+    assert (base.piece_end_frame == base.frame_count).any(), "some piece must survive"
     assert np.abs(base.piece_position - moved.piece_position).max() > 0.01, \
         "the moved charge must change the motion"
     return out

@@ -160,3 +160,54 @@ def test_charge_inside_solid_warns_once_naming_it(tmp_path):
              warn=warnings.append)
     buried = [w for w in warnings if "inside solid voxels" in w]
     assert len(buried) == 1 and buried[0].startswith("charge 1 at (0.1, 0.1, 0.1) m")
+
+
+def _room(open_side: bool, inner: float = 3.0, t: float = 0.5):
+    """Six concrete slabs (separate objects) closing a cube room of ``inner`` m."""
+    out = inner + 2 * t
+    half = out / 2 - t / 2
+    slabs = [((out, out, t), (0, 0, -half)), ((out, out, t), (0, 0, half)),
+             ((t, out, inner), (-half, 0, 0)), ((t, out, inner), (half, 0, 0)),
+             ((inner, t, inner), (0, -half, 0))]
+    if not open_side:
+        slabs.append(((inner, t, inner), (0, half, 0)))
+    return slabs
+
+
+def test_gas_pressure_follows_ufc_fig_2_152():
+    from blastvox.blast.confinement import _LOADING, _PRESSURE, gas_pressure, vent_time
+
+    for w_over_v, p in zip(_LOADING, _PRESSURE, strict=True):
+        assert gas_pressure(w_over_v * 10.0, 10.0) == pytest.approx(p, rel=1e-9)
+    loads = np.logspace(-3, 2, 50)
+    pressures = [gas_pressure(x, 1.0) for x in loads]
+    assert all(b > a for a, b in zip(pressures, pressures[1:], strict=False))
+    assert gas_pressure(1.0, 0.0) == 0.0 and vent_time(27.0) == pytest.approx(2 * 3.0 / 340.29,
+                                                                              rel=1e-3)
+
+
+def test_charge_in_a_sealed_room_blows_its_walls_out(tmp_path):
+    """The same 2 kg in a closed 3 m concrete room and in the room with one wall
+    missing: only the closed room holds gas (UFC 3-340-02 Fig 2-152 for 2 kg over
+    27 m^3), and its walls leave an order of magnitude faster."""
+    from blastvox.blast.confinement import gas_pressure
+
+    speeds = {}
+    for open_side in (False, True):
+        model = _model(tmp_path, _room(open_side), 0.5, material="concrete")
+        cache = simulate(model, _free(duration=0.2, charges=(
+            ChargeSpec((0.0, 0.0, 0.0), 2.0, burst="air"),)))
+        rooms = cache.meta["confinement"]
+        if open_side:
+            assert rooms == []
+        else:
+            assert len(rooms) == 1 and rooms[0]["charges"] == [0]
+            assert rooms[0]["free_volume_m3"] == pytest.approx(27.0)
+            assert rooms[0]["gas_pressure_pa"] == pytest.approx(gas_pressure(2.0, 27.0))
+            assert cache.meta["broken_links"] == model.link_count  # every wall breaks
+        pos = cache.piece_position.astype(np.float64)
+        velocity = (pos[-1] - pos[-2]) * cache.meta["fps"]
+        alive = cache.piece_end_frame >= cache.frame_count
+        outward = (velocity * pos[-1]).sum(axis=1) / np.linalg.norm(pos[-1], axis=1)
+        speeds[open_side] = float(np.median(outward[alive]))
+    assert speeds[False] > 10.0 * speeds[True] > 0.0, speeds

@@ -43,6 +43,7 @@ from blastvox.simulate import cues
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.clearing import reset_clearing
 from blastvox.simulate.collide import begin_contacts, collide_phase
+from blastvox.simulate.confinement import Rooms, find_rooms, gas_phase
 from blastvox.simulate.effects import Effects
 from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
 from blastvox.simulate.forces import blast_phase
@@ -57,6 +58,7 @@ from blastvox.simulate.kernels import (
     link_alive_counts,
     link_masks,
     settle,
+    wake_on_impulse,
 )
 from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
@@ -155,7 +157,9 @@ class Run:
     """One run: the model, its state, the charges and settings, and what records it.
 
     ground: the plane's height (m along up) or None without one; fire: fire's
-    memory, or None when nothing in the scene can burn (or fire is off)."""
+    memory, or None when nothing in the scene can burn (or fire is off); rooms:
+    the closed rooms of confined charges (:mod:`blastvox.simulate.confinement`)
+    or None, and gas (C, 2) their charges' gas pressures and vent times."""
 
     model: SimModel
     state: State
@@ -168,6 +172,8 @@ class Run:
     recorder: Recorder
     effects: Effects
     fire: Fire | None
+    rooms: Rooms | None = None
+    gas: np.ndarray | None = None
 
     @classmethod
     def start(cls, model: VoxelModel, settings: SimSettings) -> Run:
@@ -186,7 +192,8 @@ class Run:
                               state.voxels.yield_pa.copy()),
             effects=Effects(settings.budgets, settings.seed, len(charges.tnt_kg)),
             # model only what the scene needs: no combustible material, no fire
-            fire=Fire.start(state) if settings.fire and combustible else None)
+            fire=Fire.start(state) if settings.fire and combustible else None,
+            **_rooms(sm, state, charges))
 
     def effects_on(self) -> dict[str, bool]:
         """Which effects this run models (stored in the SimCache meta)."""
@@ -195,6 +202,16 @@ class Run:
                 "fire": self.fire is not None, "dust": s.dust, "fireball": s.fireball,
                 "shock_sphere": s.shock_sphere,
                 "camera_shake": s.camera_shake and s.camera is not None}
+
+
+def _rooms(sm: SimModel, state: State, charges: Charges) -> dict:
+    """Run.start's rooms and gas: the closed rooms of confined charges, if any."""
+    box = sm.voxels.vertices[sm.voxels.corners]
+    half = 0.5 * (box.max(axis=1) - box.min(axis=1))
+    rooms = find_rooms(state.shielding, charges, sm.voxels.centroid, half)
+    if not rooms.any:
+        return {}
+    return {"rooms": rooms, "gas": rooms.gas()}
 
 
 def step(run: Run, n: int, frame_next: int) -> None:
@@ -210,7 +227,7 @@ def step(run: Run, n: int, frame_next: int) -> None:
         if not state.holding:  # a wave arrives: it sees the structure as it stands
             refresh_occupancy(state.shielding, model.voxels, state.voxels, bodies)
             reset_clearing(state)
-        fracture_phase(model, state, front, s)
+        fracture_phase(model, state, front, s, run.gas)
         if run.fire is not None:
             ignite_phase(model, state, run.fire, front, s, frame_next)
         split(run, n, t1, frame_next)
@@ -225,6 +242,9 @@ def step(run: Run, n: int, frame_next: int) -> None:
     if s.dust and run.ground is not None:
         run.effects.ground_ring(model, charges, run.ground, t1, front.outer, dt)
     blast_phase(model, state, charges, t0, t1, front.outer)
+    if run.rooms is not None:
+        gas_phase(model, state, run.rooms, t0, t1)
+        wake_on_impulse(state.loads.impulse, state.loads.angular, bodies.asleep, n_bodies)
     if not any_moving(bodies.live, bodies.fixed, bodies.dust, bodies.asleep, state.n_bodies):
         _still_step(run)
         return
@@ -256,6 +276,8 @@ def split(run: Run, n: int, t1: float, frame_next: int) -> None:
     broken, destroyed = split_phase(run.model, state, n)
     if not broken.size and not destroyed.size:
         return
+    if run.rooms is not None:  # a room whose wall broke vents
+        run.rooms.vent(np.concatenate([run.model.links.voxels[broken].ravel(), destroyed]), t1)
     run.recorder.link_breaks(broken, t1)
     run.recorder.voxels_destroyed(destroyed, t1, frame_next, state, run.model.voxels.mass)
     if run.settings.dust and destroyed.size:
@@ -362,6 +384,7 @@ def _cache(run: Run, model: VoxelModel, frames: int, per_frame: int,
             "ground_contacts": counters.ground_contacts, "collisions": counters.collisions,
             "effects": run.effects_on(), "gravity_vector": run.gravity.tolist(),
             "particle_systems": particle_meta(),
-            "camera": settings.to_dict()["camera"]}
+            "camera": settings.to_dict()["camera"],
+            "confinement": [] if run.rooms is None else run.rooms.meta()}
     # wall time is reported by the CLI, never stored: caches must be byte-identical
     return SimCache(arrays=arrays, model=model, meta=meta)

@@ -55,6 +55,25 @@ def _push(px, py, pz, j, vec_area, weight, pivot, out_p, out_l, b):
 
 
 @helper
+def face_area_into(vertices, voxel_vertices, v, f, out) -> None:
+    """Outward vector area (m^2, rest frame) of cube face f of voxel v into out (3,):
+    half the cross product of the quad's diagonals."""
+    q0 = voxel_vertices[v, FACE_CORNERS[f, 0]]
+    q1 = voxel_vertices[v, FACE_CORNERS[f, 1]]
+    q2 = voxel_vertices[v, FACE_CORNERS[f, 2]]
+    q3 = voxel_vertices[v, FACE_CORNERS[f, 3]]
+    d1x = vertices[q2, 0] - vertices[q0, 0]
+    d1y = vertices[q2, 1] - vertices[q0, 1]
+    d1z = vertices[q2, 2] - vertices[q0, 2]
+    d2x = vertices[q3, 0] - vertices[q1, 0]
+    d2y = vertices[q3, 1] - vertices[q1, 1]
+    d2z = vertices[q3, 2] - vertices[q1, 2]
+    out[0] = 0.5 * (d1y * d2z - d1z * d2y)
+    out[1] = 0.5 * (d1z * d2x - d1x * d2z)
+    out[2] = 0.5 * (d1x * d2y - d1y * d2x)
+
+
+@helper
 def _sight(grid, point, area, charge_pos, c) -> bool:
     """Is the line from a face (centre ``point``, outward vector area ``area``) to charge
     c clear of solid? (Starts just outside the face: a face pressed against another
@@ -187,20 +206,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
             for f in range(6):
                 if not (exposed >> f) & 1:
                     continue
-                q0 = voxel_vertices[v, FACE_CORNERS[f, 0]]
-                q1 = voxel_vertices[v, FACE_CORNERS[f, 1]]
-                q2 = voxel_vertices[v, FACE_CORNERS[f, 2]]
-                q3 = voxel_vertices[v, FACE_CORNERS[f, 3]]
-                # vector area of the quad = half the cross product of its diagonals
-                d1x = vertices[q2, 0] - vertices[q0, 0]
-                d1y = vertices[q2, 1] - vertices[q0, 1]
-                d1z = vertices[q2, 2] - vertices[q0, 2]
-                d2x = vertices[q3, 0] - vertices[q1, 0]
-                d2y = vertices[q3, 1] - vertices[q1, 1]
-                d2z = vertices[q3, 2] - vertices[q1, 2]
-                rest_area[0] = 0.5 * (d1y * d2z - d1z * d2y)
-                rest_area[1] = 0.5 * (d1z * d2x - d1x * d2z)
-                rest_area[2] = 0.5 * (d1x * d2y - d1y * d2x)
+                face_area_into(vertices, voxel_vertices, v, f, rest_area)
                 rotate_into(rot, rest_area, area)
                 for a in range(3):
                     point[a] = 0.0

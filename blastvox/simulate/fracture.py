@@ -52,17 +52,33 @@ class FractureParams(NamedTuple):
     pressure_impulse: bool
 
 
+class Exposure(NamedTuple):
+    """What decides an element's load besides the wave: grid, the shielding
+    :class:`~blastvox.simulate.shielding.Occupancy`; clearing (B, C, 2), each
+    body's silhouette half-extents S, G from each charge, m; gas (C, 2), each
+    charge's room gas pressure (Pa) and vent time (s), zeros if it is not confined
+    (:mod:`blastvox.simulate.confinement`)."""
+
+    grid: object
+    clearing: np.ndarray
+    gas: np.ndarray
+
+
 REFERENCE_THICKNESS = 0.25  #: m: the element thickness a material's impulse asymptote is for
 
 
 @helper
-def element_load(front, c, r, px, py, pz, grid, s_clear, g_clear):
+def element_load(front, c, r, px, py, pz, exposure, b, gas_too):
     """(peak overpressure Pa, positive impulse Pa s, depth m) that the wave of charge c
-    puts on the element holding point p (in solid, at r m from the charge): the
-    face load (:func:`blastvox.blast.face_load.face_load_nb`) of the surface the
-    line from p to the charge leaves the element through, at that surface's angle
-    of incidence, or the diffracted load if solid shields the element; depth: p's
-    depth below that surface (half a grid cell when p is not in the grid)."""
+    puts on the element holding point p (in solid, at r m from the charge, in body
+    b): the face load (:func:`blastvox.blast.face_load.face_load_nb`) of the surface
+    the line from p to the charge leaves the element through, at that surface's
+    angle of incidence, or the diffracted load if solid shields the element; a
+    confined charge's gas adds a sustained load (max(P, P_gas), I + P_gas tau) in
+    line of sight if ``gas_too`` (for links: gas breaks walls, it does not pulverize
+    them); depth: p's depth below that surface (half a grid cell when p is
+    not in the grid)."""
+    grid = exposure.grid
     qx, qy, qz = front.position[c, 0], front.position[c, 1], front.position[c, 2]
     blocked, axis, depth = sight_line(grid, px, py, pz, qx, qy, qz, True)
     cos_a = 1.0
@@ -70,10 +86,14 @@ def element_load(front, c, r, px, py, pz, grid, s_clear, g_clear):
         cos_a = abs((qx - px) if axis == 0 else ((qy - py) if axis == 1 else (qz - pz))) / r
     if axis < 0:
         depth = 0.5 * grid.cell[0]
-    (ps, _, td, b, imp, pr, ir, q, u, _, _,
+    (ps, _, td, bb, imp, pr, ir, q, u, _, _,
      _) = face_params_at(front.table, front.burst[c], r, front.scale[c])
-    i_pos, p_peak = face_load_nb((ps, td, b, imp, pr, ir, q, u), cos_a, not blocked, s_clear,
-                                 g_clear)
+    i_pos, p_peak = face_load_nb((ps, td, bb, imp, pr, ir, q, u), cos_a, not blocked,
+                                 exposure.clearing[b, c, 0], exposure.clearing[b, c, 1])
+    gas = exposure.gas[c, 0]
+    if gas_too and gas > 0.0 and not blocked:
+        p_peak = max(p_peak, gas)
+        i_pos += gas * exposure.gas[c, 1]
     return p_peak, i_pos, depth
 
 
@@ -124,7 +144,7 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
 
 @kernel
 def fracture_links(front, params, geometry, links, voxels, bodies, candidate, marks,
-                   strength, grid, clearing) -> int:
+                   strength, exposure) -> int:
     """Break or weaken links crossed by a front this step; returns the number broken.
 
     geometry: the model's LinkGeometry. marks.active (B,): bodies a front's
@@ -133,8 +153,8 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
     marks.broken (L,) is set True for links broken now, marks.dirty (B,) for
     their bodies. With params.pressure_impulse, a link breaks by
     :func:`pi_exceeded` on :func:`element_load` (strength: the model's
-    :class:`~blastvox.simulate.model.Strength`; grid: the shielding occupancy;
-    clearing (B, C, 2)); else by the incident peak alone.
+    :class:`~blastvox.simulate.model.Strength`; exposure: an :class:`Exposure`);
+    else by the incident peak alone.
     """
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out = front.inner, front.outer
@@ -175,8 +195,7 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
             limit = oriented_yield(link_yield[link], orientation, body_rot, b, link_direction,
                                    link, dx, dy, dz, r)
             if params.pressure_impulse:
-                peak, imp, depth = element_load(front, c, r, mx, my, mz, grid, clearing[b, c, 0],
-                                                clearing[b, c, 1])
+                peak, imp, depth = element_load(front, c, r, mx, my, mz, exposure, b, True)
                 owner = link_voxels[link, 0]
                 i0 = strength.link_impulse[owner] * max(2.0 * depth, 0.0) / REFERENCE_THICKNESS
                 breaks = pi_exceeded(peak, imp, limit, i0, strength.pi_shape[owner])
@@ -195,7 +214,7 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
 
 @kernel
 def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, strength,
-                    grid, clearing, loads) -> int:
+                    exposure, loads) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
     candidate (N,): voxels that can be in a shell, the only ones tested, in order
@@ -229,8 +248,7 @@ def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, s
             if r < 0.0:
                 continue
             if params.pressure_impulse:
-                peak, imp, depth = element_load(front, c, r, cx, cy, cz, grid, clearing[b, c, 0],
-                                                clearing[b, c, 1])
+                peak, imp, depth = element_load(front, c, r, cx, cy, cz, exposure, b, False)
                 i0 = strength.voxel_impulse[v] * max(2.0 * depth, 0.0) / REFERENCE_THICKNESS
                 breaks = pi_exceeded(peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
             else:
@@ -242,7 +260,7 @@ def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, s
                 destroyed[v] = True
                 dirty[b] = True
                 if params.pressure_impulse:
-                    remove_voxel(grid, geometry, v)
+                    remove_voxel(exposure.grid, geometry, v)
                     i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
                     area = (2.0 * geometry.contact_radius[v]) ** 2
                     for a in range(3):
@@ -364,14 +382,15 @@ def fracture_damage(front, params, geometry, link_geometry, links, voxels, bodie
     return count
 
 
-def fracture_phase(model, state, front, settings) -> None:
+def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None) -> None:
     """Phase: links and voxels the fronts cross this step break, dust or weaken.
 
     Reads the front (a :class:`~blastvox.simulate.state.Front`), the bodies'
     poses and marks.active; writes links (alive, yield), voxels (alive, yield,
     foundation, damage), marks (broken, destroyed, crossed, dirty; cleared
     first) and, when a foundation lets go, bodies.fixed and the held impulses.
-    ``settings``: the run's SimSettings (fracture model and its constants).
+    ``settings``: the run's SimSettings (fracture model and its constants); gas
+    (C, 2): the charges' room gas pressures and vent times (see :class:`Exposure`).
     """
     marks, s = state.marks, settings
     marks.broken[:] = False
@@ -380,12 +399,12 @@ def fracture_phase(model, state, front, settings) -> None:
     marks.dirty[:state.n_bodies] = False
     params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c,
                             s.fracture == "pressure-impulse")
-    grid = state.shielding
-    clearing = clearing_of(model, state, front.position, marks.active)
+    exposure = Exposure(state.shielding, clearing_of(model, state, front.position, marks.active),
+                        np.zeros((len(front.time), 2)) if gas is None else gas)
     released = fracture_voxels(
         front, params, model.voxels, state.voxels, state.bodies,
         _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
-                    state.scratch.voxel_candidate, front), marks, model.strength, grid, clearing,
+                    state.scratch.voxel_candidate, front), marks, model.strength, exposure,
         state.loads)
     if params.pressure_impulse and marks.destroyed.any():
         state.holding = True  # the split hands the dust its impulse (release_held)
@@ -396,7 +415,7 @@ def fracture_phase(model, state, front, settings) -> None:
         n = fracture_links(front, params, model.links, state.links, state.voxels, state.bodies,
                            _candidates(model, state, model.link_grid, state.scratch.link_owner,
                                        state.scratch.link_candidate, front), marks,
-                           model.strength, grid, clearing)
+                           model.strength, exposure)
     state.counters.broken_links += int(n)
     if released:
         refresh_fixed(state.voxels, state.bodies)
