@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from blastvox.jit import kernel
+from blastvox.simulate.state import Exposure
 
 
 @kernel
@@ -118,6 +119,21 @@ def clearing_of(model, state, charge_pos: np.ndarray, active: np.ndarray) -> np.
 
 
 def reset_clearing(state) -> None:
-    """Forget the clearing sizes: a new wave arrives."""
+    """Forget the clearing sizes and the lines of sight: a new wave arrives."""
     if state.caches.clearing is not None:
         state.caches.clearing[:] = np.nan
+    if state.caches.sight is not None:
+        state.caches.sight[:] = 0
+
+
+def exposure_of(model, state, charge_pos: np.ndarray, active: np.ndarray,
+                gas: np.ndarray | None) -> Exposure:
+    """The :class:`~blastvox.simulate.state.Exposure` of the current wave: the shielding
+    grid, :func:`clearing_of`, the charges' gas (zeros if None) and the faces' sight
+    cache (kept in state.caches, reset with the clearing by :func:`reset_clearing`)."""
+    caches = state.caches
+    n_charges = len(charge_pos)
+    if caches.sight is None or caches.sight.shape[1] != n_charges:
+        caches.sight = np.zeros((state.shielding.member.shape[0], n_charges, 7), dtype=np.int8)
+    return Exposure(state.shielding, clearing_of(model, state, charge_pos, active),
+                    np.zeros((n_charges, 2)) if gas is None else gas, caches.sight)

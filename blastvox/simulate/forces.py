@@ -28,7 +28,7 @@ from blastvox.geometry.transforms_nb import rotate_into, to_world_into
 from blastvox.geometry.voxel_faces import FACE_CORNERS
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
-from blastvox.simulate.clearing import clearing_of
+from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
 from blastvox.simulate.shielding import ray_blocked
 from blastvox.simulate.state import Front
@@ -88,6 +88,16 @@ def _sight(grid, point, area, charge_pos, c) -> bool:
 
 
 @helper
+def _cached_sight(sight, v, c, f, grid, point, area, charge_pos) -> bool:
+    """:func:`_sight` of face f of voxel v, cast once per wave (sight (N, C, 7))."""
+    known = sight[v, c, f]
+    if known == 0:
+        known = 1 if _sight(grid, point, area, charge_pos, c) else 2
+        sight[v, c, f] = known
+    return known == 1
+
+
+@helper
 def _point_load(front, c, px, py, pz, t0, t1, out):
     """The wave of charge c at point p: out[0] distance m, out[1:4] unit radius,
     out[4] positive step fraction, out[5] negative step fraction, out[6:15] ps, td, b,
@@ -126,8 +136,8 @@ def _face_impulse(load, area, direct, s_clear, g_clear) -> float:
 
 
 @kernel
-def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, loads, grid,
-                   clearing) -> None:
+def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, loads,
+                   exposure) -> None:
     """Accumulate the blast impulse (N s) and angular impulse (N m s) of [t0, t1] per body.
 
     Into loads.impulse and loads.angular (B, 3). boundary (M,): the voxels with an
@@ -135,9 +145,9 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
     front.outer (C,): shock radius at t1 (m); front.inner (C,): radius behind
     which the whole wave (positive and negative phase) has passed by t0.
     Points outside that shell, and bodies not flagged in ``active`` (B,), are
-    skipped without evaluating the blast model. grid: the shielding
-    :class:`~blastvox.simulate.shielding.Occupancy`; clearing (B, C, 2): each
-    body's silhouette half-extents S, G from each charge, m.
+    skipped without evaluating the blast model. exposure: an
+    :class:`~blastvox.simulate.state.Exposure` (shielding grid, clearing sizes,
+    and the faces' lines of sight, each cast once per wave).
 
     A fixed body takes no momentum, but its voxels keep what the wave gave them
     in held_p (N, 3) (N s) and held_l (N, 3) (N m s, about the voxel's centroid):
@@ -156,6 +166,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
     body_fixed, body_live, body_dust = bodies.fixed, bodies.live, bodies.dust
     out_p, out_l, held_p, held_l = loads.impulse, loads.angular, loads.held_p, loads.held_l
     n_charges = charge_pos.shape[0]
+    grid, clearing, sight = exposure.grid, exposure.clearing, exposure.sight
     point = np.empty(3)
     area = np.empty(3)
     rest_area = np.empty(3)
@@ -198,7 +209,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                     if not _point_load(front, c, point[0], point[1], point[2], t0, t1,
                                        corner_load[0]):
                         continue
-                    direct = _sight(grid, point, area, charge_pos, c)
+                    direct = _cached_sight(sight, v, c, f, grid, point, area, charge_pos)
                     j = _face_impulse(corner_load[0], area, direct, s_clear, g_clear)
                     _push(point[0], point[1], point[2], j, area, 1.0, pivot, acc_p, acc_l, index)
                 continue
@@ -224,7 +235,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                     loaded = loaded or corner_state[q] > 0
                 if not loaded:
                     continue
-                direct = _sight(grid, point, area, charge_pos, c)
+                direct = _cached_sight(sight, v, c, f, grid, point, area, charge_pos)
                 for n in range(4):
                     q = FACE_CORNERS[f, n]
                     if corner_state[q] < 0:
@@ -257,8 +268,8 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
         return
     front = Front(charges.position, charges.time, charges.scale, charges.table, charges.burst,
                   reach_in, front_out)
-    clearing = clearing_of(model, state, charges.position, state.marks.active)
+    exposure = exposure_of(model, state, charges.position, state.marks.active, None)
     blast_impulses(front, t0, t1, boundary_of(model, state)[1], model.voxels, state.voxels,
-                   bodies, state.marks.active, loads, state.shielding, clearing)
+                   bodies, state.marks.active, loads, exposure)
     state.holding = True
     wake_on_impulse(loads.impulse, loads.angular, bodies.asleep, n)

@@ -31,7 +31,7 @@ import numpy as np
 from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel
-from blastvox.simulate.clearing import clearing_of
+from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.shielding import remove_voxel, sight_line
@@ -50,18 +50,6 @@ class FractureParams(NamedTuple):
     damage_b: float
     damage_c: float
     pressure_impulse: bool
-
-
-class Exposure(NamedTuple):
-    """What decides an element's load besides the wave: grid, the shielding
-    :class:`~blastvox.simulate.shielding.Occupancy`; clearing (B, C, 2), each
-    body's silhouette half-extents S, G from each charge, m; gas (C, 2), each
-    charge's room gas pressure (Pa) and vent time (s), zeros if it is not confined
-    (:mod:`blastvox.simulate.confinement`)."""
-
-    grid: object
-    clearing: np.ndarray
-    gas: np.ndarray
 
 
 REFERENCE_THICKNESS = 0.25  #: m: the element thickness a material's impulse asymptote is for
@@ -153,7 +141,8 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
     marks.broken (L,) is set True for links broken now, marks.dirty (B,) for
     their bodies. With params.pressure_impulse, a link breaks by
     :func:`pi_exceeded` on :func:`element_load` (strength: the model's
-    :class:`~blastvox.simulate.model.Strength`; exposure: an :class:`Exposure`);
+    :class:`~blastvox.simulate.model.Strength`; exposure: an
+    :class:`~blastvox.simulate.state.Exposure`);
     else by the incident peak alone.
     """
     charge_pos, charge_scale, table = front.position, front.scale, front.table
@@ -390,7 +379,8 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
     foundation, damage), marks (broken, destroyed, crossed, dirty; cleared
     first) and, when a foundation lets go, bodies.fixed and the held impulses.
     ``settings``: the run's SimSettings (fracture model and its constants); gas
-    (C, 2): the charges' room gas pressures and vent times (see :class:`Exposure`).
+    (C, 2): the charges' room gas pressures and vent times (see
+    :class:`~blastvox.simulate.state.Exposure`).
     """
     marks, s = state.marks, settings
     marks.broken[:] = False
@@ -399,8 +389,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
     marks.dirty[:state.n_bodies] = False
     params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c,
                             s.fracture == "pressure-impulse")
-    exposure = Exposure(state.shielding, clearing_of(model, state, front.position, marks.active),
-                        np.zeros((len(front.time), 2)) if gas is None else gas)
+    exposure = exposure_of(model, state, front.position, marks.active, gas)
     released = fracture_voxels(
         front, params, model.voxels, state.voxels, state.bodies,
         _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,

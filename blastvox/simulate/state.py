@@ -143,6 +143,21 @@ class Front(NamedTuple):
     outer: np.ndarray
 
 
+class Exposure(NamedTuple):
+    """What decides a face's or element's load besides the wave: grid, the shielding
+    :class:`~blastvox.simulate.shielding.Occupancy`; clearing (B, C, 2), each
+    body's silhouette half-extents S, G from each charge, m; gas (C, 2), each
+    charge's room gas pressure (Pa) and vent time (s), zeros if it is not confined
+    (:mod:`blastvox.simulate.confinement`); sight (N, C, 7) int8, each voxel face's
+    line of sight to each charge in the current wave: 0 not yet known, 1 clear,
+    2 shadowed (faces 0-5 and a conform surface 6)."""
+
+    grid: Occupancy
+    clearing: np.ndarray
+    gas: np.ndarray
+    sight: np.ndarray
+
+
 @dataclass
 class Caches:
     """Derived lookups, rebuilt only when what they derive from changes.
@@ -153,7 +168,8 @@ class Caches:
     bodies' voxels, for ``static_key``. boxes: each body's rest bounding box
     (:func:`blastvox.simulate.clearing.body_boxes`) at topology boxes_version;
     clearing: each body's clearing sizes for the current wave (see
-    :func:`blastvox.simulate.clearing.clearing_of`)."""
+    :func:`blastvox.simulate.clearing.clearing_of`); sight: the faces' lines of
+    sight in the current wave (see :class:`Exposure`)."""
 
     boundary: tuple | None = None
     version: int = 0
@@ -164,6 +180,7 @@ class Caches:
     boxes: np.ndarray | None = None
     boxes_version: int = -1
     clearing: np.ndarray | None = None
+    sight: np.ndarray | None = None
 
 
 @dataclass
