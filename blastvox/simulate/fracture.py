@@ -243,8 +243,10 @@ def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, s
             if r < 0.0:
                 continue
             if params.pressure_impulse:
-                peak, imp, thick = element_load(front, c, r, cx, cy, cz, exposure, b, False)
-                i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
+                peak, imp, _ = element_load(front, c, r, cx, cy, cz, exposure, b, False)
+                # pulverizing is local: the voxel's own edge, not the element's thickness
+                edge = 2.0 * geometry.contact_radius[v]
+                i0 = strength.voxel_impulse[v] * edge / REFERENCE_THICKNESS
                 breaks = pi_exceeded(peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
