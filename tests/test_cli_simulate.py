@@ -18,6 +18,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tomllib
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -108,7 +109,7 @@ class Spec:
 
 #: Runs that must succeed: name -> Spec.
 GOOD_RUNS: dict[str, Spec] = {
-    "basic": Spec("wall", (MODEL, "--charge", "0,-5,0:1@0.05", "--duration", "0.23",
+    "basic": Spec("wall", (MODEL, "--charge", "0,-5,0:5@0.05", "--duration", "0.23",
                            "--fps", "40", "--dt", "0.0025")),
     "damage_odd_dt": Spec("wall", (MODEL, "--charge", "0,-5,0:1", "--duration", "0.1",
                                    "--fps", "30", "--dt", "0.002", "--fracture", "damage",
@@ -272,10 +273,10 @@ def test_basic_run_info(runs: dict[str, Run], models: dict[str, Path]) -> None:
     assert math.isclose(s["dt_s"], 0.0025, rel_tol=1e-12)
     assert s["voxel_count"] == model["voxel_count"] == 432
     assert s["charge_count"] == 1
-    assert s["fracture"] == "yield" and s["seed"] == 0
+    assert s["fracture"] == "pressure-impulse" and s["seed"] == 0  # the default
     assert 1 <= s["piece_count"] <= s["voxel_count"]
     assert 0 <= s["moving_piece_count"] <= s["piece_count"]
-    assert 0 < s["broken_link_count"] <= model["link_count"]  # 1 kg at 5 m breaks concrete
+    assert 0 < s["broken_link_count"] <= model["link_count"]  # 5 kg at 5 m breaks concrete
     assert 0 <= s["destroyed_voxel_count"] <= s["voxel_count"]
     assert s["moving_piece_count"] > 0
 
@@ -283,7 +284,7 @@ def test_basic_run_info(runs: dict[str, Run], models: dict[str, Path]) -> None:
     assert cache.model.voxel_count == 432
     np.testing.assert_allclose(cache.frame_time, np.arange(10) / 40, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(cache.charge_position, [[0.0, -5.0, 0.0]])
-    np.testing.assert_array_equal(cache.charge_tnt_kg, [1.0])
+    np.testing.assert_array_equal(cache.charge_tnt_kg, [5.0])
     np.testing.assert_array_equal(cache.charge_time, [0.05])
     # the shock front starts at the detonation time and then only grows
     radius = cache.shock_radius[:, 0]
@@ -328,9 +329,12 @@ def test_scene_charges_come_from_the_scene(runs: dict[str, Run]) -> None:
     assert s["seed"] == 7  # the scene's seed
     assert s["frame_count"] == math.floor(0.2 * 24) + 1
     assert s["broken_link_count"] > 0 and s["piece_count"] > 1
-    np.testing.assert_array_equal(cache.charge_position, [[5.0, 1.0, 30.0]])
-    np.testing.assert_array_equal(cache.charge_tnt_kg, [50.0])
-    np.testing.assert_array_equal(cache.charge_time, [0.0])
+    # the example's charge (its position, mass and time are edited with the example)
+    [charge] = tomllib.loads((BUILDING / "scene.toml").read_text())["charges"]
+    assert charge["explosive"] == "TNT"
+    np.testing.assert_array_equal(cache.charge_position, [charge["position"]])
+    np.testing.assert_array_equal(cache.charge_tnt_kg, [charge["mass_kg"]])
+    np.testing.assert_array_equal(cache.charge_time, [charge.get("time_s", 0.0)])
     assert listing(run.cwd) == ["building.glb", MODEL, "out", "scene.toml"]  # -o wins
 
 
