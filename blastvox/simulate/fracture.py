@@ -57,16 +57,18 @@ REFERENCE_THICKNESS = 0.25  #: m: the element thickness a material's impulse asy
 
 @helper
 def element_load(front, c, r, px, py, pz, exposure, b, gas_too):
-    """(peak overpressure Pa, positive impulse Pa s, thickness m) that the wave of charge c
+    """(peak overpressure Pa, positive impulse Pa s, depth m, thickness m) that the wave
+    of charge c
     puts on the element holding point p (in solid, at r m from the charge, in body
     b): the face load (:func:`blastvox.blast.face_load.face_load_nb`) of the surface
     the line from p to the charge leaves the element through, at that surface's
     angle of incidence, or the diffracted load if solid shields the element; a
     confined charge's gas adds a sustained load (max(P, P_gas), I + P_gas tau) in
     line of sight if ``gas_too`` (for links: gas breaks walls, it does not pulverize
-    them); thickness: the element's thickness along the line through p, the runs
-    of solid holding p towards the charge and away from it (a grid cell when p
-    is not in the grid)."""
+    them); depth: p's depth below that surface (half a grid cell when p is not in
+    the grid); thickness: the element's thickness along the line through p, the
+    runs of solid holding p towards the charge and away from it (a grid cell when
+    p is not in the grid)."""
     grid = exposure.grid
     qx, qy, qz = front.position[c, 0], front.position[c, 1], front.position[c, 2]
     blocked, axis, depth = sight_line(grid, px, py, pz, qx, qy, qz, True)
@@ -74,7 +76,7 @@ def element_load(front, c, r, px, py, pz, exposure, b, gas_too):
     if axis >= 0 and r > 0.0:
         cos_a = abs((qx - px) if axis == 0 else ((qy - py) if axis == 1 else (qz - pz))) / r
     if axis < 0:
-        thickness = grid.cell[0]
+        depth, thickness = 0.5 * grid.cell[0], grid.cell[0]
     else:  # and the run of solid behind p, away from the charge
         reach = grid.cell[0] * (grid.dims[0] + grid.dims[1] + grid.dims[2]) / max(r, 1e-300)
         behind = sight_line(grid, px, py, pz, px + (px - qx) * reach, py + (py - qy) * reach,
@@ -88,7 +90,7 @@ def element_load(front, c, r, px, py, pz, exposure, b, gas_too):
     if gas_too and gas > 0.0 and not blocked:
         p_peak = max(p_peak, gas)
         i_pos += gas * exposure.gas[c, 1]
-    return p_peak, i_pos, thickness
+    return p_peak, i_pos, depth, thickness
 
 
 @helper
@@ -190,7 +192,7 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
             limit = oriented_yield(link_yield[link], orientation, body_rot, b, link_direction,
                                    link, dx, dy, dz, r)
             if params.pressure_impulse:
-                peak, imp, thick = element_load(front, c, r, mx, my, mz, exposure, b, True)
+                peak, imp, _, thick = element_load(front, c, r, mx, my, mz, exposure, b, True)
                 owner = link_voxels[link, 0]
                 i0 = strength.link_impulse[owner] * thick / REFERENCE_THICKNESS
                 breaks = pi_exceeded(peak, imp, limit, i0, strength.pi_shape[owner])
@@ -243,10 +245,13 @@ def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, s
             if r < 0.0:
                 continue
             if params.pressure_impulse:
-                peak, imp, _ = element_load(front, c, r, cx, cy, cz, exposure, b, False)
-                # pulverizing is local: the voxel's own edge, not the element's thickness
-                edge = 2.0 * geometry.contact_radius[v]
-                i0 = strength.voxel_impulse[v] * edge / REFERENCE_THICKNESS
+                peak, imp, depth, thick = element_load(front, c, r, cx, cy, cz, exposure, b,
+                                                       False)
+                # pulverizing starts at the loaded surface: a deeper voxel is reached once
+                # those in front of it have gone (in order of arrival)
+                if depth > 2.0 * geometry.contact_radius[v]:
+                    peak, imp = 0.0, 0.0
+                i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
                 breaks = pi_exceeded(peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
