@@ -249,10 +249,9 @@ def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, s
                                                        False)
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
-                if depth > 2.0 * geometry.contact_radius[v]:
-                    peak, imp = 0.0, 0.0
                 i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
-                breaks = pi_exceeded(peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
+                breaks = depth <= 2.0 * geometry.contact_radius[v] and pi_exceeded(
+                    peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
                 breaks = peak > voxel_yield[v]
