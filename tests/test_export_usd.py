@@ -118,7 +118,7 @@ def wall(tmp_path_factory) -> tuple[SimCache, Path]:
     model = voxelize([ObjectRequest(mesh=tmp / "wall.stl", voxel_size=(0.25,) * 3,
                                     material="brick")], VoxelizeSettings(up_axis="Z"))
     cache = simulate(model, SimSettings(duration=0.5, fps=24,
-                                        charges=(ChargeSpec((0, -2.0, 1.0), 5.0),)))
+                                        charges=(ChargeSpec((0, -2.0, 1.0), 40.0),)))
     path = tmp / "wall_sim.npz"
     cache.save(path)
     return SimCache.load(path), path
