@@ -124,7 +124,7 @@ def shot(tmp_path_factory) -> Shot:
     model = voxelize([ObjectRequest(mesh=tmp / "wall.stl", voxel_size=(0.25,) * 3,
                                     material="brick")], VoxelizeSettings(up_axis="Z"))
     cache = simulate(model, SimSettings(duration=0.5, fps=FPS,
-                                        charges=(ChargeSpec((0, -2.0, 1.0), 2.0),)))
+                                        charges=(ChargeSpec((0, -2.0, 1.0), 40.0),)))
     assert cache.model.meta["up_axis"] == "Z"
     export(cache, tmp / "shot.usdc")
     export(cache, tmp / "shot.glb")
