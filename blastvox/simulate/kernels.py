@@ -215,6 +215,8 @@ def release_held(geometry, voxels, bodies, loads) -> None:
         b = voxel_body[v]
         if body_fixed[b] or not body_live[b]:
             continue
+        if not voxels.alive[v] and not bodies.dust[b]:
+            continue  # a dusted voxel's impulse waits for the split to give it its dust body
         rot = body_rot[b]
         x = voxel_centroid[v, 0] - body_com[b, 0]
         y = voxel_centroid[v, 1] - body_com[b, 1]
