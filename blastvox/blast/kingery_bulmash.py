@@ -91,6 +91,9 @@ _KB_IS_BREAK = 0.30103                # log10 Z (ft/lb^(1/3)) = log10 2
 
 AIR = 0       #: spherical charge in free air
 SURFACE = 1   #: hemispherical charge on the ground (surface burst)
+#: what each burst's data describe, for titles
+BURST_TITLES = {"air": "spherical charge, free air, sea level",
+                "surface": "hemispherical charge on the ground (surface burst), sea level"}
 Z_MIN_SURFACE = 0.0674   #: lower end of the KB hemispherical fits (m/kg^(1/3)), 0.17 ft/lb^(1/3)
 
 # free air, normally reflected overpressure Pr (psi) and impulse Ir (psi ms/lb^(1/3))

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
 
 import typer
 
@@ -19,8 +17,6 @@ class Burst(StrEnum):
     surface = "surface"
 
 
-_BURST_TITLE = {"air": "spherical charge, free air, sea level",
-                "surface": "hemispherical charge on the ground (surface burst), sea level"}
 
 
 def _number(text: str, what: str) -> float:
@@ -97,7 +93,14 @@ def blast(
     reflected_overpressure_pa and reflected_impulse_pa_s (normal reflection off a rigid
     surface facing the charge).
     """
-    from blastvox.blast import Z_MAX, Z_MIN, Z_MIN_SURFACE, blast_parameters, tnt_equivalent
+    from blastvox.blast import (
+        BURST_TITLES,
+        Z_MAX,
+        Z_MIN,
+        Z_MIN_SURFACE,
+        blast_parameters,
+        tnt_equivalent,
+    )
 
     mass = parse_charge(charge)
     distances = parse_distances(distance)
@@ -111,9 +114,9 @@ def blast(
     params = blast_parameters(distances, mass, explosive, burst_name)
     records = params.records()
     if plot is not None:
-        from blastvox.preview.plots import save_figure
+        from blastvox.preview.plots import write_blast_plot
 
-        save_figure(blast_figure(mass, explosive, distances, burst_name), plot)
+        write_blast_plot(plot, mass, explosive, distances, burst_name)
     if as_json:
         typer.echo(json.dumps(records, indent=2))
         return
@@ -121,7 +124,7 @@ def blast(
     from rich.table import Table
 
     title = (f"{mass:g} kg {explosive} = {mass * factor:.4g} kg TNT (factor {factor:g}); "
-             f"{_BURST_TITLE[burst_name]}")
+             f"{BURST_TITLES[burst_name]}")
     caption = ("Z scaled distance m/kg^(1/3); Ps peak incident overpressure; ta arrival; "
                "Td positive duration; b Friedlander decay; I positive impulse; Pr, Ir "
                "normally reflected overpressure and impulse")
@@ -144,73 +147,3 @@ def blast(
         Console(stderr=True, highlight=False).print(
             f"note: data cover Z {z_min:g}-{Z_MAX:g} m/kg^(1/3); in charge = held at the "
             "charge surface, far field = acoustic 1/R decay")
-
-
-def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float],
-                 burst: str = "air") -> Any:
-    """Pressure-time curves at ``distances`` (m), and Ps, Pr and the incident, reflected
-    and negative-phase impulses against distance, for an "air" or "surface" burst."""
-    import numpy as np
-
-    import blastvox.blast as blast
-    from blastvox.preview.plots import new_figure, style_axes
-
-    factor = blast.tnt_equivalent(explosive)
-    cube = float(np.cbrt(charge_kg * factor))
-    z_min = blast.Z_MIN_SURFACE if burst == "surface" else blast.Z_MIN
-    fig = new_figure(11.0, 8.0)
-    grid = fig.add_gridspec(2, 2, height_ratios=(1.15, 1.0))
-    ax_pt = fig.add_subplot(grid[0, :])
-    peaks = []
-    for r in distances:
-        p = blast.blast_parameters(r, charge_kg, explosive, burst)
-        ta, td = float(p.arrival_time_s), float(p.positive_duration_s)
-        _, tau_end = blast.negative_phase(p.peak_overpressure_pa, p.decay_coefficient)
-        end = ta + float(tau_end) * td
-        lead = 0.1 * (end - ta)
-        t = np.concatenate([[max(0.0, ta - lead)], [ta], np.linspace(ta, end + lead, 1200)])
-        pressure = p.overpressure(t)
-        pressure[:2] = 0.0  # before arrival; the jump to Ps is at t = ta
-        peaks.append(float(np.max(np.abs(pressure))))
-        ax_pt.plot(t * 1e3, pressure / 1e3, label=f"R = {r:g} m")
-    ax_pt.axhline(0.0, color="0.3", linewidth=0.8)
-    positive = [p for p in peaks if p > 0]
-    if positive and max(positive) / min(positive) > 30.0:  # several decades: symmetric log
-        ax_pt.set_yscale("symlog", linthresh=min(positive) / 1e3 / 10.0)
-    fig.suptitle(f"{charge_kg:g} kg {explosive} = {charge_kg * factor:.4g} kg TNT, "
-                 f"{_BURST_TITLE[burst]} (Kingery-Bulmash, modified Friedlander)",
-                 fontsize="medium")
-    style_axes(ax_pt, "time after detonation (ms)", "overpressure p - p0 (kPa)",
-               "incident pressure at each distance, negative phase included")
-
-    given = np.array([r for r in distances if r > 0], dtype=float)
-    lo = (given.min() if len(given) else z_min * cube) / 3.0
-    hi = (given.max() if len(given) else blast.Z_MAX * cube) * 3.0
-    r = np.geomspace(lo, hi, 400)
-    p = blast.blast_parameters(r, charge_kg, explosive, burst)
-    _, tau_end = blast.negative_phase(p.peak_overpressure_pa, p.decay_coefficient)
-    ta, td = p.arrival_time_s, p.positive_duration_s
-    negative = -p.impulse(ta + td, ta + tau_end * td)
-    ax_ps = fig.add_subplot(grid[1, 0])
-    ax_i = fig.add_subplot(grid[1, 1])
-    ax_ps.loglog(r, p.peak_overpressure_pa / 1e3, label="incident Ps")
-    ax_ps.loglog(r, p.reflected_overpressure_pa / 1e3, label="normally reflected Pr")
-    ax_i.loglog(r, p.impulse_pa_s, label="incident positive impulse")
-    ax_i.loglog(r, p.reflected_impulse_pa_s, label="normally reflected impulse Ir")
-    ax_i.loglog(r, np.where(negative > 0, negative, np.nan), "--",
-                label="negative-phase impulse (magnitude)")
-    if len(given):
-        at = blast.blast_parameters(given, charge_kg, explosive, burst)
-        ax_ps.loglog(given, at.peak_overpressure_pa / 1e3, "o", color="C3",
-                     label="requested distances")
-        ax_ps.loglog(given, at.reflected_overpressure_pa / 1e3, "o", color="C3")
-        ax_i.loglog(given, at.impulse_pa_s, "o", color="C3", label="requested distances")
-        ax_i.loglog(given, at.reflected_impulse_pa_s, "o", color="C3")
-    for ax in (ax_ps, ax_i):  # where the Kingery-Bulmash fits do not reach
-        ax.axvspan(lo, max(lo, z_min * cube), color="0.85", zorder=0)
-        ax.axvspan(min(hi, blast.Z_MAX * cube), hi, color="0.85", zorder=0)
-        ax.set_xlim(lo, hi)
-    style_axes(ax_ps, "distance R (m)", "overpressure (kPa)", "peak overpressure "
-               "(grey: outside the fits)")
-    style_axes(ax_i, "distance R (m)", "impulse (Pa s)", "positive impulse")
-    return fig

@@ -108,13 +108,15 @@ def line_plot(path: str | Path, series: Sequence[Series], xlabel: str, ylabel: s
 # -- the blast calculator's figure ----------------------------------------------------------
 
 
+
 def pressure_time(distance_m: float, charge_kg: float, explosive: str = "TNT",
-                  samples: int = 1200) -> tuple[np.ndarray, np.ndarray]:
-    """(t (N,) s after detonation, p - p0 (N,) Pa) at ``distance_m``: from just before
-    arrival to the end of the bounded negative phase, the jump at arrival included."""
+                  samples: int = 1200, burst: str = "air") -> tuple[np.ndarray, np.ndarray]:
+    """(t (N,) s after detonation, p - p0 (N,) Pa) at ``distance_m`` of an "air" or
+    "surface" burst: from just before arrival to the end of the bounded negative
+    phase, the jump at arrival included."""
     import blastvox.blast as blast
 
-    p = blast.blast_parameters(distance_m, charge_kg, explosive)
+    p = blast.blast_parameters(distance_m, charge_kg, explosive, burst)
     ta, td = float(p.arrival_time_s), float(p.positive_duration_s)
     _, tau_end = blast.negative_phase(p.peak_overpressure_pa, p.decay_coefficient)
     end = ta + float(tau_end) * td
@@ -125,60 +127,68 @@ def pressure_time(distance_m: float, charge_kg: float, explosive: str = "TNT",
     return t, pressure
 
 
-def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float]) -> Any:
-    """Pressure-time curves at ``distances`` (m) and Ps / impulse against distance."""
+def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float],
+                 burst: str = "air") -> Any:
+    """Pressure-time curves at ``distances`` (m), and Ps, Pr and the incident, reflected
+    and negative-phase impulses against distance, for an "air" or "surface" burst."""
     import blastvox.blast as blast
 
     factor = blast.tnt_equivalent(explosive)
     cube = float(np.cbrt(charge_kg * factor))
+    z_min = blast.Z_MIN_SURFACE if burst == "surface" else blast.Z_MIN
     fig = new_figure(11.0, 8.0)
     grid = fig.add_gridspec(2, 2, height_ratios=(1.15, 1.0))
     ax_pt = fig.add_subplot(grid[0, :])
     peaks = []
     for r in distances:
-        t, pressure = pressure_time(r, charge_kg, explosive)
+        t, pressure = pressure_time(r, charge_kg, explosive, burst=burst)
         peaks.append(float(np.max(np.abs(pressure))))
         ax_pt.plot(t * 1e3, pressure / 1e3, label=f"R = {r:g} m")
     ax_pt.axhline(0.0, color="0.3", linewidth=0.8)
     positive = [p for p in peaks if p > 0]
     if positive and max(positive) / min(positive) > 30.0:  # several decades: symmetric log
         ax_pt.set_yscale("symlog", linthresh=min(positive) / 1e3 / 10.0)
-    fig.suptitle(f"{charge_kg:g} kg {explosive} = {charge_kg * factor:.4g} kg TNT, spherical "
-                 f"free-air burst (Kingery-Bulmash, modified Friedlander)", fontsize="medium")
+    fig.suptitle(f"{charge_kg:g} kg {explosive} = {charge_kg * factor:.4g} kg TNT, "
+                 f"{blast.BURST_TITLES[burst]} (Kingery-Bulmash, modified Friedlander)",
+                 fontsize="medium")
     style_axes(ax_pt, "time after detonation (ms)", "overpressure p - p0 (kPa)",
-               "pressure at each distance, negative phase included")
+               "incident pressure at each distance, negative phase included")
 
     given = np.array([r for r in distances if r > 0], dtype=float)
-    lo = (given.min() if len(given) else blast.Z_MIN * cube) / 3.0
+    lo = (given.min() if len(given) else z_min * cube) / 3.0
     hi = (given.max() if len(given) else blast.Z_MAX * cube) * 3.0
     r = np.geomspace(lo, hi, 400)
-    p = blast.blast_parameters(r, charge_kg, explosive)
+    p = blast.blast_parameters(r, charge_kg, explosive, burst)
     _, tau_end = blast.negative_phase(p.peak_overpressure_pa, p.decay_coefficient)
     ta, td = p.arrival_time_s, p.positive_duration_s
     negative = -p.impulse(ta + td, ta + tau_end * td)
     ax_ps = fig.add_subplot(grid[1, 0])
     ax_i = fig.add_subplot(grid[1, 1])
-    ax_ps.loglog(r, p.peak_overpressure_pa / 1e3, label="peak overpressure Ps")
-    ax_i.loglog(r, p.impulse_pa_s, label="positive impulse")
+    ax_ps.loglog(r, p.peak_overpressure_pa / 1e3, label="incident Ps")
+    ax_ps.loglog(r, p.reflected_overpressure_pa / 1e3, label="normally reflected Pr")
+    ax_i.loglog(r, p.impulse_pa_s, label="incident positive impulse")
+    ax_i.loglog(r, p.reflected_impulse_pa_s, label="normally reflected impulse Ir")
     ax_i.loglog(r, np.where(negative > 0, negative, np.nan), "--",
                 label="negative-phase impulse (magnitude)")
     if len(given):
-        at = blast.blast_parameters(given, charge_kg, explosive)
+        at = blast.blast_parameters(given, charge_kg, explosive, burst)
         ax_ps.loglog(given, at.peak_overpressure_pa / 1e3, "o", color="C3",
                      label="requested distances")
+        ax_ps.loglog(given, at.reflected_overpressure_pa / 1e3, "o", color="C3")
         ax_i.loglog(given, at.impulse_pa_s, "o", color="C3", label="requested distances")
+        ax_i.loglog(given, at.reflected_impulse_pa_s, "o", color="C3")
     for ax in (ax_ps, ax_i):  # where the Kingery-Bulmash fits do not reach
-        ax.axvspan(lo, max(lo, blast.Z_MIN * cube), color="0.85", zorder=0)
+        ax.axvspan(lo, max(lo, z_min * cube), color="0.85", zorder=0)
         ax.axvspan(min(hi, blast.Z_MAX * cube), hi, color="0.85", zorder=0)
         ax.set_xlim(lo, hi)
-    style_axes(ax_ps, "distance R (m)", "Ps (kPa)", "peak incident overpressure "
+    style_axes(ax_ps, "distance R (m)", "overpressure (kPa)", "peak overpressure "
                "(grey: outside the fits)")
-    style_axes(ax_i, "distance R (m)", "impulse (Pa s)", "incident impulse")
+    style_axes(ax_i, "distance R (m)", "impulse (Pa s)", "positive impulse")
     return fig
 
 
 def write_blast_plot(path: str | Path, charge_kg: float, explosive: str,
-                     distances: Sequence[float]) -> None:
+                     distances: Sequence[float], burst: str = "air") -> None:
     """:func:`blast_figure` written to ``path`` (.png, .svg or .pdf), atomically."""
     check_plot_path(path)
-    save_figure(blast_figure(charge_kg, explosive, distances), path)
+    save_figure(blast_figure(charge_kg, explosive, distances, burst), path)
