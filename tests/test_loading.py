@@ -42,6 +42,16 @@ def _model(tmp_path: Path, boxes, size: float, material: str = "solid", ground=N
     return voxelize(requests, VoxelizeSettings(up_axis="Z", ground=ground, library=LIBRARY))
 
 
+def _founded_wall(tmp_path: Path, material: str):
+    """A 3 x 3 m wall, 0.25 m thick (one 0.25 m voxel), standing on the ground at x = 0."""
+    path = tmp_path / "wall.stl"
+    mesh = trimesh.creation.box(extents=(0.25, 3.0, 3.0))
+    mesh.apply_translation((0.0, 0.0, 1.5))
+    mesh.export(path)
+    return voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material=material)],
+                    VoxelizeSettings(up_axis="Z", ground="auto"))
+
+
 def _free(**kw) -> SimSettings:
     """No gravity, ground, contacts or sleep: the blast alone moves the pieces."""
     return replace(SimSettings(gravity=0.0, ground=False, collisions=False, sleep_speed=0.0,
@@ -136,12 +146,7 @@ def test_same_peak_different_impulse(tmp_path, charge_kg, distance, breaches):
     """A 3 x 3 m, 25 cm plain concrete wall founded on the ground: 1 kg at 6 m and
     1000 kg at 60 m give the same peak (Z 6) but ten times the impulse; only the
     second breaches it (concrete's pressure-impulse calibration points)."""
-    path = tmp_path / "wall.stl"
-    mesh = trimesh.creation.box(extents=(0.25, 3.0, 3.0))
-    mesh.apply_translation((0.0, 0.0, 1.5))
-    mesh.export(path)
-    model = voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material="concrete")],
-                     VoxelizeSettings(up_axis="Z", ground="auto"))
+    model = _founded_wall(tmp_path, "concrete")
     cache = simulate(model, SimSettings(duration=0.2, charges=(
         ChargeSpec((-distance, 0.0, 1.5), charge_kg, burst="air"),)))
     links = model.link_count
@@ -234,12 +239,7 @@ def test_each_material_against_its_pressure_impulse_calibration(tmp_path, materi
     k = int(np.argmin(np.abs(pr - 4.0 * p0)))  # Pr falls with Z
     w = (impulse_factor * i0 / ir[k]) ** 3      # I scales with W^(1/3)
     distance = z[k] * w ** (1 / 3)
-    path = tmp_path / "wall.stl"
-    mesh = trimesh.creation.box(extents=(0.25, 3.0, 3.0))
-    mesh.apply_translation((0.0, 0.0, 1.5))
-    mesh.export(path)
-    model = voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material=material)],
-                     VoxelizeSettings(up_axis="Z", ground="auto"))
+    model = _founded_wall(tmp_path, material)
     cache = simulate(model, SimSettings(duration=float(ta[k]) * w ** (1 / 3) + 0.05, charges=(
         ChargeSpec((-distance, 0.0, 1.5), float(w), burst="air"),)))
     broken = cache.meta["broken_links"]
@@ -253,12 +253,7 @@ def test_founded_wall_debris_speed_converges_in_dt(tmp_path):
     """A founded wall that dusts and sheds pieces in the same step: the dust's impulse
     goes to the dust alone (it went to the freed wall too, and so to its pieces: 2.74
     against 1.42 m/s at dt 1/240 and 1/4000 before the fix)."""
-    path = tmp_path / "wall.stl"
-    mesh = trimesh.creation.box(extents=(0.25, 3.0, 3.0))
-    mesh.apply_translation((0.0, 0.0, 1.5))
-    mesh.export(path)
-    model = voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material="concrete")],
-                     VoxelizeSettings(up_axis="Z", ground="auto"))
+    model = _founded_wall(tmp_path, "concrete")
     speeds = []
     for dt in (1 / 240, 1 / 4000):
         cache = simulate(model, SimSettings(dt=dt, duration=0.6, fps=60.0, collisions=False,

@@ -131,7 +131,7 @@ def build_charges(specs, up: np.ndarray | None = None,
 
 
 def _burst(spec, position: np.ndarray, scale: float, up, ground) -> int:
-    kind = getattr(spec, "burst", "auto")
+    kind = spec.burst
     if kind == "air":
         return AIR
     if kind == "surface":
