@@ -180,3 +180,23 @@ def _check_arrays(path: Path, arrays: dict[str, np.ndarray]) -> None:
         raise ContractError(f"{path}: link_voxels refers to voxels that do not exist")
     if arrays["voxel_object"].size and arrays["voxel_object"].min() < 0:
         raise ContractError(f"{path}: voxel_object holds a negative object index")
+    _check_strength(path, arrays)
+
+
+#: optional material arrays of the pressure-impulse strength (absent in older models)
+_STRENGTH = ("material_link_impulse", "material_voxel_impulse", "material_pi_shape")
+
+
+def _check_strength(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Each optional strength array, when present: one finite value >= 0 per material."""
+    materials = int(arrays["voxel_material"].max()) + 1 if arrays["voxel_material"].size else 0
+    for name in _STRENGTH:
+        if name not in arrays:
+            continue
+        arr = arrays[name]
+        if arr.ndim != 1 or arr.dtype.kind != "f" or len(arr) < materials:
+            raise ContractError(f"{path}: array '{name}' has shape {arr.shape} and dtype "
+                                f"{arr.dtype}; expected 1-D float, one value per material")
+        if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
+            raise ContractError(f"{path}: array '{name}' holds a value that is not a finite "
+                                "number >= 0")

@@ -48,6 +48,12 @@ def test_the_untouched_file_loads(model_file):
     (_set_up_axis, "up_axis is 'Q'"),
     (lambda a: a["voxel_object"].__setitem__(0, -1), "negative object index"),
     (lambda a: a["link_voxels"].__setitem__((0, 0), 10**9), "link_voxels refers to voxels"),
+    (lambda a: a["material_link_impulse"].__setitem__(0, np.nan),
+     "'material_link_impulse' holds a value that is not a finite number >= 0"),
+    (lambda a: a["material_pi_shape"].__setitem__(0, -1.0),
+     "'material_pi_shape' holds a value that is not a finite number >= 0"),
+    (lambda a: a.__setitem__("material_voxel_impulse", np.zeros((1, 2))),
+     "'material_voxel_impulse' has shape"),
 ])
 def test_a_crafted_file_is_refused(model_file, tmp_path, mutate, message):
     path = _crafted(model_file, tmp_path, mutate)
