@@ -1,5 +1,5 @@
 """``python -m blastvox`` is the ``blastvox`` command."""
 
-from blastvox.cli.app import main
+from blastvox.cli.entry import main
 
 main()

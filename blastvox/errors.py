@@ -34,6 +34,11 @@ class ContractError(InputError):
     """A stage file (VoxelModel, SimCache) is foreign, truncated or of another version."""
 
 
+class OutputError(BlastvoxError):
+    """An output path cannot or must not be written (a device, an input, a missing or
+    read-only directory, a full disk)."""
+
+
 class BudgetError(BlastvoxError):
     """A configured resource budget (voxel count, memory) would be exceeded."""
 

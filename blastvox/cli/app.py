@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-
 import typer
 
 from blastvox.cli import (
@@ -64,18 +62,8 @@ def _root(version: bool = typer.Option(False, "--version", help="Print the versi
 
 
 def main() -> None:
-    """Console entry point: user errors become one line on stderr and exit code 1.
+    """Console entry point (kept for installs whose script still names it): see
+    :func:`blastvox.cli.entry.main`."""
+    from blastvox.cli.entry import main as entry_main
 
-    Usage errors are click's (exit 2); an interrupt exits 130 with nothing written
-    (outputs are atomic).
-    """
-    from blastvox.errors import BlastvoxError
-
-    try:
-        app()
-    except BlastvoxError as exc:
-        typer.echo(f"blastvox: error: {exc}", err=True)
-        sys.exit(exc.exit_code)
-    except KeyboardInterrupt:
-        typer.echo("blastvox: interrupted; no output written", err=True)
-        sys.exit(130)
+    entry_main()

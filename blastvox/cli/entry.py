@@ -1,0 +1,139 @@
+"""The ``blastvox`` console entry point: signals, exit codes and one-line errors.
+
+This module imports nothing heavy at the top, so that the signal handlers are in
+place before the command-line framework and the stage modules load: Ctrl-C at
+any moment (imports included) exits 130 and SIGTERM exits 143, both with one
+line on stderr and no partial output (outputs are written through
+:func:`blastvox.io.atomic.atomic_path`, which removes its temporary file when
+the interrupt unwinds through it).
+
+Exit codes: 0 success; 1 bad input or a failed write (one line naming the file
+and the problem); 2 usage error (the CLI framework's message); 130 interrupted
+(SIGINT); 143 terminated (SIGTERM); 129 hang-up (SIGHUP).
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+
+
+class Interrupted(BaseException):  # noqa: N818 - like KeyboardInterrupt, not an error
+    """Raised in the main thread by SIGINT, SIGTERM or SIGHUP; ``exit_code`` is 128 + signal.
+
+    A BaseException and not a KeyboardInterrupt, so that neither library code that
+    catches ``Exception`` nor the CLI framework (which turns KeyboardInterrupt into a
+    silent exit) can swallow it, while ``try/finally`` and ``atomic_path`` still clean up.
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+        self.exit_code = 128 + signum
+        self.reason = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}.get(
+            signum, f"stopped by {signal.Signals(signum).name}")
+
+
+_HANDLED = tuple(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None))
+                 if s is not None)
+
+
+@contextmanager
+def interrupt_handlers() -> Iterator[None]:
+    """Turn SIGINT/SIGTERM/SIGHUP into :class:`Interrupted` for the duration.
+
+    The first signal raises; a second one while the first unwinds exits at once
+    (``os._exit``), as a user pressing Ctrl-C twice expects. Signals the parent
+    set to be ignored (``nohup``, background jobs) stay ignored. The previous
+    handlers are restored on exit, so the CLI can run in-process (tests).
+    """
+    import os
+
+    raised: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        if raised:
+            os._exit(128 + raised[0])
+        raised.append(signum)
+        raise Interrupted(signum)
+
+    previous = {}
+    for signum in _HANDLED:
+        old = signal.getsignal(signum)
+        if old is signal.SIG_IGN:
+            continue
+        previous[signum] = old
+        signal.signal(signum, handler)
+    try:
+        yield
+    finally:
+        for signum, old in previous.items():
+            signal.signal(signum, old)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI with ``argv`` (default ``sys.argv[1:]``) and exit with its code.
+
+    User errors (:class:`~blastvox.errors.BlastvoxError`) and out-of-memory become
+    one ``blastvox: error: ...`` line on stderr and exit 1.
+    """
+    code = run(argv)
+    sys.exit(code)
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    """Like :func:`main` but returns the exit code instead of exiting (in-process use)."""
+    try:
+        with interrupt_handlers():
+            return _run_app(argv)
+    except Interrupted as exc:
+        _echo(f"blastvox: {exc.reason}; no partial output left")
+        return exc.exit_code
+    except KeyboardInterrupt:  # raised by Python itself before a handler was set
+        _echo("blastvox: interrupted; no partial output left")
+        return 130
+
+
+def _run_app(argv: Sequence[str] | None) -> int:
+    from blastvox.errors import BlastvoxError
+
+    try:
+        from blastvox.cli.app import app
+
+        app(args=list(argv) if argv is not None else None, prog_name="blastvox")
+    except SystemExit as exc:
+        return _exit_code(exc.code)
+    except BlastvoxError as exc:
+        _echo(f"blastvox: error: {_one_line(exc)}")
+        return exc.exit_code
+    except OSError as exc:  # a file the OS refused (permissions, a device, a full disk)
+        where = f"{exc.filename}: " if exc.filename else ""
+        _echo(f"blastvox: error: {where}{_one_line(exc.strerror or exc)}")
+        return 1
+    except MemoryError:
+        _echo("blastvox: error: out of memory; lower the resolution, the duration or the "
+              "frame rate (see docs/user-guide.md, Limits)")
+        return 1
+    return 0
+
+
+def _exit_code(code: object) -> int:
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    _echo(str(code))
+    return 1
+
+
+def _echo(line: str) -> None:
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # stderr closed or a broken pipe: the exit code still says it
+        pass
