@@ -47,7 +47,8 @@ def test_the_untouched_file_loads(model_file):
 @pytest.mark.parametrize(("mutate", "message"), [
     (_set_up_axis, "up_axis is 'Q'"),
     (lambda a: a["voxel_object"].__setitem__(0, -1), "negative object index"),
-    (lambda a: a["link_voxels"].__setitem__((0, 0), 10**9), "link_voxels refers to voxels"),
+    (lambda a: a["link_voxels"].__setitem__((0, 0), 10**9),
+     "'link_voxels' refers to voxel 1000000000 of"),
     (lambda a: a["material_link_impulse"].__setitem__(0, np.nan),
      "'material_link_impulse' holds a value that is not a finite number >= 0"),
     (lambda a: a["material_pi_shape"].__setitem__(0, -1.0),
