@@ -42,6 +42,8 @@ gravity vector ``meta["gravity_vector"]``.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -49,22 +51,65 @@ from typing import Any
 import numpy as np
 
 from blastvox import __version__
-from blastvox.errors import ContractError
+from blastvox.geometry.frames import AXES
 from blastvox.io.npz import read_npz, write_npz
-from blastvox.model import VoxelModel
+from blastvox.io.validate import (
+    Spec,
+    check_bound,
+    check_finite,
+    check_index,
+    check_layout,
+    check_meta_number,
+    check_meta_vector,
+    check_non_decreasing,
+    check_range,
+    check_shapes,
+    check_unit,
+    fail,
+)
+from blastvox.model import ARRAY_NAMES as MODEL_ARRAY_NAMES
+from blastvox.model import COORD_LIMIT_M, VoxelModel, check_model
+from blastvox.particles import SYSTEM_NAMES
 
 SCHEMA = "blastvox.SimCache"
 SCHEMA_VERSION = 1
 MODEL_PREFIX = "model."
 UNITS = {"length": "m", "time": "s", "mass": "kg", "velocity": "m/s", "damage": "1/255"}
 
-_REQUIRED = ("frame_time", "voxel_piece", "piece_pivot", "piece_mass", "piece_position",
-             "piece_orientation", "piece_end_frame", "voxel_destroyed_frame", "damage_frame",
-             "damage_voxel", "damage_value", "link_break_link", "link_break_time", "dust_voxel",
-             "dust_time", "dust_mass", "dust_position", "dust_velocity", "charge_position",
-             "charge_tnt_kg", "charge_time", "shock_radius", "shock_opacity", "camera_offset",
-             "voxel_ignite_frame", "particle_system", "particle_birth", "particle_position",
-             "particle_velocity", "particle_size")
+_F8, _F4, _I4, _U1 = np.float64, np.float32, np.int32, np.uint8
+
+#: Every SimCache array: name -> (dtype, shape). Symbols: F frames, P pieces, N voxels
+#: (of the embedded model), D damage events, K link breaks, E dust emitters, X charges,
+#: Q particles.
+_REQUIRED: dict[str, Spec] = {
+    "frame_time": (_F8, ("F",)), "voxel_piece": (_I4, ("N",)),
+    "piece_pivot": (_F8, ("P", 3)), "piece_mass": (_F8, ("P",)),
+    "piece_position": (_F4, ("F", "P", 3)), "piece_orientation": (_F4, ("F", "P", 4)),
+    "piece_end_frame": (_I4, ("P",)), "voxel_destroyed_frame": (_I4, ("N",)),
+    "damage_frame": (_I4, ("D",)), "damage_voxel": (_I4, ("D",)),
+    "damage_value": (_U1, ("D",)), "link_break_link": (_I4, ("K",)),
+    "link_break_time": (_F8, ("K",)), "dust_voxel": (_I4, ("E",)),
+    "dust_time": (_F8, ("E",)), "dust_mass": (_F8, ("E",)),
+    "dust_position": (_F8, ("E", 3)), "dust_velocity": (_F8, ("E", 3)),
+    "charge_position": (_F8, ("X", 3)), "charge_tnt_kg": (_F8, ("X",)),
+    "charge_time": (_F8, ("X",)), "shock_radius": (_F8, ("F", "X")),
+    "shock_opacity": (_F8, ("F", "X")), "camera_offset": (_F8, ("F", 3)),
+    "voxel_ignite_frame": (_I4, ("N",)), "particle_system": (_U1, ("Q",)),
+    "particle_birth": (_F8, ("Q",)), "particle_position": (_F8, ("Q", 3)),
+    "particle_velocity": (_F8, ("Q", 3)), "particle_size": (_F4, ("Q",)),
+}
+_MEANING = {"F": "one per frame", "P": "one per piece", "N": "one per voxel of the model",
+            "D": "one per damage event", "K": "one per link break",
+            "E": "one per dust emitter", "X": "one per charge", "Q": "one per particle"}
+#: piece_orientation rows must be unit quaternions to this (they are stored as float32)
+QUATERNION_TOLERANCE = 1e-3
+
+
+def _is_member(name: str) -> bool:
+    """Is ``name`` a SimCache array or an embedded model array? Others are never read."""
+    if name.startswith(MODEL_PREFIX):
+        return name[len(MODEL_PREFIX):] in MODEL_ARRAY_NAMES
+    return name in _REQUIRED
 
 
 @dataclass(frozen=True)
@@ -104,13 +149,13 @@ class SimCache:
     @classmethod
     def load(cls, path: str | Path) -> SimCache:
         """Read and validate; :class:`ContractError` if it is not a SimCache."""
-        meta, arrays = read_npz(path, SCHEMA, SCHEMA_VERSION, what="SimCache")
+        meta, arrays = read_npz(path, SCHEMA, SCHEMA_VERSION, what="SimCache",
+                                members=_is_member)
         model_arrays = {k[len(MODEL_PREFIX):]: arrays.pop(k) for k in list(arrays)
                         if k.startswith(MODEL_PREFIX)}
-        missing = [k for k in _REQUIRED if k not in arrays]
-        if missing:
-            raise ContractError(f"{path}: SimCache is missing array '{missing[0]}'")
-        model = VoxelModel(arrays=model_arrays, meta=meta.pop("model", {}))
+        model_meta = meta.pop("model", None)
+        check_cache(path, arrays, meta, model_arrays, model_meta)
+        model = VoxelModel(arrays=model_arrays, meta=model_meta)
         return cls(arrays=arrays, model=model, meta=meta)
 
     def summary(self) -> dict[str, Any]:
@@ -129,3 +174,123 @@ class SimCache:
             "charge_count": int(len(a["charge_tnt_kg"])),
             "fracture": self.meta.get("fracture"), "seed": self.meta.get("seed"),
         }
+
+
+def check_cache(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
+                meta: Mapping[str, Any], model_arrays: Mapping[str, np.ndarray],
+                model_meta: Any) -> None:
+    """Check a SimCache's arrays and meta, and its embedded model, against the contract.
+
+    ``arrays`` and ``meta`` are the cache's own (``meta`` without ``"model"``);
+    ``model_arrays`` (names without ``model.``) and ``model_meta`` the embedded
+    VoxelModel's, checked by :func:`blastvox.model.check_model` including its
+    schema and ``schema_version``. The cache's arrays: every dtype and shape
+    (against F, P, N, D, K, E, X and Q); frame_time finite, starting at 0, never
+    decreasing; finite floats everywhere; masses, TNT masses and particle sizes
+    > 0; times and shock radii >= 0, shock_opacity in [0, 1]; unit quaternions;
+    every voxel's piece, every event's frame, voxel and link, and every particle's
+    system within bounds, every piece owning a voxel. Its meta: ``fps``, ``dt``,
+    ``duration`` > 0, ``gravity_vector``, ``ground_height``, ``up_axis``,
+    ``camera``, ``particle_systems`` and ``settings`` as export and preview read
+    them. Raises :class:`~blastvox.errors.ContractError`: one line naming ``path``
+    and the array or meta key.
+    """
+    if not isinstance(model_meta, dict):
+        fail(path, "meta model is missing: a SimCache embeds its VoxelModel's meta")
+    check_model(path, model_arrays, model_meta, MODEL_PREFIX)
+    a = arrays
+    check_layout(path, a, _REQUIRED, "", "SimCache")
+    n, links = len(model_arrays["voxel_mass"]), len(model_arrays["link_voxels"])
+    dims = {"F": len(a["frame_time"]), "P": len(a["piece_mass"]), "N": n,
+            "D": len(a["damage_frame"]), "K": len(a["link_break_link"]),
+            "E": len(a["dust_voxel"]), "X": len(a["charge_tnt_kg"]),
+            "Q": len(a["particle_system"])}
+    check_shapes(path, a, _REQUIRED, dims, "", _MEANING)
+    frames, pieces = dims["F"], dims["P"]
+    systems = _check_meta(path, meta, model_meta, dims["Q"])
+    # frames
+    if frames == 0:
+        fail(path, "array 'frame_time' is empty: the SimCache holds no frames")
+    check_finite(path, "frame_time", a["frame_time"])
+    if a["frame_time"][0] != 0.0:
+        fail(path, f"array 'frame_time' starts at {a['frame_time'][0]!r} s; expected 0")
+    check_non_decreasing(path, "frame_time", a["frame_time"])
+    # pieces
+    check_index(path, "voxel_piece", a["voxel_piece"], pieces, "piece")
+    owned = np.bincount(a["voxel_piece"], minlength=pieces)
+    if pieces and not owned.min() > 0:
+        fail(path, f"array 'voxel_piece' gives piece {int(np.argmin(owned))} no voxel")
+    check_bound(path, "piece_pivot", a["piece_pivot"], COORD_LIMIT_M)
+    check_range(path, "piece_mass", a["piece_mass"], 0.0, lo_open=True)
+    check_finite(path, "piece_position", a["piece_position"])
+    check_unit(path, "piece_orientation", a["piece_orientation"], QUATERNION_TOLERANCE,
+               "unit quaternion")
+    check_range(path, "piece_end_frame", a["piece_end_frame"], 0, frames,
+                rule=f"a frame 0..{frames} (F: never gone)")
+    # per-voxel frames and events
+    for key in ("voxel_destroyed_frame", "voxel_ignite_frame"):
+        check_index(path, key, a[key], frames, "frame", none=-1)
+    check_index(path, "damage_frame", a["damage_frame"], frames, "frame")
+    check_index(path, "damage_voxel", a["damage_voxel"], n, "voxel")
+    check_index(path, "link_break_link", a["link_break_link"], links, "link")
+    check_index(path, "dust_voxel", a["dust_voxel"], n, "voxel")
+    for key in ("link_break_time", "dust_time", "charge_time"):
+        check_range(path, key, a[key], 0.0)
+    for key in ("dust_mass", "charge_tnt_kg", "particle_size"):
+        check_range(path, key, a[key], 0.0, lo_open=True)
+    for key in ("dust_position", "dust_velocity", "camera_offset", "particle_birth",
+                "particle_position", "particle_velocity"):
+        check_finite(path, key, a[key])
+    check_bound(path, "charge_position", a["charge_position"], COORD_LIMIT_M)
+    check_range(path, "shock_radius", a["shock_radius"], 0.0)
+    check_range(path, "shock_opacity", a["shock_opacity"], 0.0, 1.0)
+    check_index(path, "particle_system", a["particle_system"], systems, "particle system")
+
+
+def _check_meta(path: str | os.PathLike, meta: Mapping[str, Any],
+                model_meta: Mapping[str, Any], particles: int) -> int:
+    """The meta keys export and preview read; returns the number of particle systems."""
+    for key in ("fps", "dt", "duration"):
+        if meta.get(key) is not None:
+            check_meta_number(path, key, meta[key], 0.0, lo_open=True)
+    if meta.get("gravity_vector") is not None:
+        check_meta_vector(path, "gravity_vector", meta["gravity_vector"])
+    if meta.get("ground_height") is not None:
+        check_meta_number(path, "ground_height", meta["ground_height"], limit=COORD_LIMIT_M)
+    up = meta.get("up_axis")
+    if up is not None and (up not in AXES or up != model_meta.get("up_axis")):
+        fail(path, f"meta up_axis is {up!r}; expected the model's, "
+                   f"{model_meta.get('up_axis')!r}")
+    settings = meta.get("settings")
+    if settings is not None:
+        if not isinstance(settings, dict):
+            fail(path, f"meta settings is {type(settings).__name__}; expected an object")
+        if settings.get("gravity") is not None:
+            check_meta_number(path, "settings.gravity", settings["gravity"], 0.0)
+    camera = meta.get("camera")
+    if camera is not None:
+        if not isinstance(camera, dict):
+            fail(path, f"meta camera is {type(camera).__name__}; expected an object or null")
+        check_meta_vector(path, "camera.position", camera.get("position"), limit=COORD_LIMIT_M)
+        check_meta_vector(path, "camera.look_at", camera.get("look_at"), limit=COORD_LIMIT_M)
+        if camera["position"] == camera["look_at"]:
+            fail(path, "meta camera.look_at is the camera's position; the camera looks nowhere")
+        if camera.get("focal_length_mm") is not None:
+            check_meta_number(path, "camera.focal_length_mm", camera["focal_length_mm"], 0.0,
+                              lo_open=True)
+    systems = meta.get("particle_systems")
+    if systems is None:
+        if particles:
+            fail(path, "meta particle_systems is missing; the particle arrays refer to it")
+        return len(SYSTEM_NAMES)
+    if not isinstance(systems, list) or len(systems) > len(SYSTEM_NAMES):
+        fail(path, f"meta particle_systems is not a list of at most {len(SYSTEM_NAMES)} "
+                   "particle systems")
+    for i, system in enumerate(systems):
+        where = f"particle_systems[{i}]"
+        if not isinstance(system, dict) or not isinstance(system.get("name"), str):
+            fail(path, f"meta {where} is not a particle system with a 'name'")
+        for key in ("drag_per_s", "lifetime_s", "size_m"):
+            check_meta_number(path, f"{where}.{key}", system.get(key), 0.0, lo_open=True)
+        check_meta_number(path, f"{where}.gravity_scale", system.get("gravity_scale"))
+    return len(systems)
