@@ -22,6 +22,22 @@ def _stale(output: Path, inputs: list[Path]) -> bool:
     return output.stat().st_mtime_ns < newest
 
 
+def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[Path]) -> None:
+    """The output policy (blastvox.io.outputs) for every file the shot writes, before any
+    stage runs: none is a device or an input, and no two are the same file."""
+    from blastvox.io.outputs import check_distinct, check_output
+
+    outputs = [("output.model", model), ("output.cache", cache)]
+    for i, path in enumerate(exports):
+        label = "output.export" if len(exports) == 1 else f"output.export.{i}"
+        outputs.append((label, path))
+        if Path(path).suffix.lower() == ".gltf":  # its buffer is written beside it
+            outputs.append((f"{label} (its .bin)", Path(path).with_name(Path(path).stem + ".bin")))
+    for label, path in outputs:
+        check_output(path, inputs, label=label, make_dirs=True)
+    check_distinct(outputs)
+
+
 def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] = print,
               warn: Callable[[str], None] | None = None) -> list[str]:
     """Bring the scene's outputs up to date; returns the stages that ran.
@@ -43,6 +59,7 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     voxel_inputs = [scene_path] + [Path(o.mesh) for o in scene.objects]
     if scene.materials_file is not None:
         voxel_inputs.append(Path(scene.materials_file))
+    _check_outputs(out.model, out.cache, exports, voxel_inputs)
     model = None
     if force or _stale(out.model, voxel_inputs):
         from blastvox.voxelize.pipeline import voxelize

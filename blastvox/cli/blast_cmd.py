@@ -108,6 +108,9 @@ def blast(
         from blastvox.preview.plots import check_plot_path
 
         check_plot_path(plot)
+        from blastvox.io.outputs import check_output
+
+        check_output(plot, label="--plot")
     factor = tnt_equivalent(explosive)
     burst_name = Burst(burst).value
     z_min = Z_MIN_SURFACE if burst_name == "surface" else Z_MIN

@@ -31,7 +31,13 @@ def export(
     from blastvox.cli.console import err_console
     from blastvox.export.api import ExportOptions
     from blastvox.export.api import export as run
+    from blastvox.io.outputs import check_distinct, check_output
 
+    check_output(output, [cache_path])
+    if output.suffix.lower() == ".gltf":  # its buffer is written beside it
+        check_output(output.with_name(output.stem + ".bin"), [cache_path],
+                     label="-o (the .gltf's .bin)")
+        check_distinct([("-o", output), ("its .bin", output.with_name(output.stem + ".bin"))])
     started = time.perf_counter()
     cache = SimCache.load(cache_path)
     run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value))

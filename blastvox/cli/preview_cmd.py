@@ -48,6 +48,9 @@ def preview(
 
     started = time.perf_counter()
     output_format(output)  # argument errors first, before loading anything
+    from blastvox.io.outputs import check_output
+
+    check_output(output, [cache_path])
     options = PreviewOptions(frames=parse_frame_spec(frames), camera=parse_camera(camera),
                              size=parse_size(size), supersample=check_supersample(supersample),
                              hide=parse_hide(hide), fps=check_fps(fps))
