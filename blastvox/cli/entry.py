@@ -40,35 +40,98 @@ _HANDLED = tuple(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIG
                  if s is not None)
 
 
+#: Seconds the watchdog waits between looks for a swallowed interrupt.
+WATCH_S = 0.05
+#: Re-deliveries after which an interrupt that never surfaces exits the process hard.
+MAX_REDELIVERIES = 100
+
+
+class _Interrupt:
+    """Delivery of one interrupt to the main thread, whatever it is doing.
+
+    An exception raised in a signal handler surfaces at the main thread's next
+    bytecode, unless that bytecode runs inside a ctypes callback: there Python
+    reports it to ``sys.unraisablehook`` ("Exception ignored") and carries on.
+    numba compiles through such callbacks (llvmlite's object cache), so a Ctrl-C
+    during the first run's compilation used to be swallowed and the command
+    finished with exit 0. So the hook takes our swallowed exception quietly, and
+    a watchdog thread re-delivers the signal (``_thread.interrupt_main``) once
+    the callback has returned, until it surfaces.
+    """
+
+    def __init__(self) -> None:
+        self.signum = 0  # the first signal received, 0 for none yet
+        self.redelivering = False
+        self.swallowed = False
+        self.done = False
+
+    def handle(self, signum: int, frame: object) -> None:
+        import os
+
+        if self.signum and not self.redelivering:  # a second Ctrl-C: stop now
+            os._exit(128 + self.signum)
+        self.redelivering = False
+        self.signum = self.signum or signum
+        raise Interrupted(self.signum)
+
+    def unraisable(self, hook: object, unraisable: object) -> None:
+        """``sys.unraisablehook``: note our swallowed interrupt, pass anything else on."""
+        if isinstance(getattr(unraisable, "exc_value", None), Interrupted):
+            self.swallowed = True
+            self._start_watchdog()
+        else:
+            hook(unraisable)
+
+    def _start_watchdog(self) -> None:
+        import threading
+
+        if not any(t.name == "blastvox-interrupt" for t in threading.enumerate()):
+            threading.Thread(target=self._watch, name="blastvox-interrupt",
+                             daemon=True).start()
+
+    def _watch(self) -> None:
+        import _thread
+        import os
+        import time
+
+        for _ in range(MAX_REDELIVERIES):
+            time.sleep(WATCH_S)
+            if self.done:
+                return
+            if self.swallowed:
+                self.swallowed, self.redelivering = False, True
+                _thread.interrupt_main(self.signum)
+        _echo(f"blastvox: {Interrupted(self.signum).reason}; exiting")
+        os._exit(128 + self.signum)
+
+
 @contextmanager
 def interrupt_handlers() -> Iterator[None]:
     """Turn SIGINT/SIGTERM/SIGHUP into :class:`Interrupted` for the duration.
 
-    The first signal raises; a second one while the first unwinds exits at once
+    The first signal raises (see :class:`_Interrupt` for why it may be
+    re-delivered); a second one while the first unwinds exits at once
     (``os._exit``), as a user pressing Ctrl-C twice expects. Signals the parent
     set to be ignored (``nohup``, background jobs) stay ignored. The previous
     handlers are restored on exit, so the CLI can run in-process (tests).
     """
-    import os
+    import functools
 
-    raised: list[int] = []
-
-    def handler(signum: int, frame: object) -> None:
-        if raised:
-            os._exit(128 + raised[0])
-        raised.append(signum)
-        raise Interrupted(signum)
-
+    interrupt = _Interrupt()
+    hook = sys.unraisablehook
+    sys.unraisablehook = functools.partial(interrupt.unraisable, hook)
     previous = {}
     for signum in _HANDLED:
         old = signal.getsignal(signum)
         if old is signal.SIG_IGN:
             continue
         previous[signum] = old
-        signal.signal(signum, handler)
+        signal.signal(signum, interrupt.handle)
     try:
         yield
     finally:
+        interrupt.done = True
+        sys.unraisablehook = hook
         for signum, old in previous.items():
             signal.signal(signum, old)
 

@@ -47,7 +47,8 @@ def compile_ahead(run) -> Callable[[bool], None]:
     if pid == 0:  # the child: compile, never return into the caller's code
         code = 1
         try:
-            signal.signal(signal.SIGINT, signal.SIG_DFL)
+            for signum in (signal.SIGINT, signal.SIGTERM):  # not the parent's handlers:
+                signal.signal(signum, signal.SIG_DFL)  # finish(cancel) must stop it at once
             compile_late_phases(run)
             code = 0
         finally:

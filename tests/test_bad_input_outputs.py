@@ -1,0 +1,201 @@
+"""The output-path policy, write failures and signals (issue 18, items 3 and 4).
+
+Every refused case meets the contract of ``bad_input.assert_clean_failure``: exit 1,
+one line naming the file and the problem, no traceback, inputs unchanged and no
+output or ``.partial`` file left. Signals are sent for real: to a child process
+(Ctrl-C and SIGTERM at several moments, imports included) and to this process
+while the in-process CLI is half-way through writing a file.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import signal
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from bad_input import assert_clean_failure, listing, run_blastvox, unchanged
+
+CHARGE = ("--charge", "0,-1.5,0.5:2", "--duration", "0.1", "-q")
+
+
+@pytest.fixture(scope="module")
+def shot(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A directory with wall.stl, model.npz, sim.npz and a scene naming them."""
+    root = tmp_path_factory.mktemp("shot")
+    trimesh.creation.box(extents=(1.0, 0.5, 1.0)).export(root / "wall.stl")
+    for args in (("voxelize", "wall.stl", "-o", "model.npz", "--voxel-size", "0.25",
+                  "--up-axis", "Z", "-q"),
+                 ("simulate", "model.npz", "-o", "sim.npz", *CHARGE)):
+        outcome = run_blastvox(*args, cwd=root)
+        assert outcome.code == 0, outcome.stderr
+    return root
+
+
+@pytest.fixture()
+def work(shot: Path, tmp_path: Path) -> Path:
+    """A fresh copy of the shot directory for a test that may try to damage it."""
+    for name in ("wall.stl", "model.npz", "sim.npz"):
+        (tmp_path / name).write_bytes((shot / name).read_bytes())
+    return tmp_path
+
+
+def commands(output: str) -> dict[str, tuple[str, ...]]:
+    """Each writing command with ``-o output``."""
+    return {
+        "voxelize": ("voxelize", "wall.stl", "--voxel-size", "0.25", "-q", "-o", output),
+        "simulate": ("simulate", "model.npz", *CHARGE, "-o", output),
+        "export": ("export", "sim.npz", "-q", "-o", output),
+        "preview": ("preview", "sim.npz", "-q", "--frames", "0", "-o", output),
+    }
+
+
+INPUT_OF = {"voxelize": "wall.stl", "simulate": "model.npz", "export": "sim.npz",
+            "preview": "sim.npz"}
+SUFFIX = {"voxelize": ".npz", "simulate": ".npz", "export": ".usda", "preview": ".png"}
+INPUTS = ("wall.stl", "model.npz", "sim.npz")
+
+
+@pytest.mark.parametrize("command", sorted(INPUT_OF))
+@pytest.mark.parametrize("how", ["same", "symlink", "hardlink", "dotted"])
+def test_an_output_that_is_an_input_is_refused(work: Path, command: str, how: str) -> None:
+    source = INPUT_OF[command]
+    target = {"same": source, "dotted": f"sub/../{source}",
+              "symlink": f"link{SUFFIX[command]}", "hardlink": f"hard{SUFFIX[command]}"}[how]
+    (work / "sub").mkdir()
+    if how == "symlink":
+        (work / target).symlink_to(work / source)
+    elif how == "hardlink":
+        os.link(work / source, work / target)
+    with unchanged(work, [work / p for p in INPUTS]):
+        outcome = run_blastvox(*commands(target)[command], cwd=work)
+    # an input of another kind may be refused for its suffix first (preview of a .npz)
+    wrong_kind = Path(target).suffix != SUFFIX[command]
+    assert_clean_failure(outcome, [target], words=[] if wrong_kind else ["input", source])
+
+
+@pytest.mark.parametrize("command", sorted(INPUT_OF))
+@pytest.mark.parametrize("how", ["device", "symlink"])
+def test_a_device_is_never_replaced(work: Path, command: str, how: str) -> None:
+    """``-o /dev/null`` (run as root it used to become a regular file), or a link to it
+    whose suffix the command writes."""
+    target = "/dev/null"
+    if how == "symlink":
+        target = f"null{SUFFIX[command]}"
+        (work / target).symlink_to("/dev/null")
+    before = os.stat("/dev/null")
+    with unchanged(work, [work / p for p in INPUTS]):
+        outcome = run_blastvox(*commands(target)[command], cwd=work)
+    # /dev/null has no suffix: preview refuses it for its format first
+    assert_clean_failure(outcome, [target], words=["character device"] if how == "symlink"
+                         or command != "preview" else ["format"])
+    after = os.stat("/dev/null")
+    assert stat.S_ISCHR(after.st_mode) and after.st_rdev == before.st_rdev
+
+
+@pytest.mark.parametrize("command", sorted(INPUT_OF))
+@pytest.mark.parametrize("kind", ["fifo", "directory", "missing-dir", "parent-is-file"])
+def test_other_unwritable_outputs(work: Path, command: str, kind: str) -> None:
+    name = "out" + SUFFIX[command]
+    if kind == "fifo":
+        os.mkfifo(work / name)  # opening it for writing would block for ever
+        target, words = name, ["named pipe"]
+    elif kind == "directory":
+        (work / name).mkdir()
+        target, words = name, ["directory"]
+    elif kind == "missing-dir":
+        target, words = f"nowhere/{name}", ["does not exist"]
+    else:
+        target, words = f"wall.stl/{name}", ["not a directory"]
+    with unchanged(work, [work / p for p in INPUTS]):
+        outcome = run_blastvox(*commands(target)[command], cwd=work)
+    assert_clean_failure(outcome, [target], words=words, seconds=10)
+
+
+def test_scene_outputs_that_are_inputs_or_each_other_are_refused(work: Path) -> None:
+    scene = work / "scene.toml"
+    cases = {
+        'model = "wall.stl"\ncache = "out/sim.npz"': ("output.model", "input"),
+        'model = "out/a.npz"\ncache = "out/a.npz"': ("output.cache", "same file"),
+        'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/a.npz"]':
+            ("output.export", "same file"),
+        'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["scene.toml"]':
+            ("output.export", "input"),
+        'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/a.gltf", "out/a.bin"]':
+            ("output.export", "same file"),
+    }
+    for output, (key, word) in cases.items():
+        scene.write_text('[[objects]]\nmesh = "wall.stl"\nvoxel_size = 0.25\n'
+                         '[[charges]]\nposition = [0, -1.5, 0.5]\nmass_kg = 2\n'
+                         f'[output]\n{output}\n')
+        with unchanged(work, [work / p for p in (*INPUTS, "scene.toml")]):
+            outcome = run_blastvox("run", "scene.toml", "-q", cwd=work)
+        assert_clean_failure(outcome, [key], words=[word])
+
+
+@pytest.mark.parametrize("error", [errno.ENOSPC, errno.EROFS, errno.EACCES])
+def test_a_failed_write_is_one_line_and_leaves_nothing(work: Path, error: int,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk or a read-only directory (faked: root may write anywhere) at the
+    moment the finished file is moved into place."""
+    def refuse(src, dst):
+        raise OSError(error, os.strerror(error), str(dst))
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with unchanged(work, [work / p for p in INPUTS]):
+        outcome = run_blastvox(*commands("new.npz")["simulate"], cwd=work)
+    assert_clean_failure(outcome, ["new.npz"], words=[os.strerror(error)])
+
+
+def test_sigterm_while_writing_leaves_no_partial_file(work: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A real SIGTERM to this process half-way through writing the SimCache's members."""
+    write_array = np.lib.format.write_array
+    calls = []
+
+    def write_then_signal(*args, **kwargs):
+        calls.append(1)
+        write_array(*args, **kwargs)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1.0)  # the handler raises before this returns
+
+    monkeypatch.setattr(np.lib.format, "write_array", write_then_signal)
+    with unchanged(work, [work / p for p in INPUTS]):
+        outcome = run_blastvox(*commands("new.npz")["simulate"], cwd=work)
+    assert outcome.code == 143, outcome.stderr
+    assert outcome.stderr.strip().splitlines() == [
+        "blastvox: terminated; no partial output left"]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # handlers restored
+
+
+def _signal_child(cwd: Path, signum: int, after: float) -> tuple[int, str]:
+    child = subprocess.Popen([sys.executable, "-m", "blastvox", "simulate", "model.npz",
+                              "--charge", "0,-1.5,0.5:2", "--duration", "30", "-q", "-o",
+                              "new.npz"], cwd=cwd, stderr=subprocess.PIPE, text=True)
+    time.sleep(after)
+    child.send_signal(signum)
+    _, err = child.communicate(timeout=60)
+    return child.returncode, err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum,code,word", [(signal.SIGINT, 130, "interrupted"),
+                                              (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_at_any_moment_exits_with_its_code(work: Path, signum: int, code: int,
+                                                    word: str) -> None:
+    """Sent during the imports (0.3 s), the first compilation, loading and the run."""
+    before = listing(work)
+    for after in (0.3, 1.0, 2.0, 4.0):
+        returncode, err = _signal_child(work, signum, after)
+        assert returncode == code, (after, err[-500:])
+        assert err.strip().splitlines() == [f"blastvox: {word}; no partial output left"], (
+            after, err[-500:])
+        assert listing(work) == before, after
