@@ -277,20 +277,12 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     check_range(path, name("voxel_boundary"), a["voxel_boundary"], 0, 2 ** (SURFACE_BIT + 1) - 1,
                 rule=f"a bit mask below {2 ** (SURFACE_BIT + 1)}")
     # geometry: finite, bounded, and not so spread out that the simulator's grids overflow
-    for key in ("vertices", "voxel_centroid", "link_midpoint", "conform_triangles"):
-        check_bound(path, name(key), a[key], COORD_LIMIT_M)
+    check_bound(path, name("conform_triangles"), a["conform_triangles"], COORD_LIMIT_M)
     for key in ("voxel_volume", "voxel_mass", "link_area"):
         check_range(path, name(key), a[key], 0.0, lo_open=True)
     size = float(np.cbrt(np.median(a["voxel_volume"])))
     for key in ("vertices", "voxel_centroid", "link_midpoint"):
-        points = a[key]
-        if len(points):
-            span = points.max(axis=0) - points.min(axis=0)
-            axis = int(np.argmax(span))
-            if span[axis] > MAX_SPAN_VOXELS * size:
-                fail(path, f"array '{name(key)}' spans {span[axis]:.6g} m along {'xyz'[axis]}, "
-                           f"more than {MAX_SPAN_VOXELS} times the median voxel size "
-                           f"({size:.6g} m), beyond what the simulator's grids can hold")
+        _check_points(path, name(key), a[key], size)
     _check_inertia(path, name("voxel_inertia"), a["voxel_inertia"])
     check_unit(path, name("link_direction"), a["link_direction"], 1e-6)
     # limits: >= 0; +inf means unbreakable / never burns
@@ -300,7 +292,7 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     if loose.size and loose.any():
         i = int(np.flatnonzero(~a["voxel_foundation"])[np.flatnonzero(loose)[0]])
         fail(path, f"array '{name('voxel_foundation_yield')}' holds "
-                   f"{a['voxel_foundation_yield'][i]!r} at [{i}], a voxel that is not a "
+                   f"{float(a['voxel_foundation_yield'][i])!r} at [{i}], a voxel that is not a "
                    f"foundation ('{name('voxel_foundation')}'); expected 0")
 
 
@@ -356,20 +348,50 @@ def _check_materials(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
                         finite=finite)
 
 
+def _check_points(path: str | os.PathLike, name: str, points: np.ndarray,
+                  size: float) -> None:
+    """Points (K, 3) m: finite, within :data:`COORD_LIMIT_M`, and spanning at most
+    :data:`MAX_SPAN_VOXELS` times ``size`` (m) along each axis."""
+    if not len(points):
+        return
+    lo, hi = points.min(), points.max()  # whole-array reductions are the fast ones
+    if not (-COORD_LIMIT_M <= lo and hi <= COORD_LIMIT_M):
+        check_bound(path, name, points, COORD_LIMIT_M)  # names the element
+    if hi - lo <= MAX_SPAN_VOXELS * size:
+        return
+    span = np.array([points[:, k].max() - points[:, k].min() for k in range(3)])
+    axis = int(np.argmax(span))
+    if span[axis] > MAX_SPAN_VOXELS * size:
+        fail(path, f"array '{name}' spans {span[axis]:.6g} m along {'xyz'[axis]}, more than "
+                   f"{MAX_SPAN_VOXELS} times the median voxel size ({size:.6g} m), beyond "
+                   "what the simulator's grids can hold")
+
+
+#: voxel_inertia must be symmetric to this fraction of the voxel's largest diagonal element
+INERTIA_SYMMETRY = 1e-6
+
+
 def _check_inertia(path: str | os.PathLike, name: str, inertia: np.ndarray) -> None:
-    """Finite, symmetric (to 1e-6 of the largest diagonal element), positive diagonal."""
+    """Finite, positive diagonal, symmetric to :data:`INERTIA_SYMMETRY` of the largest
+    diagonal element. Whole-column reductions only, unless something is wrong."""
     check_finite(path, name, inertia)
     if not inertia.size:
         return
-    diagonal = np.diagonal(inertia, axis1=1, axis2=2)
-    if not diagonal.min() > 0.0:
-        i, k = np.argwhere(~(diagonal > 0.0))[0]
+    diagonal = [inertia[:, k, k] for k in range(3)]
+    smallest = min(float(d.min()) for d in diagonal)
+    if not smallest > 0.0:
+        i, k = np.argwhere(~(np.diagonal(inertia, axis1=1, axis2=2) > 0.0))[0]
         fail(path, f"array '{name}' holds a diagonal element that is not > 0 "
-                   f"({diagonal[i, k]!r} at [{i}, {k}, {k}])")
-    asym = np.maximum(np.maximum(np.abs(inertia[:, 0, 1] - inertia[:, 1, 0]),
-                                 np.abs(inertia[:, 0, 2] - inertia[:, 2, 0])),
-                      np.abs(inertia[:, 1, 2] - inertia[:, 2, 1]))
-    bad = asym > 1e-6 * diagonal.max(axis=1)
+                   f"({float(inertia[i, k, k])!r} at [{i}, {k}, {k}])")
+    pairs = ((0, 1), (0, 2), (1, 2))
+    differences = [inertia[:, j, k] - inertia[:, k, j] for j, k in pairs]
+    worst = max(max(-float(d.min()), float(d.max())) for d in differences)
+    if worst <= INERTIA_SYMMETRY * smallest:
+        return  # symmetric even against the smallest diagonal element of all
+    scale = np.maximum(np.maximum(diagonal[0], diagonal[1]), diagonal[2])
+    asym = np.maximum(np.maximum(np.abs(differences[0]), np.abs(differences[1])),
+                      np.abs(differences[2]))
+    bad = asym > INERTIA_SYMMETRY * scale
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         fail(path, f"array '{name}' holds a tensor that is not symmetric at [{i}]")
