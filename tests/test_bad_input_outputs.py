@@ -199,3 +199,27 @@ def test_a_signal_at_any_moment_exits_with_its_code(work: Path, signum: int, cod
         assert err.strip().splitlines() == [f"blastvox: {word}; no partial output left"], (
             after, err[-500:])
         assert listing(work) == before, after
+
+
+def test_an_interrupt_swallowed_by_a_ctypes_callback_still_surfaces(capfd) -> None:
+    """numba compiles through llvmlite's ctypes callbacks, where Python drops an exception
+    raised by a signal handler ("Exception ignored"); the interrupt must surface anyway."""
+    import ctypes
+
+    from blastvox.cli.entry import Interrupted, interrupt_handlers
+
+    ran = []
+
+    @ctypes.CFUNCTYPE(None)
+    def callback() -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+        ran.extend(range(1000))  # the handler runs in here; ctypes drops its exception
+
+    started = time.perf_counter()
+    with pytest.raises(Interrupted), interrupt_handlers():
+        callback()
+        ran.append("after the callback")
+        time.sleep(5.0)  # the watchdog re-delivers it within a few hundredths of a second
+    assert "after the callback" in ran
+    assert time.perf_counter() - started < 2.0
+    assert "Exception ignored" not in capfd.readouterr().err

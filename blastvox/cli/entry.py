@@ -55,7 +55,7 @@ class _Interrupt:
     numba compiles through such callbacks (llvmlite's object cache), so a Ctrl-C
     during the first run's compilation used to be swallowed and the command
     finished with exit 0. So the hook takes our swallowed exception quietly, and
-    a watchdog thread re-delivers the signal (``_thread.interrupt_main``) once
+    a watchdog thread re-delivers the signal (``signal.pthread_kill``) once
     the callback has returned, until it surfaces.
     """
 
@@ -90,9 +90,11 @@ class _Interrupt:
                              daemon=True).start()
 
     def _watch(self) -> None:
-        import _thread
         import os
+        import threading
         import time
+
+        main = threading.main_thread().ident
 
         for _ in range(MAX_REDELIVERIES):
             time.sleep(WATCH_S)
@@ -100,7 +102,8 @@ class _Interrupt:
                 return
             if self.swallowed:
                 self.swallowed, self.redelivering = False, True
-                _thread.interrupt_main(self.signum)
+                # a real signal to the main thread, which also wakes a blocking call
+                signal.pthread_kill(main, self.signum)
         _echo(f"blastvox: {Interrupted(self.signum).reason}; exiting")
         os._exit(128 + self.signum)
 
