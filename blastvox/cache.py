@@ -213,7 +213,7 @@ def check_cache(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
         fail(path, "array 'frame_time' is empty: the SimCache holds no frames")
     check_finite(path, "frame_time", a["frame_time"])
     if a["frame_time"][0] != 0.0:
-        fail(path, f"array 'frame_time' starts at {a['frame_time'][0]!r} s; expected 0")
+        fail(path, f"array 'frame_time' starts at {float(a['frame_time'][0])!r} s; expected 0")
     check_non_decreasing(path, "frame_time", a["frame_time"])
     # pieces
     check_index(path, "voxel_piece", a["voxel_piece"], pieces, "piece")
