@@ -435,10 +435,19 @@ def test_a_header_declaring_a_huge_shape_is_refused_before_reading(files, tmp_pa
     (_npy_header((2,), "|O") + bytes(16), ("'voxel_mass' holds pickled objects",)),
     (_npy_header((2,), "<c16") + bytes(32), ("'voxel_mass' has dtype complex128",)),
     (_npy_header((2,)) + bytes(8), ("declares shape (2,)", "holds 8 bytes")),
+    (_npy_header((10**12,), "<U0"), ("'voxel_mass' has dtype <U0",)),  # 0 bytes, 3.6 TiB
 ])
 def test_a_malformed_member_is_refused(files, tmp_path, payload, words):
     path = _replace_member(files[0], tmp_path / "bad.npz", "voxel_mass", payload)
     _refused(VoxelModel.load, path, *words)
+
+
+def test_a_member_twice_is_refused(files, tmp_path):
+    path = tmp_path / "twice.npz"
+    path.write_bytes(files[0].read_bytes())
+    with pytest.warns(UserWarning, match="Duplicate name"), zipfile.ZipFile(path, "a") as zf:
+        zf.writestr("voxel_mass.npy", _npy_header((1,)) + bytes(8))
+    _refused(VoxelModel.load, path, "member 'voxel_mass' appears twice")
 
 
 def test_corrupt_and_truncated_archives_are_refused(files, tmp_path):

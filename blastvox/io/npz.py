@@ -252,7 +252,8 @@ def _read_member(p: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo, key: str) 
         if dtype.hasobject:
             raise ContractError(f"{p}: member '{key}' holds pickled objects, which "
                                 "blastvox never loads")
-        if dtype.kind not in _ALLOWED_KINDS or dtype.names is not None or dtype.subdtype:
+        if (dtype.kind not in _ALLOWED_KINDS or dtype.names is not None or dtype.subdtype
+                or dtype.itemsize == 0):
             raise ContractError(f"{p}: member '{key}' has dtype {dtype}, which no blastvox "
                                 "file holds")
         if any(n < 0 for n in shape):
