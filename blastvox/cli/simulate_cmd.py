@@ -8,6 +8,15 @@ from pathlib import Path
 
 import typer
 
+from blastvox.bounds import (
+    CHARGE_KG,
+    CHARGE_TIME_S,
+    COORDINATE_M,
+    MAX_FRAMES,
+    MAX_MEMORY_GIB,
+    MAX_PARTICLES,
+    MAX_STEPS,
+)
 from blastvox.errors import BlastvoxError
 
 
@@ -20,7 +29,8 @@ class ChargeBurst(StrEnum):
 
 
 def _parse_charge(text: str) -> tuple[tuple[float, float, float], float, float]:
-    """'X,Y,Z:KG[@T]' -> (position m, mass kg, time s)."""
+    """'X,Y,Z:KG[@T]' -> (position m, mass kg, time s), each within its bound
+    (:mod:`blastvox.bounds`)."""
     try:
         where, rest = text.split(":", 1)
         mass, _, when = rest.partition("@")
@@ -30,8 +40,11 @@ def _parse_charge(text: str) -> tuple[tuple[float, float, float], float, float]:
     except ValueError:
         raise BlastvoxError(f"--charge {text!r}: expected X,Y,Z:KG or X,Y,Z:KG@T "
                             f"(metres, kg TNT, seconds)") from None
-    if not kg > 0 or not t >= 0 or not all(abs(v) < float("inf") for v in (x, y, z, kg, t)):
-        raise BlastvoxError(f"--charge {text!r}: mass must be > 0 and time >= 0, all finite")
+    flag = f"--charge {text!r}:"
+    CHARGE_KG.check(kg, f"{flag} mass")
+    CHARGE_TIME_S.check(t, f"{flag} time")
+    for axis, value in zip("XYZ", (x, y, z), strict=True):
+        COORDINATE_M.check(value, f"{flag} {axis}")
     return (x, y, z), kg, t
 
 
@@ -44,13 +57,16 @@ def simulate(
                                "[effects]."),
     charge: list[str] = typer.Option(None, "--charge", help="X,Y,Z:KG[@T] of TNT at metres, "
                                      "detonated at T s; repeatable; replaces the scene's "
-                                     "charges."),
+                                     "charges (1e-6 to 1e9 kg, within 1e6 m, T 0 to 1e9 s)."),
     explosive: str = typer.Option("TNT", "--explosive", help="Explosive of --charge masses."),
-    dt: float = typer.Option(None, "--dt", help="Fixed step, s [default: 1/240]."),
-    fps: float = typer.Option(None, "--fps", help="Output frames per second [default: 24]."),
-    duration: float = typer.Option(None, "--duration", help="Simulated seconds [default: 5]."),
-    gravity: float = typer.Option(None, "--gravity", help="m/s^2 along -up; 0 switches it off "
-                                  "[default: 9.81]."),
+    dt: float = typer.Option(None, "--dt", help="Fixed step, s, at least 1e-9 [default: "
+                             "1/240]."),
+    fps: float = typer.Option(None, "--fps", help="Output frames per second, 0.001 to 1e6 "
+                              "[default: 24]."),
+    duration: float = typer.Option(None, "--duration", help="Simulated seconds, > 0 (see "
+                                   "--max-steps, --max-frames) [default: 5]."),
+    gravity: float = typer.Option(None, "--gravity", help="m/s^2 along -up, 0 to 1000; 0 "
+                                  "switches it off [default: 9.81]."),
     fracture: str = typer.Option(None, "--fracture", help="pressure-impulse, yield (the "
                                  "papers' peak overpressure) or damage (Davison-Stevens) "
                                  "[default: pressure-impulse]."),
@@ -59,21 +75,39 @@ def simulate(
         "(surface within 0.2 W^(1/3) m of the ground)."),
     no_ground: bool = typer.Option(False, "--no-ground", help="No ground: foundations are "
                                    "ignored and the model floats free."),
-    seed: int = typer.Option(None, "--seed", help="Seed recorded in the cache [default: the "
-                             "scene's or 0]."),
+    seed: int = typer.Option(None, "--seed", help="Seed of the particles' random streams, "
+                             "0 to 2**64 - 1 [default: the scene's or 0]."),
+    max_steps: int = typer.Option(MAX_STEPS, "--max-steps", help="Refuse a run of more fixed "
+                                  "steps (duration / dt)."),
+    max_frames: int = typer.Option(MAX_FRAMES, "--max-frames", help="Refuse a run of more "
+                                   "output frames (duration x fps + 1)."),
+    max_particles: int = typer.Option(MAX_PARTICLES, "--max-particles", help="Refuse particle "
+                                      "budgets (the scene's [particles]) that add up to more."),
+    max_memory: float = typer.Option(MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
+                                     help="Stop a run whose recorded frames (pieces x frames) "
+                                     "would need more memory, GiB."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar or summary."),
 ) -> None:
     """Blow up a voxel model: blast wave, fracture, fragments, rigid-body motion.
 
     Runs at a fixed step, writes piece transforms at --fps, destroyed voxels,
-    damage, link breaks, dust emitters and shock radii.
+    damage, link breaks, dust emitters and shock radii. Settings outside their bounds
+    and runs over a budget (--max-steps, --max-frames, --max-particles, --max-memory)
+    are refused with one line before anything is computed (docs/user-guide.md, "Limits
+    and exit codes").
     """
     from dataclasses import replace
 
     from blastvox.cli.console import err_console, limit_warnings
     from blastvox.model import VoxelModel
     from blastvox.simulate.engine import simulate as run
-    from blastvox.simulate.settings import ChargeSpec, SimSettings, settings_from_scene
+    from blastvox.simulate.settings import (
+        Budget,
+        ChargeSpec,
+        SimSettings,
+        check_settings,
+        settings_from_scene,
+    )
 
     model = VoxelModel.load(model_path)
     settings = SimSettings()
@@ -81,19 +115,19 @@ def simulate(
         from blastvox.scene import load_scene
 
         spec = load_scene(scene)
-        settings = settings_from_scene(spec)
+        settings = settings_from_scene(spec, str(scene))
         if output is None:
             output = spec.output.cache
     if output is None:
         raise BlastvoxError(f"{model_path}: no output file: give -o SIM.npz")
+    from blastvox.io.outputs import check_output
+
+    from_scene = scene is not None and output == spec.output.cache
+    check_output(output, [model_path, scene], make_dirs=from_scene,
+                 label="output.cache" if from_scene else "-o")
     overrides = {k: v for k, v in {"dt": dt, "fps": fps, "duration": duration,
                                    "gravity": gravity, "fracture": fracture, "seed": seed}.items()
                  if v is not None}
-    for key in ("dt", "fps", "duration"):
-        if key in overrides and not 0 < overrides[key] < float("inf"):
-            raise BlastvoxError(f"--{key} must be positive and finite (got {overrides[key]})")
-    if "gravity" in overrides and not 0 <= overrides["gravity"] < float("inf"):
-        raise BlastvoxError(f"--gravity must be >= 0 (got {overrides['gravity']})")
     if overrides.get("fracture", "yield") not in ("pressure-impulse", "yield", "damage"):
         raise BlastvoxError(f"--fracture must be pressure-impulse, yield or damage "
                             f"(got {fracture!r})")
@@ -105,7 +139,14 @@ def simulate(
             position, kg, t = _parse_charge(text)
             specs.append(ChargeSpec(position, kg, explosive, t, ChargeBurst(burst).value))
         overrides["charges"] = tuple(specs)
-    settings = replace(settings, **overrides)
+    flagged = [*overrides, "charges"] if charge or scene is None else list(overrides)
+    if scene is None:  # every value is a flag's (given or its default)
+        flagged += ["dt", "fps", "duration", "gravity", "seed"]
+    names = {k: "--charge" if k == "charges" else f"--{k}" for k in flagged}
+    settings = replace(settings, **overrides,
+                       budget=Budget(max_steps, max_frames, max_particles, max_memory),
+                       origin=settings.origin.renamed(names, str(scene or model_path)))
+    check_settings(settings)  # bounds and budgets, before anything is computed
     if charge:
         from blastvox.blast.explosives import tnt_equivalent
 

@@ -63,7 +63,12 @@ from blastvox.simulate.kernels import (
 from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
 from blastvox.simulate.recorder import Recorder
-from blastvox.simulate.settings import SimSettings, gravity_vector
+from blastvox.simulate.settings import (
+    SimSettings,
+    check_record_memory,
+    check_settings,
+    gravity_vector,
+)
 from blastvox.simulate.shielding import (
     build_occupancy,
     inside_solid,
@@ -296,7 +301,14 @@ def _still_step(run: Run) -> None:
 
 def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None = None,
              warn: Callable[[str], None] | None = None) -> SimCache:
-    """Run the blast simulation of ``model`` with ``settings``."""
+    """Run the blast simulation of ``model`` with ``settings``.
+
+    Settings outside their bounds or over their budget are refused before anything is
+    built (:func:`~blastvox.simulate.settings.check_settings`); the recorded frames'
+    memory is checked at every frame as pieces appear. Both raise a one-line
+    :class:`~blastvox.errors.BlastvoxError` (a BudgetError for a budget).
+    """
+    check_settings(settings)
     progress = progress or Progress()
     warn = warn or (lambda message: None)
     cold = not _compiled_before()
@@ -332,12 +344,14 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
                  "is not modelled); move it into the air")
     limits = LimitMonitor(run.model, settings, dt)  # warns once per limit the run passes
     counts, counted = _alive_counts(run), state.counters.topology_version
+    check_record_memory(settings, _live_count(state), frames)
     run.recorder.frame(0, state, counts, run.charges.front_radius(0.0))
     for n in range(1, total_steps + 1):
         step(run, n, -(-n // per_frame))
         if n % per_frame == 0:
             if state.counters.topology_version != counted:  # links only change in a split
                 counts, counted = _alive_counts(run), state.counters.topology_version
+                check_record_memory(settings, _live_count(state), frames)  # pieces appear
             run.recorder.frame(n, state, counts, run.charges.front_radius(n * dt))
             limits.check(state)
             progress.update(n * dt, n, total_steps)
@@ -351,6 +365,11 @@ def _compiled_before() -> bool:
     from blastvox.jit import KERNEL_CACHE
 
     return next(KERNEL_CACHE.rglob("kernels.body_rotations-*.nbi"), None) is not None
+
+
+def _live_count(state: State) -> int:
+    """Bodies alive now: the fewest pieces the run will record from here on."""
+    return int(np.count_nonzero(state.bodies.live[:state.n_bodies]))
 
 
 def _alive_counts(run: Run) -> np.ndarray:

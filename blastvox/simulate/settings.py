@@ -1,11 +1,105 @@
-"""Run settings and charges, from a scene and/or command-line overrides."""
+"""Run settings and charges, from a scene and/or command-line overrides; their bounds and
+the run's budgets.
+
+:func:`check_settings` refuses, before a run allocates or loops, every setting outside
+its documented bound (:data:`BOUNDS`, :mod:`blastvox.bounds`) and a run over its
+:class:`Budget` (steps, frames, particles), with one line naming where the value came
+from (a flag, a scene file's key: :class:`Origin`), the value, the limit and the flag
+that raises it. :func:`blastvox.simulate.engine.simulate` calls it, so the CLI's
+``simulate`` and ``run`` and Python callers all get it; the memory of the recorded
+frames is checked as the run goes (:func:`check_record_memory`), once the piece count
+is known.
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from blastvox.bounds import (
+    CHARGE_KG,
+    CHARGE_TIME_S,
+    COORDINATE_M,
+    MAX_FRAMES,
+    MAX_MEMORY_GIB,
+    MAX_PARTICLES,
+    MAX_STEPS,
+    Bound,
+    check_count,
+    fmt,
+)
+from blastvox.errors import BlastvoxError, BudgetError
+
+#: Bytes recorded per piece and output frame: the live bodies' transforms during the run
+#: (index, position, orientation, centre of mass: 88 B) and the pieces' float64 and
+#: float32 transforms packed at the end (84 B).
+RECORD_BYTES_PER_PIECE_FRAME = 88 + 84
+#: Seeds are unsigned 64-bit integers.
+MAX_SEED = 2**64 - 1
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How much a run may take, checked before it allocates or loops (see the module doc).
+
+    max_steps: fixed steps (about duration / dt); max_frames: output frames (duration x
+    fps + 1); max_particles: the particle budgets of all systems together;
+    max_memory_gib: the recorded frames' memory (pieces x frames, checked as pieces
+    appear). The CLI's --max-steps, --max-frames, --max-particles and --max-memory
+    raise them.
+    """
+
+    max_steps: int = MAX_STEPS
+    max_frames: int = MAX_FRAMES
+    max_particles: int = MAX_PARTICLES
+    max_memory_gib: float = MAX_MEMORY_GIB
+
+
+@dataclass(frozen=True)
+class Origin:
+    """Where settings came from, to name them in errors: ``source`` (a scene or model
+    file) and what each setting is called there (a flag such as ``--dt``, a scene key
+    such as ``simulation.dt``); a setting not named is called by its field name."""
+
+    source: str = "SimSettings"
+    names: tuple[tuple[str, str], ...] = ()
+
+    def name(self, key: str) -> str:
+        """What ``key`` (a SimSettings field, ``charges``, ``particles``) is called."""
+        return dict(self.names).get(key, key)
+
+    def renamed(self, names: Mapping[str, str], source: str | None = None) -> Origin:
+        """This origin with ``names`` (and ``source``) replacing those it had."""
+        merged = dict(self.names) | dict(names)
+        return Origin(self.source if source is None else source, tuple(merged.items()))
+
+
+#: Documented bounds of the numeric settings (docs/user-guide.md, "Limits and exit codes").
+#: dt >= 1 ns and 0.001 <= fps <= 1e6 keep the steps per frame a small whole number; the
+#: duration is bounded by the budgets; gravity <= 1000 m/s^2 (about 100 g) and charge
+#: times <= 1e9 s keep every speed and position finite.
+BOUNDS: dict[str, Bound] = {
+    "dt": Bound(1e-9, None, "s"),
+    "fps": Bound(1e-3, 1e6, "frames/s"),
+    "duration": Bound(0.0, None, "s", open_low=True),
+    "gravity": Bound(0.0, 1000.0, "m/s^2"),
+    "linear_drag": Bound(0.0, None, "1/s"),
+    "angular_drag": Bound(0.0, None, "1/s"),
+    "weakening": Bound(0.0, 1.0),
+    "orientation_factor": Bound(0.0, 1.0),
+    "damage_b": Bound(0.0),
+    "damage_c": Bound(0.0, None, "1/(Pa s)"),
+    "friction": Bound(0.0),
+    "rest_damping": Bound(0.0, None, "1/s"),
+    "sleep_speed": Bound(0.0, None, "m/s"),
+    "fire_pressure_scale": Bound(0.0),
+    "fire_spread": Bound(0.0, None, "Pa/s"),
+    "burn_rate": Bound(0.0, None, "1/s"),
+    "fire_side_factor": Bound(0.0),
+}
 
 
 @dataclass(frozen=True)
@@ -33,6 +127,8 @@ class SimSettings:
     fire, dust, fireball, shock_sphere, camera_shake: effects on/off (an effect
     that is off costs nothing); fire_*/burn_rate: see blastvox.simulate.fire;
     budgets: particles per system; camera: (position, look_at, focal mm).
+    budget: the run's resource :class:`Budget`; origin: where the values came from, for
+    error messages (:class:`Origin`). Neither is recorded in the SimCache.
     """
 
     dt: float = 1.0 / 240.0
@@ -65,6 +161,8 @@ class SimSettings:
                                             ("smoke", 10_000), ("fireball", 2_000))
     camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None = None
     charges: tuple[ChargeSpec, ...] = field(default_factory=tuple)
+    budget: Budget = field(default_factory=Budget, compare=False)
+    origin: Origin = field(default_factory=Origin, compare=False)
 
     def steps_per_frame(self) -> int:
         """Whole steps per output frame; dt is shortened to divide the frame interval."""
@@ -97,8 +195,17 @@ class SimSettings:
         return d
 
 
-def settings_from_scene(scene) -> SimSettings:
-    """SimSettings from a validated :class:`blastvox.scene.Scene`."""
+#: What a scene calls each setting (its keys, as scene errors name them).
+SCENE_NAMES = {**{k: f"simulation.{k}" for k in BOUNDS}, "seed": "seed", "charges": "charges",
+               "budgets": "particles"}
+
+
+def settings_from_scene(scene, source: str = "the scene", budget: Budget | None = None
+                        ) -> SimSettings:
+    """SimSettings from a validated :class:`blastvox.scene.Scene`; ``source`` names the
+    scene file in errors (see :class:`Origin`); ``budget``: the run's (default
+    :class:`Budget`). Bounds and budgets are checked by :func:`check_settings` (the
+    engine calls it), after any overrides."""
     s = scene.simulation
     charges = tuple(ChargeSpec(tuple(c.position), c.mass_kg, c.explosive, c.time_s, c.burst)
                     for c in scene.charges)
@@ -118,7 +225,123 @@ def settings_from_scene(scene) -> SimSettings:
                        camera=None if scene.camera is None else (
                            tuple(scene.camera.position), tuple(scene.camera.look_at),
                            scene.camera.focal_length_mm),
-                       charges=charges)
+                       charges=charges, budget=budget or Budget(),
+                       origin=Origin(str(source), tuple(SCENE_NAMES.items())))
+
+
+def check_seed(value: object, name: str = "--seed", source: str | None = None) -> int:
+    """A seed: a whole number 0 .. 2**64 - 1, else a one-line BlastvoxError."""
+    where = f"{source}: " if source else ""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (
+            0 <= int(value) <= MAX_SEED):
+        raise BlastvoxError(f"{where}{name} {value!r} must be a whole number from 0 to "
+                            f"2**64 - 1")
+    return int(value)
+
+
+def _count(value: float) -> str:
+    """A count for messages: 1,234,567 up to ten million, then 2.4e+14."""
+    if not math.isfinite(value):
+        return "over 1e+308"
+    return f"{int(value):,}" if value < 1e7 else f"{value:.3g}"
+
+
+def check_bounds(settings: SimSettings) -> None:
+    """Every numeric setting, the seed and the charges within their bounds (:data:`BOUNDS`,
+    :mod:`blastvox.bounds`), else one BlastvoxError line naming it (see :class:`Origin`)."""
+    origin = settings.origin
+    for key, bound in BOUNDS.items():
+        bound.check(getattr(settings, key), origin.name(key), origin.source)
+    check_seed(settings.seed, origin.name("seed"), origin.source)
+    charges = origin.name("charges")
+    for i, c in enumerate(settings.charges):
+        CHARGE_KG.check(c.mass_kg, f"{charges}[{i}].mass_kg", origin.source)
+        CHARGE_TIME_S.check(c.time_s, f"{charges}[{i}].time_s", origin.source)
+        if len(c.position) != 3:
+            raise BlastvoxError(f"{origin.source}: {charges}[{i}].position must be X, Y, Z")
+        for axis, value in zip("xyz", c.position, strict=True):
+            COORDINATE_M.check(value, f"{charges}[{i}].position {axis}", origin.source)
+
+
+def run_size(settings: SimSettings) -> tuple[float, float]:
+    """(output frames, fixed steps) of a run as numbers that may be huge or infinite (never
+    an overflow): :meth:`SimSettings.frame_count` and (frames - 1) x
+    :meth:`SimSettings.steps_per_frame`, for any positive dt, fps and duration."""
+    span = settings.duration * settings.fps
+    frames = float(math.floor(span + 1e-9) + 1) if span < 1e18 else span
+    if frames <= 1.0:
+        return frames, 0.0
+    rate = settings.fps * settings.dt  # frames per step
+    per_frame = 1.0 / rate if rate > 0.0 else math.inf
+    per_frame = max(1.0, math.ceil(per_frame - 1e-9)) if per_frame < 1e18 else per_frame
+    return frames, (frames - 1.0) * per_frame
+
+
+def _check_budget_values(budget: Budget, where: str) -> None:
+    for key, low in (("max_steps", 1), ("max_frames", 1), ("max_particles", 0)):
+        check_count(getattr(budget, key), "--" + key.replace("_", "-"), low, where)
+    Bound(0.0, None, "GiB", open_low=True).check(budget.max_memory_gib, "--max-memory", where)
+
+
+def check_budget(settings: SimSettings) -> None:
+    """The run's frames, steps and particle budgets within ``settings.budget``, else one
+    :class:`~blastvox.errors.BudgetError` line naming the values, the limit and the flag
+    that raises it. Needs positive, finite dt, fps and duration (any size)."""
+    origin, budget = settings.origin, settings.budget
+    where, name = origin.source, origin.name
+    _check_budget_values(budget, where)
+    frames, steps = run_size(settings)
+    if steps > budget.max_steps:
+        pace = (f"{name('dt')} {fmt(settings.dt)} s" if steps > frames - 1 else
+                f"{name('fps')} {fmt(settings.fps)} frames/s (one step per frame)")
+        raise BudgetError(
+            f"{where}: {name('duration')} {fmt(settings.duration)} s at {pace} is "
+            f"{_count(steps)} steps, over the limit of {budget.max_steps:,} (raise it with "
+            f"--max-steps)")
+    if frames > budget.max_frames:
+        raise BudgetError(
+            f"{where}: {name('duration')} {fmt(settings.duration)} s at {name('fps')} "
+            f"{fmt(settings.fps)} frames/s is {_count(frames)} frames, over the limit of "
+            f"{budget.max_frames:,} (raise it with --max-frames)")
+    particles = name("budgets")
+    total = 0
+    for system, count in settings.budgets:
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
+            raise BlastvoxError(f"{where}: {particles}.{system} {count!r} must be a whole "
+                                f"number >= 0")
+        total += int(count)
+    if total > budget.max_particles:
+        parts = " + ".join(f"{system} {_count(count)}" for system, count in settings.budgets)
+        raise BudgetError(
+            f"{where}: {particles} budgets total {_count(total)} particles ({parts}), over "
+            f"the limit of {budget.max_particles:,} (raise it with --max-particles)")
+
+
+def check_settings(settings: SimSettings) -> None:
+    """What a run refuses before it allocates anything: a dt, fps or duration that is not a
+    positive number, then a run over its budget (:func:`check_budget`: "--dt 1e-300" is
+    refused for its steps), then any setting outside its bound (:func:`check_bounds`)."""
+    origin = settings.origin
+    for key in ("dt", "fps", "duration"):
+        Bound(0.0, None, BOUNDS[key].unit, open_low=True).check(
+            getattr(settings, key), origin.name(key), origin.source)
+    check_budget(settings)
+    check_bounds(settings)
+
+
+def check_record_memory(settings: SimSettings, pieces: int, frames: int) -> None:
+    """The recorded frames of ``pieces`` over ``frames`` within ``max_memory_gib``, else
+    BudgetError (the engine calls it at the first frame and at each frame after a split:
+    pieces only appear in splits)."""
+    need = pieces * frames * RECORD_BYTES_PER_PIECE_FRAME / 2**30
+    limit = settings.budget.max_memory_gib
+    if need > limit:
+        name = settings.origin.name
+        raise BudgetError(
+            f"{settings.origin.source}: recording {pieces:,} piece{'s' * (pieces != 1)} over "
+            f"{frames:,} frames "
+            f"needs about {need:.3g} GiB, over the limit of {fmt(limit)} GiB (raise it with "
+            f"--max-memory, or lower {name('fps')} or {name('duration')})")
 
 
 def gravity_vector(up: np.ndarray, gravity: float) -> np.ndarray:
