@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from blastvox.bounds import MAX_OUTPUT_PIXELS, MAX_PIXELS
+
 
 def preview(
     cache_path: Path = typer.Argument(..., metavar="SIM", help="SimCache .npz from "
@@ -28,13 +30,21 @@ def preview(
                              help="Leave out layers: pieces, ground, particles, shock."),
     supersample: int = typer.Option(2, "--supersample", metavar="N",
                                     help="Anti-aliasing: N x N samples per pixel (1-4)."),
-    fps: float = typer.Option(None, "--fps", help="Animation frame rate [default: the shot's "
-                              "fps / STEP]."),
+    fps: float = typer.Option(None, "--fps", help="Animation frame rate, 0.01 to 1000 "
+                              "[default: the shot's fps / STEP]."),
+    max_pixels: int = typer.Option(MAX_PIXELS, "--max-pixels", metavar="N",
+                                   help="Refuse to render more pixels a frame (W x H x "
+                                        "supersample^2; about 32 bytes each)."),
+    max_output_pixels: int = typer.Option(MAX_OUTPUT_PIXELS, "--max-output-pixels",
+                                          metavar="N", help="Refuse a .png sheet or .gif of "
+                                          "more pixels in all (frames x W x H, all kept in "
+                                          "memory; an .mp4 streams)."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar or summary."),
 ) -> None:
     """Render a SimCache headless on the CPU: pieces with their materials and damage faces,
     dust, fire and smoke, the ground and the shock fronts, from the scene camera or an
-    automatic one."""
+    automatic one. Sizes over the pixel budgets (--max-pixels, --max-output-pixels) are
+    refused before anything is rendered (docs/user-guide.md, "Limits and exit codes")."""
     from blastvox.preview.options import (
         PreviewOptions,
         check_fps,
@@ -53,7 +63,8 @@ def preview(
     check_output(output, [cache_path])
     options = PreviewOptions(frames=parse_frame_spec(frames), camera=parse_camera(camera),
                              size=parse_size(size), supersample=check_supersample(supersample),
-                             hide=parse_hide(hide), fps=check_fps(fps))
+                             hide=parse_hide(hide), fps=check_fps(fps),
+                             max_pixels=max_pixels, max_output_pixels=max_output_pixels)
     from blastvox.cache import SimCache
     from blastvox.cli.console import RichProgress, err_console
     from blastvox.preview.api import preview as run

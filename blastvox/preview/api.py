@@ -27,8 +27,10 @@ from blastvox.errors import BlastvoxError
 from blastvox.preview import camera as cameras
 from blastvox.preview.geometry import PreviewScene
 from blastvox.preview.options import (
+    FPS,
     CameraSpec,
     PreviewOptions,
+    check_output_pixels,
     output_format,
     select_frames,
 )
@@ -116,8 +118,11 @@ def preview(cache: SimCache, path: str | Path, options: PreviewOptions | None = 
     """Render ``cache`` to ``path`` (.png contact sheet, .gif or .mp4 animation).
 
     ``source`` names the cache in error messages (the CLI passes its path).
-    Raises :class:`BlastvoxError` for a bad format, frame range or camera, before
-    anything is written; the output is written atomically.
+    Raises :class:`BlastvoxError` for a bad format, frame range or camera, or a
+    :class:`~blastvox.errors.BudgetError` for a sheet or GIF over the options'
+    ``max_output_pixels``, before anything is allocated or written; the output is
+    written atomically. Without ``options.fps`` an animation runs at the shot's rate
+    divided by the frame step, held within :data:`~blastvox.preview.options.FPS`.
     """
     from blastvox.preview.sheet import contact_sheet, draw_label, frame_label
     from blastvox.preview.writers import write_gif, write_mp4, write_png
@@ -131,10 +136,11 @@ def preview(cache: SimCache, path: str | Path, options: PreviewOptions | None = 
         raise BlastvoxError(f"--size: {width}x{height}: MP4 (H.264, yuv420p) needs an even "
                             f"width and height")
     frames = select_frames(options.frames, cache.frame_count, suffix)
+    check_output_pixels(options.size, len(frames), suffix, options.max_output_pixels)
     shot = prepare(cache, frames, options, source)
     times = shot.scene.times
     step = frames[1] - frames[0] if len(frames) > 1 else 1
-    fps = options.fps or shot.scene.fps / step
+    fps = options.fps or min(max(shot.scene.fps / step, FPS.low), FPS.high)
     spent = [0.0]
 
     def labelled() -> Iterator[np.ndarray]:

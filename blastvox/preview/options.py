@@ -1,7 +1,15 @@
-"""The preview's arguments: output format, --frames, --size, --camera, --hide.
+"""The preview's arguments: output format, --frames, --size, --camera, --hide, --fps, and
+its pixel budgets.
 
 Each parser raises :class:`~blastvox.errors.BlastvoxError` with a one-line
 message naming the argument and what is wrong, before any work is done.
+
+Budgets (docs/user-guide.md, "Limits and exit codes"), checked before anything is
+allocated: a frame is rendered at ``--supersample`` x the size along each axis into
+buffers of about 32 bytes a pixel, so ``W x H x S^2`` is at most ``--max-pixels``
+(:data:`MAX_PIXELS`, 2 GiB of buffers); a .png contact sheet and a .gif keep every
+frame in memory (about 6 bytes a pixel), so ``frames x W x H`` is at most
+``--max-output-pixels`` (:data:`MAX_OUTPUT_PIXELS`); an .mp4 streams its frames.
 """
 
 from __future__ import annotations
@@ -13,13 +21,20 @@ from pathlib import Path
 
 import numpy as np
 
-from blastvox.errors import BlastvoxError
+from blastvox.bounds import MAX_OUTPUT_PIXELS, MAX_PIXELS, Bound, fmt
+from blastvox.errors import BlastvoxError, BudgetError
 
 FORMATS = (".png", ".gif", ".mp4")
 LAYERS = ("pieces", "ground", "particles", "shock")  #: what a preview draws
 SHEET_FRAMES = 6          #: frames on a PNG contact sheet when --frames is not given
 MAX_SIDE_PX = 8192
 MIN_SIDE_PX = 16
+#: Animation rates: a GIF delay is 1/100 s to 655 s; ffmpeg wants a sane rate.
+FPS = Bound(0.01, 1000.0, "frames/s")
+#: Explicit cameras: within +-1000 km (m); focal length 1 mm to 10 m (mm).
+CAMERA_COORDINATE_M = Bound(-1e6, 1e6, "m")
+FOCAL_MM = Bound(1.0, 10_000.0, "mm")
+MIN_CAMERA_DISTANCE_M = 1e-6
 
 
 @dataclass(frozen=True)
@@ -40,7 +55,9 @@ class PreviewOptions:
     frames: the parsed --frames (None: the format's default); camera: None picks
     the scene camera if the cache has one, else auto; size: (width, height) px
     of each frame; supersample: samples per pixel along each axis (1-4); hide:
-    layers not drawn; fps: animation rate (None: the shot's rate / frame step).
+    layers not drawn; fps: animation rate (None: the shot's rate / frame step, within
+    :data:`FPS`); max_pixels, max_output_pixels: the budgets (see the module doc).
+    The size, supersampling, rate and per-frame budget are checked on construction.
     """
 
     frames: FrameSpec | None = None
@@ -49,6 +66,47 @@ class PreviewOptions:
     supersample: int = 2
     hide: frozenset[str] = field(default_factory=frozenset)
     fps: float | None = None
+    max_pixels: int = MAX_PIXELS
+    max_output_pixels: int = MAX_OUTPUT_PIXELS
+
+    def __post_init__(self) -> None:
+        from blastvox.bounds import check_count
+
+        check_count(self.max_pixels, "--max-pixels")
+        check_count(self.max_output_pixels, "--max-output-pixels")
+        width, height = self.size
+        parse_size(f"{width}x{height}")
+        check_supersample(self.supersample)
+        check_fps(self.fps)
+        check_render_pixels(self.size, self.supersample, self.max_pixels)
+
+
+def check_render_pixels(size: tuple[int, int], supersample: int, max_pixels: int) -> int:
+    """Pixels rendered per frame, ``W x H x S^2``, if within ``max_pixels``, else a
+    one-line BudgetError naming --size, --supersample and --max-pixels."""
+    width, height = size
+    pixels = width * height * supersample * supersample
+    if pixels > max_pixels:
+        raise BudgetError(f"--size {width}x{height} at --supersample {supersample} renders "
+                          f"{pixels:,} pixels a frame (about {pixels * 32 / 2**30:.3g} GiB of "
+                          f"buffers), over the limit of {max_pixels:,} (raise it with "
+                          f"--max-pixels)")
+    return pixels
+
+
+def check_output_pixels(size: tuple[int, int], frames: int, suffix: str,
+                        max_output_pixels: int) -> int:
+    """Pixels a .png sheet or a .gif keeps in memory, ``frames x W x H``, if within
+    ``max_output_pixels`` (an .mp4 streams: no limit), else a one-line BudgetError."""
+    width, height = size
+    pixels = frames * width * height
+    if suffix != ".mp4" and pixels > max_output_pixels:
+        what = "a contact sheet" if suffix == ".png" else "a GIF"
+        raise BudgetError(f"--size {width}x{height} x {frames:,} frames (--frames) is "
+                          f"{pixels:,} pixels for {what}, over the limit of "
+                          f"{max_output_pixels:,} (raise it with --max-output-pixels, or "
+                          f"pick fewer frames or a smaller size, or write an .mp4)")
+    return pixels
 
 
 def output_format(path: str | Path) -> str:
@@ -65,12 +123,16 @@ def parse_size(text: str) -> tuple[int, int]:
     match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text or "")
     if not match:
         raise BlastvoxError(f"--size: {text!r} is not WIDTHxHEIGHT in pixels (e.g. 960x540)")
-    width, height = int(match.group(1)), int(match.group(2))
-    for name, value in (("width", width), ("height", height)):
-        if not MIN_SIDE_PX <= value <= MAX_SIDE_PX:
-            raise BlastvoxError(f"--size: {name} {value} px is outside "
+    sides = []
+    for name, digits in (("width", match.group(1)), ("height", match.group(2))):
+        value = int(digits.lstrip("0") or "0") if len(digits.lstrip("0")) <= 9 else None
+        if value is None or not MIN_SIDE_PX <= value <= MAX_SIDE_PX:
+            shown = digits if value is None and len(digits) <= 30 else (
+                f"{digits[:12]}... ({len(digits)} digits)" if value is None else value)
+            raise BlastvoxError(f"--size: {name} {shown} px is outside "
                                 f"{MIN_SIDE_PX}..{MAX_SIDE_PX}")
-    return width, height
+        sides.append(value)
+    return sides[0], sides[1]
 
 
 def _int(text: str, what: str, spec: str) -> int:
@@ -156,8 +218,8 @@ def _vector(text: str, what: str, spec: str) -> tuple[float, float, float]:
     except ValueError:
         raise BlastvoxError(f"--camera: {what} {text!r} in {spec!r} is not three "
                             f"numbers") from None
-    if not all(math.isfinite(v) for v in values):
-        raise BlastvoxError(f"--camera: {what} {text!r} in {spec!r} is not finite")
+    for axis, value in zip("XYZ", values, strict=True):
+        CAMERA_COORDINATE_M.check(value, f"--camera {spec!r}: {what} {axis}")
     return values  # type: ignore[return-value]
 
 
@@ -182,10 +244,10 @@ def parse_camera(text: str | None) -> CameraSpec | None:
         except ValueError:
             raise BlastvoxError(f"--camera: focal length {parts[2]!r} in {text!r} is not a "
                                 f"number (mm)") from None
-        if not (math.isfinite(focal) and focal > 0):
-            raise BlastvoxError(f"--camera: focal length {parts[2]!r} mm must be > 0")
-    if position == target:
-        raise BlastvoxError(f"--camera: position and look-at point in {text!r} are the same")
+        FOCAL_MM.check(focal, f"--camera {text!r}: focal length")
+    if math.dist(position, target) < MIN_CAMERA_DISTANCE_M:
+        raise BlastvoxError(f"--camera: position and look-at point in {text!r} are the same "
+                            f"(less than {fmt(MIN_CAMERA_DISTANCE_M)} m apart)")
     return CameraSpec(kind="explicit", position=position, look_at=target, focal_mm=focal)
 
 
@@ -208,7 +270,6 @@ def check_supersample(value: int) -> int:
 
 
 def check_fps(value: float | None) -> float | None:
-    """--fps: a finite rate > 0 (or None)."""
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise BlastvoxError(f"--fps: {value:g} is not a positive frame rate")
-    return value
+    """--fps: a rate within :data:`FPS` (or None)."""
+    return None if value is None else FPS.check(value, "--fps")
+
