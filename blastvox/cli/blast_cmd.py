@@ -25,7 +25,8 @@ def _number(text: str, what: str) -> float:
     except ValueError:
         from blastvox.errors import BlastvoxError
 
-        raise BlastvoxError(f"{what}: {text.strip()!r} is not a number") from None
+        shown = text.strip() if len(text.strip()) <= 40 else text.strip()[:40] + "..."
+        raise BlastvoxError(f"{what}: {shown!r} is not a number") from None
     if not math.isfinite(value):
         from blastvox.errors import BlastvoxError
 
@@ -34,19 +35,19 @@ def _number(text: str, what: str) -> float:
 
 
 def parse_charge(text: str | None) -> float:
-    """The --charge value in kg: a finite number > 0."""
+    """The --charge value in kg, within :data:`blastvox.bounds.CHARGE_KG` (1 mg to 1 Mt)."""
+    from blastvox.bounds import CHARGE_KG
     from blastvox.errors import BlastvoxError
 
     if text is None:
         raise BlastvoxError("--charge KG is required (mass of explosive in kg)")
-    value = _number(text, "--charge")
-    if value <= 0.0:
-        raise BlastvoxError(f"--charge: {value:g} kg is not a positive mass")
-    return value
+    return CHARGE_KG.check(_number(text, "--charge"), "--charge")
 
 
 def parse_distances(text: str | None) -> list[float]:
-    """The --distance list in m: comma-separated finite numbers >= 0."""
+    """The --distance list in m: at most :data:`~blastvox.bounds.MAX_DISTANCES`
+    comma-separated numbers within :data:`~blastvox.bounds.DISTANCE_M` (0 to 1000 km)."""
+    from blastvox.bounds import DISTANCE_M, MAX_DISTANCES
     from blastvox.errors import BlastvoxError
 
     if text is None:
@@ -54,31 +55,33 @@ def parse_distances(text: str | None) -> list[float]:
     parts = text.split(",")
     if not any(p.strip() for p in parts):
         raise BlastvoxError("--distance: no distances given")
+    if len(parts) > MAX_DISTANCES:
+        raise BlastvoxError(f"--distance: {len(parts):,} distances, over the limit of "
+                            f"{MAX_DISTANCES:,} a call (make several calls, or use "
+                            f"blastvox.blast.blast_parameters from Python)")
     values = []
     for part in parts:
         if not part.strip():
-            raise BlastvoxError(f"--distance: empty entry in {text!r}")
-        value = _number(part, "--distance")
-        if value < 0.0:
-            raise BlastvoxError(f"--distance: {value:g} m is negative")
-        values.append(value)
+            raise BlastvoxError(f"--distance: empty entry in {text[:80]!r}")
+        values.append(DISTANCE_M.check(_number(part, "--distance"), "--distance"))
     return values
 
 
 def blast(
     charge: str = typer.Option(None, "--charge", metavar="KG",
-                               help="Mass of explosive in kg (required)."),
+                               help="Mass of explosive in kg, 1e-6 to 1e9 (required)."),
     explosive: str = typer.Option("TNT", "--explosive", metavar="NAME",
                                   help="Explosive, converted to a TNT-equivalent mass "
                                        "(e.g. TNT, C4, PETN, RDX, ANFO, Semtex)."),
     distance: str = typer.Option(None, "--distance", metavar="R[,R,...]",
-                                 help="Distance(s) from the charge centre in m, "
-                                      "comma-separated (required)."),
+                                 help="Distance(s) from the charge centre in m, 0 to 1e6, "
+                                      "comma-separated, at most 1,000 (required)."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per "
                                  "distance, in SI units."),
     plot: Path = typer.Option(None, "--plot", metavar="OUT.png",
                               help="Also plot the pressure-time curves at the distances "
-                                   "(negative phase included) and peak overpressure and "
+                                   "(at most 12, spread over them; negative phase "
+                                   "included) and peak overpressure and "
                                    "impulse, incident and reflected, against distance "
                                    "(.png, .svg or .pdf)."),
     burst: Burst = typer.Option(Burst.air, "--burst",

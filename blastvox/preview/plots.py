@@ -31,6 +31,9 @@ from blastvox.io.atomic import atomic_path
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 DPI = 100
+#: Pressure-time curves drawn at most (each costs ~0.1 s and a legend line); with more
+#: distances, this many spread over them are drawn and the panel's title says so.
+MAX_CURVES = 12
 
 
 @dataclass(frozen=True)
@@ -127,10 +130,21 @@ def pressure_time(distance_m: float, charge_kg: float, explosive: str = "TNT",
     return t, pressure
 
 
+def curve_distances(distances: Sequence[float], most: int = MAX_CURVES) -> list[float]:
+    """The distinct ``distances`` in order, or, when there are more than ``most``, ``most``
+    of them spread evenly over the sorted list (the nearest and the farthest included)."""
+    unique = sorted(set(float(r) for r in distances))
+    if len(unique) <= most:
+        return [float(r) for r in dict.fromkeys(float(r) for r in distances)]
+    picks = np.unique(np.round(np.linspace(0, len(unique) - 1, most)).astype(int))
+    return [unique[i] for i in picks]
+
+
 def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float],
                  burst: str = "air") -> Any:
-    """Pressure-time curves at ``distances`` (m), and Ps, Pr and the incident, reflected
-    and negative-phase impulses against distance, for an "air" or "surface" burst."""
+    """Pressure-time curves at ``distances`` (m; at most :data:`MAX_CURVES`, see
+    :func:`curve_distances`), and Ps, Pr and the incident, reflected and negative-phase
+    impulses against distance (every distance marked), for an "air" or "surface" burst."""
     import blastvox.blast as blast
 
     factor = blast.tnt_equivalent(explosive)
@@ -140,7 +154,9 @@ def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float],
     grid = fig.add_gridspec(2, 2, height_ratios=(1.15, 1.0))
     ax_pt = fig.add_subplot(grid[0, :])
     peaks = []
-    for r in distances:
+    drawn = curve_distances(distances)
+    given_count = len(set(float(r) for r in distances))
+    for r in drawn:
         t, pressure = pressure_time(r, charge_kg, explosive, burst=burst)
         peaks.append(float(np.max(np.abs(pressure))))
         ax_pt.plot(t * 1e3, pressure / 1e3, label=f"R = {r:g} m")
@@ -151,12 +167,16 @@ def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float],
     fig.suptitle(f"{charge_kg:g} kg {explosive} = {charge_kg * factor:.4g} kg TNT, "
                  f"{blast.BURST_TITLES[burst]} (Kingery-Bulmash, modified Friedlander)",
                  fontsize="medium")
+    which = ("each distance" if len(drawn) == given_count else
+             f"{len(drawn)} of the {given_count:,} distances, spread over them")
     style_axes(ax_pt, "time after detonation (ms)", "overpressure p - p0 (kPa)",
-               "incident pressure at each distance, negative phase included")
+               f"incident pressure at {which}, negative phase included")
 
-    given = np.array([r for r in distances if r > 0], dtype=float)
-    lo = (given.min() if len(given) else z_min * cube) / 3.0
-    hi = (given.max() if len(given) else blast.Z_MAX * cube) * 3.0
+    given = np.unique(np.array([r for r in distances if r > 0], dtype=float))
+    # from a third of the nearest distance, but not below a tenth of the fits' reach (a
+    # distance deep in the charge, 1e-300 m, would span hundreds of decades)
+    lo = max((given.min() if len(given) else z_min * cube) / 3.0, z_min * cube / 10.0)
+    hi = max((given.max() if len(given) else blast.Z_MAX * cube) * 3.0, 10.0 * lo)
     r = np.geomspace(lo, hi, 400)
     p = blast.blast_parameters(r, charge_kg, explosive, burst)
     _, tau_end = blast.negative_phase(p.peak_overpressure_pa, p.decay_coefficient)
