@@ -19,6 +19,7 @@ pxr = pytest.importorskip("pxr")
 from pxr import Usd, UsdGeom, UsdShade  # noqa: E402
 
 from blastvox.cache import SimCache  # noqa: E402
+from blastvox.errors import OutputError  # noqa: E402
 from blastvox.export.api import ExportOptions, export  # noqa: E402
 from blastvox.export.pieces import animation, frame_change, piece_meshes  # noqa: E402
 from blastvox.export.usd import write_usd  # noqa: E402
@@ -461,7 +462,7 @@ def test_failed_write_leaves_nothing(synthetic, tmp_path, monkeypatch):
 
     monkeypatch.setattr(usd, "build_layer", lambda cache, options: Broken())
     out = tmp_path / "shot.usdc"
-    with pytest.raises(OSError):
+    with pytest.raises(OutputError, match="shot.usdc: USD could not write"):
         write_usd(synthetic, out, ExportOptions())
     assert list(tmp_path.iterdir()) == []
 

@@ -40,6 +40,7 @@ from pxr import Gf, Sdf, Tf, Vt
 
 from blastvox import __version__
 from blastvox.cache import SimCache
+from blastvox.errors import OutputError
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import animation, piece_meshes
 from blastvox.geometry import quaternion
@@ -666,7 +667,7 @@ def write_usd(cache: SimCache, path: Path, options: ExportOptions) -> None:
         usd_tmp = tmp.with_name(tmp.name + path.suffix.lower())
         try:
             if not layer.Export(str(usd_tmp)):
-                raise OSError(f"{path}: USD export failed")
+                raise OutputError(f"{path}: USD could not write the file")
             os.replace(usd_tmp, tmp)
         finally:
             with contextlib.suppress(FileNotFoundError):
