@@ -41,7 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from blastvox.errors import BlastvoxError, ContractError, MaterialError
+from blastvox.errors import BlastvoxError, ContractError, InputError, MaterialError
+from blastvox.validate_values import MAX_TOML_BYTES, Bound, printable, regular_file
 
 RGB = tuple[float, float, float]
 
@@ -104,7 +105,21 @@ _FIELD_KINDS: dict[str, str] = {
     "description": "text",
     "link_impulse": "impulse",
     "voxel_impulse": "impulse",
-    "pi_shape": "impulse",
+    "pi_shape": "shape",
+}
+#: The range of each numeric kind (documented in docs/user-guide.md, Limits): finite
+#: limits keep the simulator's products of yields, impulses and areas far from overflow.
+MAX_DENSITY = 1e5        # kg/m^3 (osmium: 22,590)
+MAX_PRESSURE_PA = 1e12   # a yield or threshold; inf means "never"
+MAX_IMPULSE_PA_S = 1e9
+MAX_PI_SHAPE = 1e6
+_BOUNDS: dict[str, Bound] = {
+    "positive": Bound(0.0, MAX_DENSITY, lo_open=True, unit="kg/m^3"),
+    "threshold": Bound(0.0, MAX_PRESSURE_PA, unit="Pa", allow_inf=True),
+    "variance": Bound(0.0, MAX_PRESSURE_PA, unit="Pa"),
+    "impulse": Bound(0.0, MAX_IMPULSE_PA_S, unit="Pa s"),
+    "shape": Bound(0.0, MAX_PI_SHAPE),
+    "unit": Bound(0.0, 1.0, interval=True),
 }
 _OPTIONAL = ("description", "link_impulse", "voxel_impulse", "pi_shape")
 _REQUIRED = [k for k in _FIELD_KINDS if k not in _OPTIONAL]
@@ -114,23 +129,28 @@ _TOML_POSITION = re.compile(r"\s*\(at (line \d+, column \d+|end of document)\)$"
 
 def read_toml(path: Path, error: type[BlastvoxError]) -> dict[str, Any]:
     """Read a TOML file, turning every failure into a one-line ``error`` naming ``path``."""
+    path = Path(path)
+    shown = printable(path)
     try:
+        regular_file(path, "TOML file", MAX_TOML_BYTES)
         with open(path, "rb") as fh:
             return tomllib.load(fh)
     except FileNotFoundError:
-        raise error(f"{path}: file not found") from None
+        raise error(f"{shown}: file not found") from None
     except IsADirectoryError:
-        raise error(f"{path}: is a directory, not a TOML file") from None
+        raise error(f"{shown}: is a directory, not a TOML file") from None
+    except InputError as exc:
+        raise error(str(exc)) from None
     except OSError as exc:
-        raise error(f"{path}: cannot read: {exc.strerror}") from None
+        raise error(f"{shown}: cannot read: {exc.strerror}") from None
     except UnicodeDecodeError:
-        raise error(f"{path}: not UTF-8 text") from None
+        raise error(f"{shown}: not UTF-8 text") from None
     except tomllib.TOMLDecodeError as exc:
         text = str(exc)
         match = _TOML_POSITION.search(text)
         if match:
             text = f"at {match.group(1)}: {text[: match.start()]}"
-        raise error(f"{path}: TOML syntax error {text}") from None
+        raise error(f"{shown}: TOML syntax error {text}") from None
 
 
 def _number(value: Any, where: str) -> float:
@@ -156,18 +176,10 @@ def _check_field(key: str, value: Any, where: str) -> Any:
         if not all(0.0 <= c <= 1.0 for c in rgb):
             raise MaterialError(f"{where}: components must be in [0, 1] (got {list(rgb)})")
         return rgb
-    number = _number(value, where)
-    if kind == "positive" and not (0.0 < number < math.inf):
-        raise MaterialError(f"{where}: must be > 0 and finite (got {number})")
-    if kind == "threshold" and number < 0.0:
-        raise MaterialError(f"{where}: must be >= 0 (inf allowed) (got {number})")
-    if kind == "variance" and not (0.0 <= number < math.inf):
-        raise MaterialError(f"{where}: must be >= 0 and finite (got {number})")
-    if kind == "impulse" and not (0.0 <= number < math.inf):
-        raise MaterialError(f"{where}: must be >= 0 and finite (got {number})")
-    if kind == "unit" and not (0.0 <= number <= 1.0):
-        raise MaterialError(f"{where}: must be in [0, 1] (got {number})")
-    return number
+    try:
+        return _BOUNDS[kind].check(value)
+    except ValueError as exc:
+        raise MaterialError(f"{where}: {exc}") from None
 
 
 def _normalise(name: Any, where: str) -> str:

@@ -15,7 +15,13 @@ Conventions (all SI: metres, seconds, kilograms, pascals):
   translate. ``rotate_deg`` is XYZ Euler in degrees, extrinsic (rotate about X,
   then Y, then Z: R = Rz @ Ry @ Rx), as Blender's ``XYZ`` mode.
 * Paths are relative to the scene file and are stored resolved (absolute).
-  Mesh files are not checked here: the voxelize stage reads them.
+  Mesh files are not checked here: the voxelize stage reads them, and records
+  each mesh path as the scene wrote it (``SceneObject.mesh_as_written``), so a
+  build is byte-identical wherever the scene and its meshes are.
+* Every number is finite and within a documented range
+  (:mod:`blastvox.validate_values`; docs/user-guide.md, Limits and exit codes):
+  coordinates within 1e6 m of the origin, seeds 0 .. 2**63 - 1, and so on.
+  ``charges[i].explosive`` must be a known explosive.
 
 Loading never raises anything but :class:`~blastvox.errors.SceneError`, whose
 message is one line: ``<file>: <key.path>: <what is wrong>``.
@@ -45,8 +51,10 @@ from pydantic import (
     model_validator,
 )
 
-from blastvox.errors import MaterialError, SceneError
+from blastvox import validate_values as limits
+from blastvox.errors import BlastvoxError, MaterialError, SceneError
 from blastvox.materials import MaterialLibrary, read_toml
+from blastvox.validate_values import Bound, printable
 
 _UNKNOWN_SOURCE = "<scene>"
 
@@ -68,22 +76,43 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
-def _vec3(value: Any) -> tuple[float, float, float]:
-    if (not isinstance(value, list | tuple) or len(value) != 3
-            or not all(_is_number(v) and math.isfinite(v) for v in value)):
-        raise ValueError(f"must be a list of 3 finite numbers (got {_got(value)})")
-    return (float(value[0]), float(value[1]), float(value[2]))
+def _in_bound(bound: Bound, vec: Any, value: Any) -> tuple[float, float, float]:
+    try:
+        checked = [bound.check(v) for v in vec]
+    except ValueError as exc:
+        problem = str(exc).split(" (got ")[0]
+        each = "" if _is_number(value) else "each component "
+        raise ValueError(f"{each}{problem} (got {_got(value)})") from None
+    return (checked[0], checked[1], checked[2])
 
 
-def _size3(value: Any) -> tuple[float, float, float]:
-    vec3 = [value] * 3 if _is_number(value) else value
-    if (not isinstance(vec3, list | tuple) or len(vec3) != 3
-            or not all(_is_number(v) for v in vec3)):
-        raise ValueError(f"must be a number or a list of 3 numbers (got {_got(value)})")
-    vec = _vec3(vec3)
-    if min(vec) <= 0.0:
-        raise ValueError(f"must be > 0 (got {_got(value)})")
-    return vec
+def _vector(bound: Bound) -> BeforeValidator:
+    """3 finite numbers, each within ``bound`` (shared with the CLI: validate_values)."""
+
+    def _vec3(value: Any) -> tuple[float, float, float]:
+        if (not isinstance(value, list | tuple) or len(value) != 3
+                or not all(_is_number(v) and math.isfinite(v) for v in value)):
+            raise ValueError(f"must be a list of 3 finite numbers (got {_got(value)})")
+        return _in_bound(bound, value, value)
+
+    _vec3.bound = bound  # type: ignore[attr-defined]  # for tools/scene_reference.py
+    return BeforeValidator(_vec3)
+
+
+def _sizes(bound: Bound) -> BeforeValidator:
+    """One number for all three axes or 3 numbers, each within ``bound``."""
+
+    def _size3(value: Any) -> tuple[float, float, float]:
+        vec3 = [value] * 3 if _is_number(value) else value
+        if (not isinstance(vec3, list | tuple) or len(vec3) != 3
+                or not all(_is_number(v) for v in vec3)):
+            raise ValueError(f"must be a number or a list of 3 numbers (got {_got(value)})")
+        if not all(math.isfinite(v) for v in vec3):
+            raise ValueError(f"must be finite (got {_got(value)})")
+        return _in_bound(bound, vec3, value)
+
+    _size3.bound = bound  # type: ignore[attr-defined]
+    return BeforeValidator(_size3)
 
 
 def _path(value: Any, info: ValidationInfo) -> Path:
@@ -112,14 +141,29 @@ def _ground(value: Any) -> Any:
     if isinstance(value, str) and value.strip().lower() in ("auto", "none"):
         return value.strip().lower()
     if _is_number(value) and math.isfinite(value):
-        return float(value)
+        return limits.COORDINATE.check(value)
     raise ValueError(f"must be 'auto', 'none' or a finite height in metres (got {_got(value)})")
 
 
+_ground.bound = limits.COORDINATE  # type: ignore[attr-defined]
+
+
+Vec3 = Annotated[tuple[float, float, float], _vector(limits.COORDINATE)]
+Direction3 = Annotated[tuple[float, float, float], _vector(limits.DIRECTION)]
+Angles3 = Annotated[tuple[float, float, float], _vector(limits.ANGLE_DEG)]
+Size3 = Annotated[tuple[float, float, float], _sizes(limits.VOXEL_SIZE)]
+Scale3 = Annotated[tuple[float, float, float], _sizes(limits.SCALE)]
+# numbers within a documented bound (blastvox.validate_values), as pydantic constraints
+Resolution = Annotated[int, limits.RESOLUTION.constraints()]
+Seed = Annotated[int, limits.SEED.constraints()]
+Jitter = Annotated[float, limits.JITTER.constraints()]
+Length = Annotated[float, limits.LENGTH.constraints()]
+StrengthScale = Annotated[float, limits.STRENGTH_SCALE.constraints()]
+# The simulation's settings and budgets (simulation.*, particles.*, charges' mass and
+# time) are bounded where they are used: blastvox.simulate.settings.check_settings names
+# the scene file and key; here they need only be finite and of the right sign.
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
 NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
-Vec3 = Annotated[tuple[float, float, float], BeforeValidator(_vec3)]
-Size3 = Annotated[tuple[float, float, float], BeforeValidator(_size3)]
 FilePath = Annotated[Path, BeforeValidator(_path)]
 Name = Annotated[str, StringConstraints(strict=True, strip_whitespace=True, min_length=1)]
 MaterialName = Annotated[Name, BeforeValidator(_material_name)]
@@ -128,16 +172,25 @@ MaterialName = Annotated[Name, BeforeValidator(_material_name)]
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, ser_json_inf_nan="constants")
 
+    def __eq__(self, other: object) -> bool:
+        """Equal fields (private notes such as the path as written do not count)."""
+        if not isinstance(other, BaseModel):
+            return NotImplemented
+        return type(self) is type(other) and self.__dict__ == other.__dict__
+
+    def __hash__(self) -> int:
+        return hash((type(self), *self.__dict__.values()))
+
 
 class Transform(_Model):
     """Mesh-to-world transform: scale, then rotate (XYZ Euler, degrees), then translate (m)."""
 
     translate: Vec3 = Field((0.0, 0.0, 0.0), description=(
         "Translation applied last, after scale and rotation."))
-    rotate_deg: Vec3 = Field((0.0, 0.0, 0.0), description=(
+    rotate_deg: Angles3 = Field((0.0, 0.0, 0.0), description=(
         "Rotation as XYZ Euler angles, extrinsic (about X, then Y, then Z: "
         "R = Rz Ry Rx), as Blender's XYZ mode; applied after scale."))
-    scale: Size3 = Field((1.0, 1.0, 1.0), description=(
+    scale: Scale3 = Field((1.0, 1.0, 1.0), description=(
         "Scale factor, one number for all axes or one per axis; applied first."))
 
 
@@ -163,7 +216,7 @@ class Sphere(_Model):
     """Ball with ``center`` (m) and ``radius`` (m > 0), boundary inclusive."""
 
     center: Vec3 = Field(description="Centre (world frame).")
-    radius: Positive = Field(description="Radius.")
+    radius: Length = Field(description="Radius.")
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Boolean mask of the (N, 3) ``points`` inside the ball."""
@@ -175,7 +228,7 @@ class Halfspace(_Model):
     """Points x with (x - point) . normal >= 0; ``normal`` need not be unit length."""
 
     point: Vec3 = Field(description="A point on the bounding plane (world frame).")
-    normal: Vec3 = Field(description=(
+    normal: Direction3 = Field(description=(
         "Direction into the half-space (need not be unit length, must not be zero)."))
 
     @field_validator("normal")
@@ -202,7 +255,7 @@ class Rule(_Model):
     halfspace: Halfspace | None = Field(None, description="Half-space region.")
     material: MaterialName | None = Field(None, description=(
         "Material of the voxels whose centre is inside the region."))
-    strength_scale: Positive | None = Field(None, description=(
+    strength_scale: StrengthScale | None = Field(None, description=(
         "Factor on the link, voxel and foundation yields inside the region "
         "(a link takes the smaller factor of its two voxels)."))
 
@@ -232,13 +285,13 @@ class SceneObject(_Model):
         "not connected become the objects NAME.000, NAME.001, ..."))
     voxel_size: Size3 | None = Field(None, description=(
         "Voxel edge, one number or one per axis. Give voxel_size or resolution, not both."))
-    resolution: Annotated[int, Field(strict=True, ge=1)] | None = Field(None, description=(
+    resolution: Resolution | None = Field(None, description=(
         "Voxels along the longest axis of the transformed mesh; 32 if neither "
         "voxel_size nor resolution is given."))
     shape: Annotated[Literal["cube", "conform"], _case("lower")] = Field("cube", description=(
         "cube: every voxel a (jittered) hexahedron; conform: voxels the surface crosses "
         "are the exact cell-and-mesh intersection (needs a closed mesh)."))
-    jitter: Annotated[float, Field(strict=True, ge=0, lt=0.5)] = Field(0.0, description=(
+    jitter: Jitter = Field(0.0, description=(
         "Moves each lattice vertex by a seeded random fraction of the voxel size; "
         "neighbouring voxels share vertices, so faces stay shared."))
     material: MaterialName = Field("concrete", description=(
@@ -250,6 +303,22 @@ class SceneObject(_Model):
     rules: list[Rule] = Field([], description=(
         "Region rules, applied in order after material and material_map; a later rule "
         "wins where regions overlap."))
+
+    _mesh_as_written: str | None = PrivateAttr(default=None)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _keep_written_path(cls, data: Any, handler: Any) -> SceneObject:
+        obj = handler(data)
+        if isinstance(data, dict) and isinstance(data.get("mesh"), str | Path):
+            obj._mesh_as_written = str(data["mesh"])
+        return obj
+
+    @property
+    def mesh_as_written(self) -> str | None:
+        """``mesh`` as the scene file wrote it (relative to the scene, unless absolute):
+        what a model records, so that the same build elsewhere gives the same bytes."""
+        return self._mesh_as_written
 
     @model_validator(mode="before")
     @classmethod
@@ -288,6 +357,18 @@ class Charge(_Model):
         "air: a spherical free-air burst; surface: a hemispherical burst on the ground "
         "(stronger); auto: surface when the charge's centre is within 0.2 W^(1/3) m "
         "(W in kg TNT) of the ground, else air."))
+
+    @field_validator("explosive")
+    @classmethod
+    def _known_explosive(cls, explosive: str) -> str:
+        from blastvox.blast.explosives import known_explosives, tnt_equivalent
+
+        try:
+            tnt_equivalent(explosive)
+        except BlastvoxError:
+            raise ValueError(f"unknown explosive {explosive!r} (known: "
+                             f"{', '.join(known_explosives())})") from None
+        return explosive
 
 
 class Simulation(_Model):
@@ -424,7 +505,7 @@ class Scene(_Model):
     :meth:`material_library` during validation.
     """
 
-    seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description=(
+    seed: Seed = Field(0, description=(
         "Seed of every random choice (jitter, yield perturbation, particles): the same "
         "inputs and seed give byte-identical files."))
     up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = Field("Y", description=(
@@ -451,6 +532,7 @@ class Scene(_Model):
     output: Output = Field(Output(), description="Output paths of the stages, export options.")
 
     _library: MaterialLibrary | None = PrivateAttr(default=None)
+    _source: str | None = PrivateAttr(default=None)
 
     @field_validator("objects")
     @classmethod
@@ -466,6 +548,7 @@ class Scene(_Model):
     @model_validator(mode="after")
     def _check_materials(self, info: ValidationInfo) -> Scene:
         source = (info.context or {}).get("source", _UNKNOWN_SOURCE)
+        self._source = (info.context or {}).get("source")
         self._library = library = _build_library(self, source)
         for key, name in self._material_refs():
             try:
@@ -483,6 +566,11 @@ class Scene(_Model):
             refs += [(f"objects[{i}].rules[{j}].material", r.material)
                      for j, r in enumerate(obj.rules) if r.material is not None]
         return refs
+
+    @property
+    def source(self) -> str | None:
+        """How messages name the scene file (as given to :func:`load_scene`), if known."""
+        return self._source
 
     def material_library(self) -> MaterialLibrary:
         """Built-in materials, extended by ``materials_file``, then by inline ``materials``."""
@@ -511,7 +599,7 @@ def _build_library(scene: Scene, source: str) -> MaterialLibrary:
 def load_scene(path: Path) -> Scene:
     """Read, validate and resolve the scene file at ``path``; errors are :class:`SceneError`."""
     path = Path(path)
-    return scene_from_dict(read_toml(path, SceneError), str(path), path.parent)
+    return scene_from_dict(read_toml(path, SceneError), printable(path), path.parent)
 
 
 def scene_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Scene:
@@ -551,7 +639,10 @@ def _describe(error: Any, loc: tuple[str | int, ...]) -> str:
         return str(ctx["error"])
     if kind in bounds:
         name, op = bounds[kind]
-        return f"must be {op} {ctx[name]:g} (got {got})"
+        limit = ctx[name]
+        text = (f"{limit:,}" if abs(limit) >= 10_000 else str(limit)) if isinstance(limit, int) \
+            else f"{limit:g}"
+        return f"must be {op} {text} (got {got})"
     simple = {
         "missing": "required key is missing",
         "finite_number": "must be finite",

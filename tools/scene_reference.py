@@ -30,6 +30,7 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
 from blastvox.blast import explosives as _explosives
+from blastvox.materials import _BOUNDS as _MATERIAL_BOUNDS
 from blastvox.materials import _FIELD_KINDS, Material, MaterialLibrary
 from blastvox.scene import Scene, scene_from_dict
 
@@ -113,14 +114,15 @@ MATERIAL_MEANINGS: dict[str, str] = {
 }
 
 #: How each kind of material field (``_FIELD_KINDS``) is checked, in words.
+def _range(bound: Any) -> str:
+    """A :class:`blastvox.validate_values.Bound` in the tables' words (no unit)."""
+    return bound.describe(with_unit=False, kind=False).replace(">=", "≥").replace("<=", "≤")
+
+
 MATERIAL_KINDS: dict[str, str] = {
-    "positive": "number > 0",
-    "threshold": "number ≥ 0, or inf",
-    "variance": "number ≥ 0",
-    "unit": "number in [0, 1]",
+    **{kind: f"number {_range(bound)}" for kind, bound in _MATERIAL_BOUNDS.items()},
     "rgb": "3 numbers in [0, 1]",
     "text": "string",
-    "impulse": "number ≥ 0",
 }
 
 EXAMPLE = """\
@@ -295,8 +297,9 @@ def type_text(annotation: Any, metadata: list[Any] | None = None) -> str:
         if type(item).__name__ == "BeforeValidator" and func.__name__ in _VALIDATED:
             base = _VALIDATED[func.__name__]
             bounds, _ = _bound_text(metadata)
-            if func.__name__ == "_size3":
-                bounds = "each > 0"
+            if hasattr(func, "bound"):  # the scene's vector and ground validators
+                each = "" if func.__name__ == "_ground" else "each "
+                bounds = f"{each}{_range(func.bound)}"
             return f"{base}, {bounds}" if bounds else base
     bounds, folded = _bound_text(metadata)
     if origin in (Union, types.UnionType):
@@ -329,9 +332,11 @@ def _number(value: Any) -> str:
     x = float(value)
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
-    if x and len(repr(x)) > 8 and abs(1 / x - round(1 / x)) < 1e-9:
+    if x and abs(x) < 1 and len(repr(x)) > 8 and abs(1 / x - round(1 / x)) < 1e-9:
         return f"1/{round(1 / x)}"
-    return f"{x:g}" if x != int(x) or abs(x) >= 1e15 else str(int(x))
+    if isinstance(value, int) and value >= 2**31 - 1 and (value + 1).bit_count() == 1:
+        return f"2^{(value + 1).bit_length() - 1} - 1"
+    return f"{x:g}" if x != int(x) or abs(x) >= 1e5 else str(int(x))
 
 
 def default_text(field: FieldInfo) -> str:

@@ -1,0 +1,199 @@
+"""Numeric limits of user input, and the one check that enforces them.
+
+Every number a user gives -- a command-line flag, a scene key, a material field
+-- goes through a :class:`Bound` before it reaches a stage: it must be a number
+(not a bool or a string), finite (``inf`` only where a bound allows it, as
+"never" for a material threshold) and within the documented range. Huge but
+finite values (1e300) would otherwise become ``inf`` or NaN downstream, and
+integers would overflow NumPy's fixed-width types.
+
+``Bound.check(value)`` raises :class:`ValueError` with the problem only
+("must be <= 1e+06 m (got 1e+300)"): the scene schema (pydantic) adds the file
+and key. ``Bound.at(value, where)`` raises a one-line
+:class:`~blastvox.errors.BlastvoxError` ``"<where>: <problem>"`` for the CLI.
+
+The limits are listed in docs/user-guide.md, "Limits and exit codes".
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import stat
+from dataclasses import dataclass
+from typing import Any
+
+from blastvox.errors import BlastvoxError, InputError
+
+#: Largest |coordinate| (m) anywhere in the world frame: mesh vertices after the
+#: transform, translations, rule regions, charges, camera, ground height.
+MAX_COORDINATE_M = 1e6
+#: Smallest voxel edge (m) the voxelizer makes (checked after the budget).
+MIN_VOXEL_SIZE_M = 1e-6
+#: Largest voxel edge (m).
+MAX_VOXEL_SIZE_M = 1e6
+#: Largest seed: seeds are unsigned 64-bit integers, 0 .. 2**64 - 1 (a scene's TOML
+#: integers stop at 2**63 - 1), as blastvox.simulate.settings.MAX_SEED.
+MAX_SEED = 2**64 - 1
+#: Largest --max-voxels (voxel and vertex indices are stored as int32).
+MAX_VOXELS_LIMIT = 100_000_000
+#: Largest scene or materials TOML file read (bytes).
+MAX_TOML_BYTES = 64 * 2**20
+
+
+def _fmt(value: float) -> str:
+    return f"{value:g}"
+
+
+def got(value: Any) -> str:
+    """How messages quote a rejected value (short, one line)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def printable(text: str | os.PathLike) -> str:
+    """``text`` safe to print and to store as UTF-8 JSON: a byte of a non-UTF-8 file
+    name (a surrogate escape on Linux) is shown as ``\\xff``."""
+    return os.fsencode(os.fspath(text)).decode("utf-8", "backslashreplace")
+
+
+@dataclass(frozen=True)
+class Bound:
+    """An allowed range ``lo .. hi`` (open or closed ends) of a number in ``unit``.
+
+    integer: the value must be an int (bools refused), compared exactly (no
+    float conversion, so 2**64 is refused and not rounded). allow_inf: ``+inf``
+    is accepted as "never" (material thresholds). interval: say the whole range
+    in messages ("must be in [0, 1]") rather than the side that was crossed.
+    """
+
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
+    unit: str = ""
+    integer: bool = False
+    allow_inf: bool = False
+    interval: bool = False
+
+    def describe(self, with_unit: bool = True, kind: bool = True) -> str:
+        """The range as text: ``in [-1e+06, 1e+06] m``, ``> 0``, ``an integer >= 1``."""
+        unit = f" {self.unit}" if self.unit and with_unit else ""
+        kind_text = "an integer " if self.integer and kind else ""
+        if math.isinf(self.lo) and math.isinf(self.hi):
+            text = "finite"
+        elif math.isinf(self.hi):
+            text = f"{'>' if self.lo_open else '>='} {self._num(self.lo)}"
+        elif math.isinf(self.lo):
+            text = f"{'<' if self.hi_open else '<='} {self._num(self.hi)}"
+        else:
+            text = (f"in {'(' if self.lo_open else '['}{self._num(self.lo)}, "
+                    f"{self._num(self.hi)}{')' if self.hi_open else ']'}")
+        return f"{kind_text}{text}{unit}" + (" (or inf)" if self.allow_inf else "")
+
+    def _num(self, value: float) -> str:
+        if self.integer and float(value).is_integer():
+            return f"{int(value):,}" if abs(value) >= 1e4 else str(int(value))
+        return _fmt(value)
+
+    def check(self, value: Any) -> Any:
+        """``value`` as a float (an int for integer bounds), or ValueError with the problem."""
+        unit = f" {self.unit}" if self.unit else ""
+        if self.integer:
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ValueError(f"must be an integer (got {got(value)})")
+            number: Any = value
+        else:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"must be a number (got {got(value)})")
+            try:
+                number = float(value)
+            except OverflowError:  # an int beyond float's range
+                number = math.copysign(math.inf, value)
+            if math.isnan(number):
+                raise ValueError("must not be nan" if self.allow_inf else
+                                 f"must be finite (got {got(value)})")
+            if math.isinf(number):
+                if not self.allow_inf:
+                    raise ValueError(f"must be finite (got {got(value)})")
+                if number > 0:
+                    return number  # "never"; -inf falls to the range check
+        low = number <= self.lo if self.lo_open else number < self.lo
+        high = number >= self.hi if self.hi_open else number > self.hi
+        if low or high:
+            if self.interval:
+                raise ValueError(f"must be {self.describe()} (got {got(number)})")
+            if low:
+                op, limit = (">" if self.lo_open else ">="), self.lo
+            else:
+                op, limit = ("<" if self.hi_open else "<="), self.hi
+            raise ValueError(f"must be {op} {self._num(limit)}{unit} (got {got(number)})")
+        return number
+
+    def constraints(self) -> Any:
+        """The bound as pydantic field constraints (strict: no bools, no strings), for the
+        scene schema, whose messages then say ``must be <= 1e+06 (got 1e+300)``."""
+        from pydantic import Field
+
+        lower = {"gt" if self.lo_open else "ge": self.lo} if math.isfinite(self.lo) else {}
+        upper = {"lt" if self.hi_open else "le": self.hi} if math.isfinite(self.hi) else {}
+        if self.integer:
+            return Field(strict=True, **lower, **upper)
+        return Field(strict=True, allow_inf_nan=self.allow_inf, **lower, **upper)
+
+    def at(self, value: Any, where: str) -> Any:
+        """Like :meth:`check`, but the error is a one-line BlastvoxError ``"<where>: ..."``."""
+        try:
+            return self.check(value)
+        except ValueError as exc:
+            raise BlastvoxError(f"{where}: {exc}") from None
+
+    def parse(self, text: str, where: str) -> Any:
+        """Parse a command-line string as a number and :meth:`at` check it."""
+        try:
+            value: Any = int(text) if self.integer else float(text)
+        except (ValueError, OverflowError):
+            kind = "an integer" if self.integer else "a number"
+            raise BlastvoxError(f"{where}: must be {kind} (got {got(text)})") from None
+        return self.at(value, where)
+
+
+# The bounds of the values users give; docs/user-guide.md lists them (Limits).
+COORDINATE = Bound(-MAX_COORDINATE_M, MAX_COORDINATE_M, unit="m")
+DIRECTION = Bound(-MAX_COORDINATE_M, MAX_COORDINATE_M)
+ANGLE_DEG = Bound(-1e6, 1e6, unit="degrees")
+SCALE = Bound(0.0, 1e6, lo_open=True)
+VOXEL_SIZE = Bound(0.0, MAX_VOXEL_SIZE_M, lo_open=True, unit="m")
+RESOLUTION = Bound(1, 2**63 - 1, integer=True)
+JITTER = Bound(0.0, 0.5, hi_open=True)
+SEED = Bound(0, MAX_SEED, integer=True)
+MAX_VOXELS = Bound(1, MAX_VOXELS_LIMIT, integer=True)
+LENGTH = Bound(0.0, MAX_COORDINATE_M, lo_open=True, unit="m")
+STRENGTH_SCALE = Bound(0.0, 1e6, lo_open=True)
+
+def check_seed(value: Any, where: str = "--seed") -> int:
+    """The shared seed check: an integer in 0 .. 2**64 - 1, else a one-line error
+    ``"<where>: must be >= 0 (got -1)"`` (numpy accepts any non-negative seed; the
+    jitter's hash takes it as an unsigned 64-bit integer)."""
+    return SEED.at(value, where)
+
+
+def regular_file(path: str | os.PathLike, what: str, max_bytes: int | None = None) -> int:
+    """Refuse, before opening it, an input that is not a regular file: a directory, a
+    device (/dev/zero would be read forever), a FIFO (would block), a socket; with
+    ``max_bytes``, a larger file. Returns its size. A missing or unreadable path raises
+    the OSError (FileNotFoundError, PermissionError, ...) for the caller to word;
+    the refusals here are :class:`InputError` ``"<path>: <problem>"``.
+    """
+    info = os.stat(path)
+    shown = printable(path)
+    if stat.S_ISDIR(info.st_mode):
+        raise InputError(f"{shown}: is a directory, not a {what}")
+    if not stat.S_ISREG(info.st_mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(info.st_mode) else
+                "a socket" if stat.S_ISSOCK(info.st_mode) else "a device")
+        raise InputError(f"{shown}: is {kind}, not a regular file; give a {what}")
+    if max_bytes is not None and info.st_size > max_bytes:
+        raise InputError(f"{shown}: {info.st_size:,} bytes is too large for a {what} "
+                         f"(at most {max_bytes:,})")
+    return info.st_size
