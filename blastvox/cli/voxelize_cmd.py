@@ -20,6 +20,8 @@ class Shape(StrEnum):
 
 
 def _parse_size(text: str, where: str) -> tuple[float, float, float]:
+    from blastvox.validate_values import VOXEL_SIZE
+
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
@@ -29,21 +31,23 @@ def _parse_size(text: str, where: str) -> tuple[float, float, float]:
         values *= 3
     if len(values) != 3:
         raise BlastvoxError(f"{where}: --voxel-size needs 1 or 3 values (got {len(values)})")
-    if not all(v > 0 and v < float("inf") for v in values):
-        raise BlastvoxError(f"{where}: --voxel-size must be positive and finite (got {text})")
-    return values[0], values[1], values[2]
+    checked = [VOXEL_SIZE.at(v, f"{where}: --voxel-size") for v in values]
+    return checked[0], checked[1], checked[2]
 
 
-def _parse_ground(text: str) -> str | float | None:
+def _parse_ground(text: str, where: str = "") -> str | float | None:
+    from blastvox.validate_values import COORDINATE
+
     if text.lower() == "none":
         return None
     if text.lower() == "auto":
         return "auto"
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
-        raise BlastvoxError(f"--ground must be auto, none or a height in metres (got {text!r})"
-                            ) from None
+        raise BlastvoxError(f"{where + ': ' if where else ''}--ground must be auto, none or a "
+                            f"height in metres (got {text!r})") from None
+    return COORDINATE.at(value, f"{where + ': ' if where else ''}--ground")
 
 
 def voxelize(
@@ -92,14 +96,17 @@ def voxelize(
         raise BlastvoxError(f"{scene}: give either --scene or MESH arguments, not both")
     if scene is None and not meshes:
         raise BlastvoxError("no input: give MESH files or --scene SCENE.toml")
-    where = str(scene or meshes[0])
-    if max_voxels < 1:
-        raise BlastvoxError(f"{where}: --max-voxels must be at least 1 (got {max_voxels})")
-    if not 0.0 <= jitter < 0.5:
-        raise BlastvoxError(f"{where}: --jitter must be in [0, 0.5) (got {jitter})")
+    from blastvox.validate_values import JITTER, MAX_VOXELS, RESOLUTION, check_seed, printable
+
+    where = printable(scene or meshes[0])
+    MAX_VOXELS.at(max_voxels, f"{where}: --max-voxels")
+    JITTER.at(jitter, f"{where}: --jitter")
     size = _parse_size(voxel_size, where) if voxel_size is not None else None
-    if resolution is not None and resolution < 1:
-        raise BlastvoxError(f"{where}: --resolution must be at least 1 (got {resolution})")
+    if resolution is not None:
+        RESOLUTION.at(resolution, f"{where}: --resolution")
+    if seed is not None:
+        check_seed(seed, f"{where}: --seed")
+    ground_value = _parse_ground(ground, where) if ground is not None else "auto"
     if size is not None and resolution is not None:
         raise BlastvoxError(f"{where}: give --voxel-size or --resolution, not both")
 
@@ -110,7 +117,7 @@ def voxelize(
                       ("--jitter", jitter or None))
         given = [flag for flag, value in mesh_flags if value is not None]
         if given:
-            raise BlastvoxError(f"{scene}: {given[0]} applies to MESH arguments; with --scene "
+            raise BlastvoxError(f"{where}: {given[0]} applies to MESH arguments; with --scene "
                                 f"set it per object in the scene file")
         from blastvox.scene import load_scene
         from blastvox.voxelize.requests import requests_from_scene, settings_from_scene
@@ -124,13 +131,13 @@ def voxelize(
         if up_axis is not None:
             settings.up_axis = up_axis.value
         if ground is not None:
-            settings.ground = _parse_ground(ground)
+            settings.ground = ground_value
         if seed is not None:
             settings.seed = seed
         if output is None:
             output = spec.output.model
         if output is None:
-            raise SceneError(f"{scene}: output.model: not set, and no -o given")
+            raise SceneError(f"{where}: output.model: not set, and no -o given")
     else:
         library = MaterialLibrary.load(materials_file)
         if material not in library:  # fail before any work
@@ -144,7 +151,7 @@ def voxelize(
                                   shape=shape.value, jitter=jitter, material=material)
                     for m in meshes]
         settings = VoxelizeSettings(up_axis=up_axis.value if up_axis else "Y",
-                                    ground=_parse_ground(ground or "auto"),
+                                    ground=ground_value,
                                     seed=0 if seed is None else seed, max_voxels=max_voxels,
                                     library=library)
         if output is None:
@@ -176,12 +183,14 @@ def _read_toml(path: Path) -> dict:
 
 def _recorded(requests, settings, scene) -> dict:
     """The settings that made the model, JSON-safe, without absolute paths."""
+    from blastvox.validate_values import printable
+
     return {
-        "scene": Path(scene).name if scene else None,
+        "scene": printable(Path(scene).name) if scene else None,
         "up_axis": settings.up_axis, "ground": settings.ground, "seed": settings.seed,
         "max_voxels": settings.max_voxels,
         "objects": [{
-            "mesh": Path(r.mesh).name, "name": r.name,
+            "mesh": printable(Path(r.mesh).name), "name": r.name,
             "voxel_size": list(r.voxel_size) if r.voxel_size else None,
             "resolution": r.resolution, "shape": r.shape, "jitter": r.jitter,
             "material": r.material, "material_map": dict(r.material_map),

@@ -14,15 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from blastvox.errors import BudgetError, MeshError
+from blastvox.errors import MeshError
 from blastvox.jit import kernel
+from blastvox.validate_values import printable
 from blastvox.voxelize.lattice import Grid
 from blastvox.voxelize.mesh_io import Part
 from blastvox.voxelize.occupancy import winding_numbers
 from blastvox.voxelize.surface import SurfaceReport, check_inside_defined, prepare_surface
-
-#: Grid allocations (cells) allowed per voxel of budget, so huge sparse grids fail early.
-GRID_CELLS_PER_BUDGET_VOXEL = 16
 
 
 @dataclass
@@ -55,9 +53,10 @@ class CellSet:
 
 def part_label(part: Part) -> str:
     """How messages name a part: the file, plus the node when the file has several."""
-    if part.name in (part.source.stem, part.source.name):
-        return str(part.source)
-    return f"{part.source} (part '{part.name}')"
+    source = printable(part.source)
+    if part.name in (printable(part.source.stem), printable(part.source.name)):
+        return source
+    return f"{source} (part '{part.name}')"
 
 
 def prepare_solids(parts: list[Part], warn) -> list[Solid]:
@@ -76,16 +75,6 @@ def prepare_solids(parts: list[Part], warn) -> list[Solid]:
     for exc in errors:
         warn(f"skipped {exc}")
     return solids
-
-
-def check_grid_budget(source: str, grid: Grid, max_voxels: int) -> None:
-    """Refuse lattices too large to allocate for the voxel budget."""
-    limit = max(GRID_CELLS_PER_BUDGET_VOXEL * max_voxels, 1_000_000)
-    if grid.cell_count > limit:
-        nx, ny, nz = grid.shape
-        raise BudgetError(
-            f"{source}: a {nx}x{ny}x{nz} lattice ({grid.cell_count:,} cells) exceeds the budget "
-            f"of --max-voxels {max_voxels:,}; use a larger --voxel-size or raise --max-voxels")
 
 
 def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSet:
@@ -116,7 +105,7 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
             owner[closer & (owner < 0)] = index
         best = np.maximum(best, winding)
     if kept == 0:
-        raise MeshError(f"{solids[0].part.source}: no part encloses a volume")
+        raise MeshError(f"{printable(solids[0].part.source)}: no part encloses a volume")
     chosen = occupied | touched
     ijk = np.argwhere(chosen)
     part = owner[chosen]

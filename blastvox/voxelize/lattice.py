@@ -7,6 +7,7 @@ are re-exported here for the voxelizer's modules.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,7 +39,7 @@ class Grid:
 
     @property
     def cell_count(self) -> int:
-        return int(np.prod(self.shape))
+        return math.prod(self.shape)  # Python ints: never wraps
 
     def cell_centres(self, ijk: np.ndarray) -> np.ndarray:
         """Centres (N, 3) in metres of the cells at integer indices ``ijk`` (N, 3)."""
@@ -56,7 +57,12 @@ def fit_grid(bounds: np.ndarray, spacing: np.ndarray, up_axis: int) -> Grid:
     spacing = np.asarray(spacing, dtype=np.float64)
     extent = bounds[1] - bounds[0]
     # 1e-6: float32 mesh files store "exact" sizes with ~1e-7 relative error
-    counts = np.maximum(1, np.ceil(extent / spacing - 1e-6)).astype(np.int64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        counts_f = np.maximum(1.0, np.ceil(extent / spacing - 1e-6))
+    if not np.all(np.isfinite(counts_f)) or float(np.prod(counts_f)) > 2.0**62:
+        # the caller checks the budget first (blastvox.voxelize.budget); never wrap around
+        raise ValueError(f"lattice of {counts_f.tolist()} cells is too large to index")
+    counts = counts_f.astype(np.int64)
     slack = counts * spacing - extent
     origin = bounds[0] - 0.5 * slack
     origin[up_axis] = bounds[0, up_axis]

@@ -9,6 +9,8 @@ file and the problem.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,8 +18,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from blastvox.errors import MeshError
+from blastvox.errors import InputError, MeshError
 from blastvox.geometry.voxel_faces import VTK_CELL_FACES
+from blastvox.validate_values import printable, regular_file
 
 #: Suffixes read through meshio as volume meshes rather than through trimesh.
 VOLUME_SUFFIXES = {".vtu", ".vtk", ".msh", ".mesh", ".xdmf", ".med", ".inp", ".vol"}
@@ -40,33 +43,80 @@ class Part:
 
 
 def load_parts(path: Path) -> list[Part]:
-    """Read ``path`` into a list of :class:`Part` (at least one, each non-empty)."""
+    """Read ``path`` into a list of :class:`Part` (at least one, each non-empty).
+
+    The input must be a readable regular file: a directory, a device (/dev/zero),
+    a FIFO or a socket is refused before it is opened, so nothing blocks or reads
+    forever. Every failure is a one-line :class:`MeshError` ``"<file>: <problem>"``.
+    """
     path = Path(path)
-    if not path.exists():
-        raise MeshError(f"{path}: no such file")
-    if not path.is_file():
-        raise MeshError(f"{path}: not a file")
-    if path.stat().st_size == 0:
-        raise MeshError(f"{path}: file is empty")
+    shown = printable(path)
+    data = _read(path, whole=True)
     suffix = path.suffix.lower()
-    parts = _load_volume(path) if suffix in VOLUME_SUFFIXES else _load_surface(path)
+    parts = _load_volume(path) if suffix in VOLUME_SUFFIXES else _load_surface(path, data)
     parts = [p for p in parts if len(p.mesh.faces) > 0]
     if not parts:
-        raise MeshError(f"{path}: contains no triangles")
+        raise MeshError(f"{shown}: contains no triangles")
     for part in parts:
         if not np.all(np.isfinite(part.mesh.vertices)):
-            raise MeshError(f"{path}: part '{part.name}' has NaN or infinite vertex coordinates")
+            raise MeshError(f"{shown}: part '{part.name}' has NaN or infinite vertex coordinates")
     return parts
 
 
-def _load_surface(path: Path) -> list[Part]:
+def check_readable(path: Path) -> None:
+    """Refuse, before any work, a mesh input that :func:`load_parts` could not read: missing,
+    unreadable, empty, or not a regular file (see there). Opens it, reads nothing."""
+    _read(Path(path), whole=False)
+
+
+def _read(path: Path, whole: bool) -> bytes:
+    shown = printable(path)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            loaded = trimesh.load(path, force="scene", process=False)
+        if regular_file(path, "mesh file") == 0:
+            raise MeshError(f"{shown}: file is empty")
+        with open(path, "rb") as fh:
+            return fh.read() if whole else b""
+    except InputError as exc:
+        raise MeshError(str(exc)) from None
+    except FileNotFoundError:
+        raise MeshError(f"{shown}: no such file") from None
+    except OSError as exc:
+        raise MeshError(f"{shown}: cannot read ({exc.strerror or exc})") from None
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return " ".join(text.splitlines()[0].split()) if text else type(exc).__name__
+
+
+def _trimesh_load(path: Path, data: bytes) -> trimesh.Scene:
+    """trimesh's loader on bytes already read. The file name is passed as the file type
+    (trimesh names nodes after it) and to the resolver (side files such as .mtl and
+    .bin are read beside it); a name that is not valid UTF-8 is passed in its printable
+    form (trimesh cannot hash it), its side files are still found in its directory."""
+    name = printable(path)
+    resolver = trimesh.resolvers.FilePathResolver(str(path.parent / printable(path.name)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return trimesh.load(io.BytesIO(data), file_type=name, force="scene", process=False,
+                            resolver=resolver)
+
+
+def _load_surface(path: Path, data: bytes) -> list[Part]:
+    shown = printable(path)
+    try:
+        try:
+            loaded = _trimesh_load(path, data)
+        except ModuleNotFoundError as exc:
+            if exc.name != "charset_normalizer":
+                raise
+            # text that is not UTF-8: trimesh would guess its encoding with a package
+            # we do not need; Latin-1 (the usual legacy one) decodes any byte
+            loaded = _trimesh_load(path, data.decode("latin-1").encode("utf-8"))
     except Exception as exc:  # trimesh raises many types for unreadable files
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise MeshError(f"{path}: cannot read mesh ({reason})") from None
+        raise MeshError(f"{shown}: cannot read mesh ({_reason(exc)})") from None
+    if not isinstance(loaded, trimesh.Scene):
+        raise MeshError(f"{shown}: cannot read mesh (not a mesh file)")
     parts: list[Part] = []
     for node in sorted(loaded.graph.nodes_geometry):
         transform, geom_name = loaded.graph[node]
@@ -78,35 +128,53 @@ def _load_surface(path: Path) -> list[Part]:
         mesh.apply_transform(transform)
         material = getattr(getattr(geom.visual, "material", None), "name", None)
         name = node if node != path.name else path.stem
-        parts.append(Part(mesh=mesh, name=str(name), material=material, source=path))
+        parts.append(Part(mesh=mesh, name=printable(str(name)), material=material,
+                          source=path))
     return parts
 
 
 def _load_volume(path: Path) -> list[Part]:
     import meshio
 
+    shown = printable(path)
+    said = io.StringIO()
     try:
-        vol = meshio.read(path)
+        # meshio prints its reasons and, for a file none of its readers takes,
+        # calls sys.exit inside the library: keep both from reaching the user
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said), \
+                warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            vol = meshio.read(path)
+    except SystemExit:
+        lines = [line.strip() for line in said.getvalue().splitlines()
+                 if line.strip() and "Couldn't read file" not in line]
+        reason = lines[0] if lines else f"not a {path.suffix} file meshio can read"
+        raise MeshError(f"{shown}: cannot read volume mesh ({printable(reason)})") from None
     except Exception as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise MeshError(f"{path}: cannot read volume mesh ({reason})") from None
+        raise MeshError(f"{shown}: cannot read volume mesh ({_reason(exc)})") from None
+    points = np.asarray(vol.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise MeshError(f"{shown}: volume mesh points have shape {points.shape}; need (N, 3)")
+    if points.shape[1] == 2:
+        raise MeshError(f"{shown}: volume mesh is 2-D; need 3-D cells")
     faces = []
     for block in vol.cells:
         local = VTK_CELL_FACES.get(block.type)  # the cell's outward boundary triangles
         if local is None:
             continue
-        faces.append(block.data[:, local].reshape(-1, 3))
+        data = np.asarray(block.data)
+        if data.size and (data.min() < 0 or data.max() >= len(points)):
+            raise MeshError(f"{shown}: {block.type} cells refer to points that are not in "
+                            f"the file ({len(points)} points)")
+        faces.append(data[:, local].reshape(-1, 3))
     if not faces:
         kinds = ", ".join(sorted({b.type for b in vol.cells})) or "none"
-        raise MeshError(f"{path}: no tetrahedra or hexahedra in volume mesh (cell types: {kinds})")
+        raise MeshError(f"{shown}: no tetrahedra or hexahedra in volume mesh (cell types: {kinds})")
     all_faces = np.concatenate(faces)
     # A face shared by two cells is interior; boundary faces occur once.
     key = np.sort(all_faces, axis=1)
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     boundary = all_faces[counts[inverse.ravel()] == 1]
-    points = np.asarray(vol.points, dtype=np.float64)
-    if points.shape[1] == 2:
-        raise MeshError(f"{path}: volume mesh is 2-D; need 3-D cells")
     mesh = trimesh.Trimesh(vertices=points, faces=boundary, process=False)
     mesh.remove_unreferenced_vertices()
-    return [Part(mesh=mesh, name=path.stem, material=None, source=path)]
+    return [Part(mesh=mesh, name=printable(path.stem), material=None, source=path)]

@@ -16,18 +16,20 @@ from pathlib import Path
 import numpy as np
 
 from blastvox import __version__
-from blastvox.errors import BudgetError, MeshError
+from blastvox.errors import MeshError
 from blastvox.geometry.frames import up_index
 from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG, hex_triangles
 from blastvox.materials import MaterialLibrary, material_table, perturbed
 from blastvox.model import VoxelModel
+from blastvox.validate_values import MAX_COORDINATE_M, printable
+from blastvox.voxelize import budget
 from blastvox.voxelize import cells as cellsel
 from blastvox.voxelize.components import component_labels
 from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
 from blastvox.voxelize.hashing import uniform_by_key
 from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
 from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
-from blastvox.voxelize.mesh_io import load_parts
+from blastvox.voxelize.mesh_io import check_readable, load_parts
 from blastvox.voxelize.regions import RegionRule
 from blastvox.voxelize.topology import (
     face_neighbours,
@@ -63,6 +65,16 @@ class ObjectRequest:
     material_map: dict[str, str] = field(default_factory=dict)
     transform: np.ndarray | None = None
     rules: list[RegionRule] = field(default_factory=list)
+    #: how the model's metadata names the mesh (objects[i].source): the path as written
+    #: in the scene file, relative to it; default ``mesh`` as given.
+    source: str | None = None
+    #: where the request was set, for messages: ``"scene.toml: objects[0]"``; None: the
+    #: command line (messages name the flags).
+    origin: str | None = None
+
+    def recorded_source(self) -> str:
+        """The mesh's name as the model records it (no absolute path from a scene)."""
+        return printable(self.source if self.source is not None else self.mesh)
 
 
 @dataclass
@@ -75,6 +87,7 @@ class VoxelizeSettings:
     max_voxels: int = DEFAULT_MAX_VOXELS
     library: MaterialLibrary = field(default_factory=MaterialLibrary.builtin)
     recorded: dict = field(default_factory=dict)  # settings to record in the file
+    budget_hint: str = budget.HINT  # how a refusal says to raise the budget
 
 
 class Progress:
@@ -119,6 +132,8 @@ def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
     progress = progress or Progress()
     warn = warn or (lambda message: None)
     up = up_index(settings.up_axis)
+    for request in requests:  # an unreadable input fails before any work
+        check_readable(Path(request.mesh))
     lattices: list[_Lattice] = []
     budget_left = settings.max_voxels
     for index, request in enumerate(requests):
@@ -128,32 +143,64 @@ def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
     return _assemble(lattices, settings, up)
 
 
+def _size_label(request: ObjectRequest) -> str:
+    """The setting that sizes the voxels of ``request``, for messages: the flag and its
+    value (``wall.obj: --voxel-size 0.1 m``) or the scene key (``scene.toml:
+    objects[0].voxel_size: 0.1 m for wall.obj``)."""
+    mesh = printable(request.mesh)
+    if request.voxel_size is not None:
+        size = np.asarray(request.voxel_size, dtype=np.float64).reshape(-1)
+        key, value = "voxel_size", f"{_fmt_size(np.broadcast_to(size, (3,)))} m"
+    else:
+        key, value = "resolution", f"{request.resolution}"
+    if request.origin:
+        return f"{request.origin}.{key}: {value} for {mesh}"
+    return f"{mesh}: --{key.replace('_', '-')} {value}"
+
+
+def _check_coordinates(request: ObjectRequest, parts: list) -> None:
+    """Refuse vertices beyond MAX_COORDINATE_M of the origin (after the transform)."""
+    reach = max(float(np.max(np.abs(p.mesh.vertices), initial=0.0)) for p in parts)
+    if np.isfinite(reach) and reach <= MAX_COORDINATE_M:
+        return
+    moved = " after its transform" if request.transform is not None else ""
+    where = f"{request.origin}.transform: " if request.origin and moved else ""
+    fix = ("lower its scale or translation" if where else
+           "scale it with transform.scale in a scene file")
+    raise MeshError(
+        f"{where}{printable(request.mesh)}: vertex coordinates reach {reach:.3g} m{moved}; "
+        f"they must lie within {MAX_COORDINATE_M:g} m of the origin ({fix})")
+
+
 def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings, up: int,
                   budget_left: int, progress: Progress, warn) -> _Lattice:
-    source = str(request.mesh)
+    source = printable(request.mesh)
     progress.start(f"reading {Path(source).name}", 1)
     parts = load_parts(Path(request.mesh))
     if request.transform is not None:
-        for part in parts:
-            part.mesh.apply_transform(request.transform)
+        with np.errstate(all="ignore"):  # overflow is refused just below
+            for part in parts:
+                part.mesh.apply_transform(request.transform)
+    _check_coordinates(request, parts)
     solids = cellsel.prepare_solids(parts, warn)
     progress.advance()
     bounds = np.array([np.min([s.mesh.bounds[0] for s in solids], axis=0),
                        np.max([s.mesh.bounds[1] for s in solids], axis=0)])
     spacing = spacing_for(bounds, request.voxel_size, request.resolution)
+    label = _size_label(request)
     if np.any(spacing <= 0) or not np.all(np.isfinite(spacing)):
-        raise MeshError(
-            f"{source}: voxel size must be positive and finite (got {spacing.tolist()})")
+        raise MeshError(f"{label} gives voxels of {_fmt_size(spacing)} m: the mesh is flat "
+                        f"or a point")
+    volume = float(sum(abs(float(s.mesh.volume)) for s in solids))
+    budget.check_lattice(label, bounds, spacing, volume if np.isfinite(volume) else 0.0,
+                         budget_left, settings.max_voxels, settings.budget_hint)
     grid = fit_grid(bounds, spacing, up)
-    cellsel.check_grid_budget(source, grid, settings.max_voxels)
     progress.start(f"inside test {Path(source).name}", 1)
     conform = request.shape == "conform"
     chosen = cellsel.choose_cells(solids, grid, conform, warn)
     progress.advance()
-    if int(np.count_nonzero(chosen.inside | chosen.touched)) > budget_left:
-        raise BudgetError(
-            f"{source}: {len(chosen.ijk):,} voxels exceed the budget (--max-voxels "
-            f"{settings.max_voxels:,}); use a larger --voxel-size or raise --max-voxels")
+    budget.check_count(label, int(np.count_nonzero(chosen.inside | chosen.touched)),
+                       budget_left, settings.max_voxels, settings.budget_hint)
     vertex_ids, positions, voxel_vertices = _place_vertices(
         chosen.ijk, grid, request.jitter, settings.seed, index, up)
     volume, centroid, inertia = hex_mass_properties(positions, voxel_vertices)
@@ -169,7 +216,7 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
             inertia[conform_data[0]] = ci
     if not keep.any():
         raise MeshError(f"{source}: no voxel lies inside the mesh at voxel size "
-                        f"{_fmt_size(spacing)} m; use a smaller --voxel-size")
+                        f"{_fmt_size(spacing)} m; use a smaller voxel size")
     # renumber to the kept voxels
     new_index = np.cumsum(keep) - 1
     conform_local = new_index[conform_data[0]]
@@ -315,7 +362,8 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         count = int(labels.max()) + 1
         for c in range(count):
             objects.append({"name": lat.name if count == 1 else f"{lat.name}.{c:03d}",
-                            "source": str(lat.request.mesh), "shape": lat.request.shape,
+                            "source": lat.request.recorded_source(),
+                            "shape": lat.request.shape,
                             "voxel_size_m": lat.grid.spacing.tolist(),
                             "jitter": lat.request.jitter, "lattice_origin_m":
                             lat.grid.origin.tolist(), "voxel_count": int((labels == c).sum())})

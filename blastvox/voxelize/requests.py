@@ -36,11 +36,14 @@ def rule_from_scene(rule: Any) -> RegionRule:
 def requests_from_scene(scene: Any) -> list[ObjectRequest]:
     """One :class:`ObjectRequest` per ``[[objects]]`` entry of a validated scene."""
     out = []
-    for obj in scene.objects:
+    source = getattr(scene, "source", None)
+    for i, obj in enumerate(scene.objects):
         t = obj.transform
         matrix = transform_matrix(t.translate, t.rotate_deg, t.scale)
         out.append(ObjectRequest(
             mesh=Path(obj.mesh), name=obj.name,
+            source=getattr(obj, "mesh_as_written", None),
+            origin=f"{source}: objects[{i}]" if source else None,
             voxel_size=tuple(obj.voxel_size) if obj.voxel_size is not None else None,
             resolution=obj.resolution, shape=obj.shape, jitter=obj.jitter,
             material=obj.material, material_map=dict(obj.material_map),
@@ -50,10 +53,20 @@ def requests_from_scene(scene: Any) -> list[ObjectRequest]:
 
 
 def settings_from_scene(scene: Any, max_voxels: int | None = None) -> Any:
-    """:class:`VoxelizeSettings` from a validated scene (its library, frame and seed)."""
+    """:class:`VoxelizeSettings` from a validated scene (its library, frame and seed).
+
+    Without ``max_voxels`` (``blastvox run``, which has no --max-voxels) the default
+    budget applies, and a refusal says to voxelize the scene with a larger one first.
+    """
+    from blastvox.voxelize.budget import HINT
     from blastvox.voxelize.pipeline import DEFAULT_MAX_VOXELS, VoxelizeSettings
 
+    hint = HINT
+    if max_voxels is None:
+        name = getattr(scene, "source", None) or "SCENE.toml"
+        hint = (f"voxelize it first with `blastvox voxelize --scene {name} --max-voxels N`, "
+                f"which `blastvox run` then finds up to date, or use a larger voxel size")
     return VoxelizeSettings(up_axis=scene.up_axis,
                             ground=None if scene.ground == "none" else scene.ground,
                             seed=scene.seed, max_voxels=max_voxels or DEFAULT_MAX_VOXELS,
-                            library=scene.material_library())
+                            library=scene.material_library(), budget_hint=hint)

@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from blastvox.errors import MeshError
+from blastvox.validate_values import printable
 from blastvox.voxelize.mesh_io import Part
 
 #: Largest fraction of inside cells whose winding number is ambiguous (rays
@@ -41,7 +42,8 @@ def prepare_surface(part: Part) -> tuple[trimesh.Trimesh, SurfaceReport]:
     """Return a cleaned, outward-oriented copy of ``part.mesh`` and a report."""
     mesh = part.mesh.copy()
     report = SurfaceReport(triangles_in=len(mesh.faces), triangles_out=0, open_edges=0)
-    where = f"{part.source}" + (f" (part '{part.name}')" if part.name != part.source.stem else "")
+    where = printable(part.source) + (
+        f" (part '{part.name}')" if part.name != printable(part.source.stem) else "")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         mesh.merge_vertices(merge_tex=True, merge_norm=True)
