@@ -21,8 +21,8 @@ from typing import Any
 
 from blastvox.errors import BlastvoxError
 
-#: Charges: 1 mg to 1 Mt of explosive (kg), within +-1000 km (m), going off within 1e9 s.
-MIN_CHARGE_KG = 1e-6
+#: Charges: 1 µg to 1 Mt of explosive (kg), within +-1000 km (m), going off within 1e9 s.
+MIN_CHARGE_KG = 1e-9
 MAX_CHARGE_KG = 1e9
 MAX_COORDINATE_M = 1e6
 MAX_TIME_S = 1e9

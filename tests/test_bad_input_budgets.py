@@ -120,9 +120,14 @@ def shop(tmp_path_factory: pytest.TempPathFactory) -> Path:
     made = run_blastvox("simulate", "model.npz", "-o", "sim.npz", *CHARGE, *SHORT, "-q",
                         cwd=root)
     assert made.code == 0, made.stderr
-    made = run_blastvox("preview", "sim.npz", "-o", "warm.png", "--size", "16x16", "-q",
-                        cwd=root)  # the rasteriser's kernels load (or compile) here, once
-    assert made.code == 0, made.stderr
+    # the kernels of fracture (the warm-up's fracture models are not the default), of the
+    # rasteriser and of the calculator load (or compile, after an edit) here, untimed
+    for args in (("simulate", "model.npz", "-o", "warm.npz", "--charge", "0,-1,0.25:50",
+                  "--duration", "0.1", "-q"),
+                 ("preview", "sim.npz", "-o", "warm.png", "--size", "16x16", "-q"),
+                 ("blast", "--charge", "1", "--distance", "0,1", "--json")):
+        made = run_blastvox(*args, cwd=root)
+        assert made.code == 0, made.stderr
     return root
 
 
@@ -385,7 +390,7 @@ def test_simulate_numeric_flags(work: Path, flag: str, value: float) -> None:
 @given(x=FLOATS, kg=FLOATS, t=FLOATS)
 @example(x=1e300, kg=1.0, t=0.0)
 @example(x=0.0, kg=1e9, t=0.0)
-@example(x=-1e6, kg=1e-6, t=1e9)
+@example(x=-1e6, kg=1e-9, t=1e9)
 def test_simulate_charge_values(work: Path, x: float, kg: float, t: float) -> None:
     charge = f"{text_of(x)},-2,0.25:{text_of(kg)}@{text_of(t)}"
     with unchanged(work, [work / "model.npz"], allow=("out.npz",)):
@@ -427,7 +432,7 @@ def test_preview_size_and_fps(work: Path, size: str, fps: float | None, suffix: 
 @given(kg=FLOATS, distances=st.lists(FLOATS, min_size=1, max_size=4))
 @example(kg=5e-324, distances=[1e308])
 @example(kg=1e9, distances=[0.0, 5e-324, 1e6])
-@example(kg=1e-6, distances=[1e6, -0.0])
+@example(kg=1e-9, distances=[1e6, -0.0])
 def test_blast_mass_and_distances(work: Path, kg: float, distances: list[float]) -> None:
     outcome = strict("blast", "--charge", text_of(kg), "--distance",
                      ",".join(map(text_of, distances)), "--json", cwd=work,

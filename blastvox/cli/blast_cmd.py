@@ -35,7 +35,7 @@ def _number(text: str, what: str) -> float:
 
 
 def parse_charge(text: str | None) -> float:
-    """The --charge value in kg, within :data:`blastvox.bounds.CHARGE_KG` (1 mg to 1 Mt)."""
+    """The --charge value in kg, within :data:`blastvox.bounds.CHARGE_KG` (1 µg to 1 Mt)."""
     from blastvox.bounds import CHARGE_KG
     from blastvox.errors import BlastvoxError
 
@@ -69,7 +69,7 @@ def parse_distances(text: str | None) -> list[float]:
 
 def blast(
     charge: str = typer.Option(None, "--charge", metavar="KG",
-                               help="Mass of explosive in kg, 1e-6 to 1e9 (required)."),
+                               help="Mass of explosive in kg, 1e-9 to 1e9 (required)."),
     explosive: str = typer.Option("TNT", "--explosive", metavar="NAME",
                                   help="Explosive, converted to a TNT-equivalent mass "
                                        "(e.g. TNT, C4, PETN, RDX, ANFO, Semtex)."),

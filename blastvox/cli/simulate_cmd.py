@@ -57,7 +57,7 @@ def simulate(
                                "[effects]."),
     charge: list[str] = typer.Option(None, "--charge", help="X,Y,Z:KG[@T] of TNT at metres, "
                                      "detonated at T s; repeatable; replaces the scene's "
-                                     "charges (1e-6 to 1e9 kg, within 1e6 m, T 0 to 1e9 s)."),
+                                     "charges (1e-9 to 1e9 kg, within 1e6 m, T 0 to 1e9 s)."),
     explosive: str = typer.Option("TNT", "--explosive", help="Explosive of --charge masses."),
     dt: float = typer.Option(None, "--dt", help="Fixed step, s, at least 1e-9 [default: "
                              "1/240]."),
