@@ -1,30 +1,54 @@
-"""Numeric bounds of the values a user gives (flags, scene keys, Python settings), the
-one-line refusal of a value outside them, and the budgets' defaults.
+"""Numeric limits of user input and the budgets of work, and the one check that enforces
+them.
 
-A :class:`Bound` is a documented range (docs/user-guide.md, "Limits and exit codes"):
-a value that is NaN, infinite or outside it is refused with a
-:class:`~blastvox.errors.BlastvoxError` naming the value's source (a file), its name (a
-flag such as ``--dt`` or a scene key such as ``[simulation] dt``), the value and the
-range. The bounds are wide enough for every physical use and narrow enough that
-everything computed from the value stays finite in float64 (and float32 where stored).
+Every number a user gives -- a command-line flag, a scene key, a material field, a
+Python setting -- goes through a :class:`Bound` before it reaches a stage: it must be
+a number (not a bool or a string), finite (``inf`` only where a bound allows it, as
+"never" for a material threshold) and within the documented range. Huge but finite
+values (1e300) would otherwise become ``inf`` or NaN downstream, and integers would
+overflow NumPy's fixed-width types.
 
-Budgets (how much work or memory a run may take) are not bounds: they have defaults,
-here (this module imports nothing heavy, so the CLI can show them), that a flag raises;
-see :class:`blastvox.simulate.settings.Budget` and :mod:`blastvox.preview.options`.
+``Bound.check(value)`` raises :class:`ValueError` with the problem only ("must be <=
+1e+06 m (got 1e+300)"): the scene schema (pydantic) adds the file and key.
+``Bound.at(value, where)`` and ``Bound.named(value, name, source)`` raise a one-line
+:class:`~blastvox.errors.BlastvoxError` ``"<source>: <name>: <problem>"``.
+
+Budgets (how much work or memory a run may take: steps, frames, particles, pixels,
+voxels) are not bounds: they have defaults here, which a flag raises (see
+:class:`blastvox.simulate.settings.Budget`, :mod:`blastvox.preview.options`,
+:mod:`blastvox.voxelize.budget`). This module imports nothing heavy, so the CLI can show
+them. docs/user-guide.md, "Limits and exit codes", lists them all.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import stat
 from dataclasses import dataclass
 from typing import Any
 
-from blastvox.errors import BlastvoxError
+from blastvox.errors import BlastvoxError, InputError
+
+#: Largest |coordinate| (m) anywhere in the world frame: mesh vertices after the
+#: transform, translations, rule regions, charges, camera, ground height.
+MAX_COORDINATE_M = 1e6
+#: Smallest voxel edge (m) the voxelizer makes (checked after the budget).
+MIN_VOXEL_SIZE_M = 1e-6
+#: Largest voxel edge (m).
+MAX_VOXEL_SIZE_M = 1e6
+#: Largest seed: seeds are unsigned 64-bit integers, 0 .. 2**64 - 1 (a scene's TOML
+#: integers stop at 2**63 - 1), as simulate.settings.check_seed takes them.
+MAX_SEED = 2**64 - 1
+#: Largest --max-voxels (voxel and vertex indices are stored as int32).
+MAX_VOXELS_LIMIT = 100_000_000
+#: Largest scene or materials TOML file read (bytes).
+MAX_TOML_BYTES = 64 * 2**20
+
 
 #: Charges: 1 µg to 1 Mt of explosive (kg), within +-1000 km (m), going off within 1e9 s.
 MIN_CHARGE_KG = 1e-9
 MAX_CHARGE_KG = 1e9
-MAX_COORDINATE_M = 1e6
 MAX_TIME_S = 1e9
 #: Distances of the blast calculator (m), and how many one call takes (its table prints
 #: about 150 rows a second).
@@ -55,67 +79,170 @@ def fmt(value: float) -> str:
     return f"{value:.6g}"
 
 
+def _fmt(value: float) -> str:
+    return f"{value:g}"
+
+
+def got(value: Any) -> str:
+    """How messages quote a rejected value (short, one line)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def printable(text: str | os.PathLike) -> str:
+    """``text`` safe to print and to store as UTF-8 JSON: a byte of a non-UTF-8 file
+    name (a surrogate escape on Linux) is shown as ``\\xff``."""
+    return os.fsencode(os.fspath(text)).decode("utf-8", "backslashreplace")
+
+
 @dataclass(frozen=True)
 class Bound:
-    """A closed (or, with ``open_low``, left-open) range ``[low, high]`` of finite numbers;
-    None: unbounded on that side. ``unit`` is printed after numbers ("s", "kg")."""
+    """An allowed range ``lo .. hi`` (open or closed ends) of a number in ``unit``.
 
-    low: float | None = None
-    high: float | None = None
+    integer: the value must be an int (bools refused), compared exactly (no
+    float conversion, so 2**64 is refused and not rounded). allow_inf: ``+inf``
+    is accepted as "never" (material thresholds). interval: say the whole range
+    in messages ("must be in [0, 1]") rather than the side that was crossed.
+    """
+
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
     unit: str = ""
-    open_low: bool = False
+    integer: bool = False
+    allow_inf: bool = False
+    interval: bool = False
 
-    def describe(self) -> str:
-        """The range in words: "> 0 s", "between 1e-09 and 1 s", ">= 0"."""
-        u = f" {self.unit}" if self.unit else ""
-        low = None if self.low is None else ("> " if self.open_low else ">= ") + fmt(self.low)
-        if self.high is None:
-            return f"{low}{u}" if low else "finite"
-        if low is None:
-            return f"<= {fmt(self.high)}{u}"
-        if self.open_low:
-            return f"> {fmt(self.low)} and <= {fmt(self.high)}{u}"
-        return f"between {fmt(self.low)} and {fmt(self.high)}{u}"
+    def describe(self, with_unit: bool = True, kind: bool = True) -> str:
+        """The range as text: ``in [-1e+06, 1e+06] m``, ``> 0``, ``an integer >= 1``."""
+        unit = f" {self.unit}" if self.unit and with_unit else ""
+        kind_text = "an integer " if self.integer and kind else ""
+        if math.isinf(self.lo) and math.isinf(self.hi):
+            text = "finite"
+        elif math.isinf(self.hi):
+            text = f"{'>' if self.lo_open else '>='} {self._num(self.lo)}"
+        elif math.isinf(self.lo):
+            text = f"{'<' if self.hi_open else '<='} {self._num(self.hi)}"
+        else:
+            text = (f"in {'(' if self.lo_open else '['}{self._num(self.lo)}, "
+                    f"{self._num(self.hi)}{')' if self.hi_open else ']'}")
+        return f"{kind_text}{text}{unit}" + (" (or inf)" if self.allow_inf else "")
 
-    def contains(self, value: float) -> bool:
-        """Is ``value`` a finite number in the range?"""
-        if not math.isfinite(value):
-            return False
-        if self.low is not None and (value <= self.low if self.open_low else value < self.low):
-            return False
-        return self.high is None or value <= self.high
+    def _num(self, value: float) -> str:
+        if self.integer and float(value).is_integer():
+            return f"{int(value):,}" if abs(value) >= 1e4 else str(int(value))
+        return _fmt(value)
 
-    def check(self, value: Any, name: str, source: str | None = None) -> float:
-        """``value`` as a float if it is in the range, else a one-line BlastvoxError
-        "<source>: <name> <value> <unit> must be <range>"."""
-        where = f"{source}: " if source else ""
-        try:
-            number = float(value)
-        except (TypeError, ValueError, OverflowError):
-            raise BlastvoxError(f"{where}{name} {value!r} is not a number") from None
-        if isinstance(value, bool) or not self.contains(number):
-            u = f" {self.unit}" if self.unit and math.isfinite(number) else ""
-            shown = fmt(number) if not isinstance(value, bool) else str(value)
-            raise BlastvoxError(f"{where}{name} {shown}{u} is {self._problem(number)}: it must "
-                                f"be {self.describe()}")
+    def check(self, value: Any) -> Any:
+        """``value`` as a float (an int for integer bounds), or ValueError with the problem."""
+        unit = f" {self.unit}" if self.unit else ""
+        if self.integer:
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ValueError(f"must be an integer (got {got(value)})")
+            number: Any = value
+        else:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"must be a number (got {got(value)})")
+            try:
+                number = float(value)
+            except OverflowError:  # an int beyond float's range
+                number = math.copysign(math.inf, value)
+            if math.isnan(number):
+                raise ValueError("must not be nan" if self.allow_inf else
+                                 f"must be finite (got {got(value)})")
+            if math.isinf(number):
+                if not self.allow_inf:
+                    raise ValueError(f"must be finite (got {got(value)})")
+                if number > 0:
+                    return number  # "never"; -inf falls to the range check
+        low = number <= self.lo if self.lo_open else number < self.lo
+        high = number >= self.hi if self.hi_open else number > self.hi
+        if low or high:
+            if self.interval:
+                raise ValueError(f"must be {self.describe()} (got {got(number)})")
+            if low:
+                op, limit = (">" if self.lo_open else ">="), self.lo
+            else:
+                op, limit = ("<" if self.hi_open else "<="), self.hi
+            raise ValueError(f"must be {op} {self._num(limit)}{unit} (got {got(number)})")
         return number
 
-    def _problem(self, number: float) -> str:
-        if math.isnan(number):
-            return "not a number"
-        if math.isinf(number):
-            return "infinite"
-        if self.low is not None and number <= self.low:
-            return "negative" if number < 0.0 <= self.low else (
-                "zero" if number == 0.0 else "too small")
-        return "too large"
+    def constraints(self) -> Any:
+        """The bound as pydantic field constraints (strict: no bools, no strings), for the
+        scene schema, whose messages then say ``must be <= 1e+06 (got 1e+300)``."""
+        from pydantic import Field
+
+        lower = {"gt" if self.lo_open else "ge": self.lo} if math.isfinite(self.lo) else {}
+        upper = {"lt" if self.hi_open else "le": self.hi} if math.isfinite(self.hi) else {}
+        if self.integer:
+            return Field(strict=True, **lower, **upper)
+        return Field(strict=True, allow_inf_nan=self.allow_inf, **lower, **upper)
+
+    def at(self, value: Any, where: str) -> Any:
+        """Like :meth:`check`, but the error is a one-line BlastvoxError ``"<where>: ..."``."""
+        try:
+            return self.check(value)
+        except ValueError as exc:
+            raise BlastvoxError(f"{where}: {exc}") from None
+
+    def named(self, value: Any, name: str, source: str | None = None) -> Any:
+        """:meth:`at` with the error at ``"<source>: <name>"`` (a file and its key, or a
+        flag without a file)."""
+        return self.at(value, f"{source}: {name}" if source else name)
+
+    def parse(self, text: str, where: str) -> Any:
+        """Parse a command-line string as a number and :meth:`at` check it."""
+        try:
+            value: Any = int(text) if self.integer else float(text)
+        except (ValueError, OverflowError):
+            kind = "an integer" if self.integer else "a number"
+            raise BlastvoxError(f"{where}: must be {kind} (got {got(text)})") from None
+        return self.at(value, where)
 
 
-#: The bounds of a charge (see the module constants).
-CHARGE_KG = Bound(MIN_CHARGE_KG, MAX_CHARGE_KG, "kg")
-COORDINATE_M = Bound(-MAX_COORDINATE_M, MAX_COORDINATE_M, "m")
-CHARGE_TIME_S = Bound(0.0, MAX_TIME_S, "s")
-DISTANCE_M = Bound(0.0, MAX_DISTANCE_M, "m")
+# The bounds of the values users give; docs/user-guide.md lists them (Limits).
+COORDINATE = Bound(-MAX_COORDINATE_M, MAX_COORDINATE_M, unit="m")
+DIRECTION = Bound(-MAX_COORDINATE_M, MAX_COORDINATE_M)
+ANGLE_DEG = Bound(-1e6, 1e6, unit="degrees")
+SCALE = Bound(0.0, 1e6, lo_open=True)
+VOXEL_SIZE = Bound(0.0, MAX_VOXEL_SIZE_M, lo_open=True, unit="m")
+RESOLUTION = Bound(1, 2**63 - 1, integer=True)
+JITTER = Bound(0.0, 0.5, hi_open=True)
+SEED = Bound(0, MAX_SEED, integer=True)
+MAX_VOXELS = Bound(1, MAX_VOXELS_LIMIT, integer=True)
+LENGTH = Bound(0.0, MAX_COORDINATE_M, lo_open=True, unit="m")
+STRENGTH_SCALE = Bound(0.0, 1e6, lo_open=True)
+CHARGE_KG = Bound(MIN_CHARGE_KG, MAX_CHARGE_KG, unit="kg")
+CHARGE_TIME_S = Bound(0.0, MAX_TIME_S, unit="s")
+DISTANCE_M = Bound(0.0, MAX_DISTANCE_M, unit="m")
+
+def check_seed(value: Any, where: str = "--seed") -> int:
+    """The shared seed check: an integer in 0 .. 2**64 - 1, else a one-line error
+    ``"<where>: must be >= 0 (got -1)"`` (numpy accepts any non-negative seed; the
+    jitter's hash takes it as an unsigned 64-bit integer)."""
+    return SEED.at(value, where)
+
+
+def regular_file(path: str | os.PathLike, what: str, max_bytes: int | None = None) -> int:
+    """Refuse, before opening it, an input that is not a regular file: a directory, a
+    device (/dev/zero would be read forever), a FIFO (would block), a socket; with
+    ``max_bytes``, a larger file. Returns its size. A missing or unreadable path raises
+    the OSError (FileNotFoundError, PermissionError, ...) for the caller to word;
+    the refusals here are :class:`InputError` ``"<path>: <problem>"``.
+    """
+    info = os.stat(path)
+    shown = printable(path)
+    if stat.S_ISDIR(info.st_mode):
+        raise InputError(f"{shown}: is a directory, not a {what}")
+    if not stat.S_ISREG(info.st_mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(info.st_mode) else
+                "a socket" if stat.S_ISSOCK(info.st_mode) else "a device")
+        raise InputError(f"{shown}: is {kind}, not a regular file; give a {what}")
+    if max_bytes is not None and info.st_size > max_bytes:
+        raise InputError(f"{shown}: {info.st_size:,} bytes is too large for a {what} "
+                         f"(at most {max_bytes:,})")
+    return info.st_size
 
 
 def check_count(value: Any, name: str, low: int = 1, source: str | None = None) -> int:

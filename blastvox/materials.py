@@ -41,8 +41,8 @@ from typing import Any
 
 import numpy as np
 
+from blastvox.bounds import MAX_TOML_BYTES, Bound, printable, regular_file
 from blastvox.errors import BlastvoxError, ContractError, InputError, MaterialError
-from blastvox.validate_values import MAX_TOML_BYTES, Bound, printable, regular_file
 
 RGB = tuple[float, float, float]
 

@@ -19,7 +19,7 @@ Conventions (all SI: metres, seconds, kilograms, pascals):
   each mesh path as the scene wrote it (``SceneObject.mesh_as_written``), so a
   build is byte-identical wherever the scene and its meshes are.
 * Every number is finite and within a documented range
-  (:mod:`blastvox.validate_values`; docs/user-guide.md, Limits and exit codes):
+  (:mod:`blastvox.bounds`; docs/user-guide.md, Limits and exit codes):
   coordinates within 1e6 m of the origin, seeds 0 .. 2**63 - 1, and so on.
   ``charges[i].explosive`` must be a known explosive.
 
@@ -51,10 +51,10 @@ from pydantic import (
     model_validator,
 )
 
-from blastvox import validate_values as limits
+from blastvox import bounds as limits
+from blastvox.bounds import Bound, printable
 from blastvox.errors import BlastvoxError, MaterialError, SceneError
 from blastvox.materials import MaterialLibrary, read_toml
-from blastvox.validate_values import Bound, printable
 
 _UNKNOWN_SOURCE = "<scene>"
 
@@ -87,7 +87,7 @@ def _in_bound(bound: Bound, vec: Any, value: Any) -> tuple[float, float, float]:
 
 
 def _vector(bound: Bound) -> BeforeValidator:
-    """3 finite numbers, each within ``bound`` (shared with the CLI: validate_values)."""
+    """3 finite numbers, each within ``bound`` (shared with the CLI: blastvox.bounds)."""
 
     def _vec3(value: Any) -> tuple[float, float, float]:
         if (not isinstance(value, list | tuple) or len(value) != 3
@@ -153,7 +153,7 @@ Direction3 = Annotated[tuple[float, float, float], _vector(limits.DIRECTION)]
 Angles3 = Annotated[tuple[float, float, float], _vector(limits.ANGLE_DEG)]
 Size3 = Annotated[tuple[float, float, float], _sizes(limits.VOXEL_SIZE)]
 Scale3 = Annotated[tuple[float, float, float], _sizes(limits.SCALE)]
-# numbers within a documented bound (blastvox.validate_values), as pydantic constraints
+# numbers within a documented bound (blastvox.bounds), as pydantic constraints
 Resolution = Annotated[int, limits.RESOLUTION.constraints()]
 Seed = Annotated[int, limits.SEED.constraints()]
 Jitter = Annotated[float, limits.JITTER.constraints()]

@@ -60,6 +60,13 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     if scene.materials_file is not None:
         voxel_inputs.append(Path(scene.materials_file))
     _check_outputs(out.model, out.cache, exports, voxel_inputs)
+    from blastvox.simulate.settings import check_settings
+    from blastvox.simulate.settings import settings_from_scene as sim_settings
+
+    sim = sim_settings(scene, str(scene_path))
+    if not sim.charges:
+        raise SceneError(f"{scene_path}: charges: the scene has no [[charges]] to simulate")
+    check_settings(sim)  # a run over its budget is refused before voxelize runs
     model = None
     if force or _stale(out.model, voxel_inputs):
         from blastvox.voxelize.pipeline import voxelize
@@ -75,14 +82,10 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     if ran or _stale(out.cache, [out.model, scene_path]):
         from blastvox.model import VoxelModel
         from blastvox.simulate.engine import Progress, simulate
-        from blastvox.simulate.settings import settings_from_scene as sim_settings
 
         model = model or VoxelModel.load(out.model)
-        settings = sim_settings(scene)
-        if not settings.charges:
-            raise SceneError(f"{scene_path}: charges: the scene has no [[charges]] to simulate")
         log(f"simulate -> {out.cache}")
-        cache = simulate(model, settings, progress=Progress(notes=log), warn=warn)
+        cache = simulate(model, sim, progress=Progress(notes=log), warn=warn)
         cache.save(out.cache)
         ran.append("simulate")
     for path in exports:

@@ -227,7 +227,7 @@ def test_the_library_refuses_before_allocating() -> None:
     with pytest.raises(BudgetError, match="--max-frames"):
         simulate(VoxelModel.__new__(VoxelModel), SimSettings(
             duration=1e4, dt=1.0, charges=charges, budget=Budget(max_steps=10**9)))
-    with pytest.raises(BlastvoxError, match="gravity 1e\\+300"):
+    with pytest.raises(BlastvoxError, match=r"gravity: must be <= 1000 m/s\^2 \(got 1e\+300\)"):
         simulate(VoxelModel.__new__(VoxelModel), SimSettings(gravity=1e300, charges=charges))
     assert time.perf_counter() - started < QUICK
 
@@ -249,7 +249,7 @@ BOUNDS = {
     "charge 1e-300 kg": (("--charge", "0,-2,0.25:1e-300"), ("--charge", "mass", "1e-300")),
     "charge at 1e300 m": (("--charge", "1e300,-2,0.25:1"), ("--charge", "X", "1e+300")),
     "charge at 1e300 s": (("--charge", "0,-2,0.25:1@1e300"), ("--charge", "time")),
-    "gravity 1e300": (("--gravity", "1e300"), ("--gravity", "1e+300", "1,000 m/s^2")),
+    "gravity 1e300": (("--gravity", "1e300"), ("--gravity", "1e+300", "1000 m/s^2")),
     "fps 1e-300": (("--fps", "1e-300"), ("--fps", "1e-300", "0.001")),
     "dt 5e-324 in a frameless run": (("--dt", "5e-324", "--duration", "1e-300"), ("--dt",)),
 }
@@ -264,9 +264,9 @@ def test_simulate_refuses_values_that_would_go_non_finite(work: Path, case: str)
 
 
 @pytest.mark.parametrize(("args", "names"), [
-    (("--charge", "5e-324", "--distance", "1e308"), ("--charge", "4.94066e-324", "too small")),
-    (("--charge", "1", "--distance", "1e-320,1e308"), ("--distance", "1e+308", "1,000,000 m")),
-    (("--charge", "1e300", "--distance", "1"), ("--charge", "1e+300", "1e+09 kg"))])
+    (("--charge", "5e-324", "--distance", "1e308"), ("--charge", "5e-324", ">= 1e-09")),
+    (("--charge", "1", "--distance", "1e-320,1e308"), ("--distance", "1e+308", "1e+06 m")),
+    (("--charge", "1e300", "--distance", "1"), ("--charge", "1e+300", "<= 1e+09 kg"))])
 def test_blast_refuses_values_that_would_go_non_finite(work: Path, args: tuple,
                                                        names: tuple) -> None:
     """They gave a ZeroDivisionError, NaN in the JSON or overflow warnings."""
@@ -286,7 +286,7 @@ def test_blast_plot_of_a_distance_deep_in_the_charge(work: Path) -> None:
 
 @pytest.mark.parametrize("seed", ["-1", str(2**64), str(10**30)])
 def test_simulate_refuses_a_seed_outside_64_bits(work: Path, seed: str) -> None:
-    refused(work, *SIM, *SHORT, "--seed", seed, names=("--seed", seed, "2**64"))
+    refused(work, *SIM, *SHORT, "--seed", seed, names=("--seed", seed, "must be"))
 
 
 def test_simulate_takes_the_largest_seed(work: Path) -> None:

@@ -440,7 +440,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
 CLI_ERRORS = {
     "negative charge": (("--charge=-1", "--distance", "1"), "--charge"),
     "not a number": (("--charge", "lots", "--distance", "1"), "not a number"),
-    "negative distance": (("--charge", "1", "--distance=2,-1"), "negative"),
+    "negative distance": (("--charge", "1", "--distance=2,-1"), "must be >= 0"),
     "unknown explosive": (("--charge", "1", "--distance", "1", "--explosive", "unobtainium"),
                           "unknown explosive"),
     "missing charge": (("--distance", "1"), "--charge"),

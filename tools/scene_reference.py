@@ -115,7 +115,7 @@ MATERIAL_MEANINGS: dict[str, str] = {
 
 #: How each kind of material field (``_FIELD_KINDS``) is checked, in words.
 def _range(bound: Any) -> str:
-    """A :class:`blastvox.validate_values.Bound` in the tables' words (no unit)."""
+    """A :class:`blastvox.bounds.Bound` in the tables' words (no unit)."""
     return bound.describe(with_unit=False, kind=False).replace(">=", "≥").replace("<=", "≤")
 
 

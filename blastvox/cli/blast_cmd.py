@@ -41,7 +41,7 @@ def parse_charge(text: str | None) -> float:
 
     if text is None:
         raise BlastvoxError("--charge KG is required (mass of explosive in kg)")
-    return CHARGE_KG.check(_number(text, "--charge"), "--charge")
+    return CHARGE_KG.named(_number(text, "--charge"), "--charge")
 
 
 def parse_distances(text: str | None) -> list[float]:
@@ -63,7 +63,7 @@ def parse_distances(text: str | None) -> list[float]:
     for part in parts:
         if not part.strip():
             raise BlastvoxError(f"--distance: empty entry in {text[:80]!r}")
-        values.append(DISTANCE_M.check(_number(part, "--distance"), "--distance"))
+        values.append(DISTANCE_M.named(_number(part, "--distance"), "--distance"))
     return values
 
 

@@ -54,9 +54,13 @@ class _Interrupt:
     reports it to ``sys.unraisablehook`` ("Exception ignored") and carries on.
     numba compiles through such callbacks (llvmlite's object cache), so a Ctrl-C
     during the first run's compilation used to be swallowed and the command
-    finished with exit 0. So the hook takes our swallowed exception quietly, and
-    a watchdog thread re-delivers the signal (``signal.pthread_kill``) once
-    the callback has returned, until it surfaces.
+    finished with exit 0, or left numba half-way through a compilation ("no
+    compiled object yet"). So the handler does not raise while llvmlite is on
+    the stack (it calls Python back from C there): it marks the interrupt
+    pending, and a watchdog thread re-delivers the signal
+    (``signal.pthread_kill``) every :data:`WATCH_S` until the main thread is
+    out of llvmlite and the exception can surface. ``sys.unraisablehook``
+    catches any other callback that swallows it, quietly, for the same retry.
     """
 
     def __init__(self) -> None:
@@ -72,6 +76,10 @@ class _Interrupt:
             os._exit(128 + self.signum)
         self.redelivering = False
         self.signum = self.signum or signum
+        if _in_llvmlite(frame):
+            self.swallowed = True  # not yet: the watchdog delivers it again shortly
+            self._start_watchdog()
+            return
         raise Interrupted(self.signum)
 
     def unraisable(self, hook: object, unraisable: object) -> None:
@@ -108,8 +116,17 @@ class _Interrupt:
         os._exit(128 + self.signum)
 
 
+def _in_llvmlite(frame: object, depth: int = 64) -> bool:
+    """Is a frame of llvmlite (which C code calls back into) on the stack from ``frame``?"""
+    while frame is not None and depth > 0:
+        if "llvmlite" in frame.f_code.co_filename:  # type: ignore[attr-defined]
+            return True
+        frame, depth = frame.f_back, depth - 1  # type: ignore[attr-defined]
+    return False
+
+
 @contextmanager
-def interrupt_handlers() -> Iterator[None]:
+def interrupt_handlers() -> Iterator[_Interrupt]:
     """Turn SIGINT/SIGTERM/SIGHUP into :class:`Interrupted` for the duration.
 
     The first signal raises (see :class:`_Interrupt` for why it may be
@@ -131,7 +148,7 @@ def interrupt_handlers() -> Iterator[None]:
         previous[signum] = old
         signal.signal(signum, interrupt.handle)
     try:
-        yield
+        yield interrupt
     finally:
         interrupt.done = True
         sys.unraisablehook = hook
@@ -155,8 +172,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def run(argv: Sequence[str] | None = None) -> int:
     """Like :func:`main` but returns the exit code instead of exiting (in-process use)."""
+    interrupt = None
     try:
-        with interrupt_handlers():
+        with interrupt_handlers() as interrupt:
             return _run_app(argv)
     except Interrupted as exc:
         _echo(f"blastvox: {exc.reason}; no partial output left")
@@ -164,6 +182,12 @@ def run(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # raised by Python itself before a handler was set
         _echo("blastvox: interrupted; no partial output left")
         return 130
+    except Exception:
+        if interrupt is not None and interrupt.signum:  # a library failed as it was stopped
+            stopped = Interrupted(interrupt.signum)
+            _echo(f"blastvox: {stopped.reason}; no partial output left")
+            return stopped.exit_code
+        raise
 
 
 def _run_app(argv: Sequence[str] | None) -> int:

@@ -11,7 +11,7 @@ import typer
 from blastvox.bounds import (
     CHARGE_KG,
     CHARGE_TIME_S,
-    COORDINATE_M,
+    COORDINATE,
     MAX_FRAMES,
     MAX_MEMORY_GIB,
     MAX_PARTICLES,
@@ -41,10 +41,10 @@ def _parse_charge(text: str) -> tuple[tuple[float, float, float], float, float]:
         raise BlastvoxError(f"--charge {text!r}: expected X,Y,Z:KG or X,Y,Z:KG@T "
                             f"(metres, kg TNT, seconds)") from None
     flag = f"--charge {text!r}:"
-    CHARGE_KG.check(kg, f"{flag} mass")
-    CHARGE_TIME_S.check(t, f"{flag} time")
+    CHARGE_KG.named(kg, f"{flag} mass")
+    CHARGE_TIME_S.named(t, f"{flag} time")
     for axis, value in zip("XYZ", (x, y, z), strict=True):
-        COORDINATE_M.check(value, f"{flag} {axis}")
+        COORDINATE.named(value, f"{flag} {axis}")
     return (x, y, z), kg, t
 
 

@@ -20,7 +20,7 @@ class Shape(StrEnum):
 
 
 def _parse_size(text: str, where: str) -> tuple[float, float, float]:
-    from blastvox.validate_values import VOXEL_SIZE
+    from blastvox.bounds import VOXEL_SIZE
 
     try:
         values = [float(v) for v in text.split(",")]
@@ -36,7 +36,7 @@ def _parse_size(text: str, where: str) -> tuple[float, float, float]:
 
 
 def _parse_ground(text: str, where: str = "") -> str | float | None:
-    from blastvox.validate_values import COORDINATE
+    from blastvox.bounds import COORDINATE
 
     if text.lower() == "none":
         return None
@@ -96,7 +96,7 @@ def voxelize(
         raise BlastvoxError(f"{scene}: give either --scene or MESH arguments, not both")
     if scene is None and not meshes:
         raise BlastvoxError("no input: give MESH files or --scene SCENE.toml")
-    from blastvox.validate_values import JITTER, MAX_VOXELS, RESOLUTION, check_seed, printable
+    from blastvox.bounds import JITTER, MAX_VOXELS, RESOLUTION, check_seed, printable
 
     where = printable(scene or meshes[0])
     MAX_VOXELS.at(max_voxels, f"{where}: --max-voxels")
@@ -183,7 +183,7 @@ def _read_toml(path: Path) -> dict:
 
 def _recorded(requests, settings, scene) -> dict:
     """The settings that made the model, JSON-safe, without absolute paths."""
-    from blastvox.validate_values import printable
+    from blastvox.bounds import printable
 
     return {
         "scene": printable(Path(scene).name) if scene else None,

@@ -140,7 +140,7 @@ def preview(cache: SimCache, path: str | Path, options: PreviewOptions | None = 
     shot = prepare(cache, frames, options, source)
     times = shot.scene.times
     step = frames[1] - frames[0] if len(frames) > 1 else 1
-    fps = options.fps or min(max(shot.scene.fps / step, FPS.low), FPS.high)
+    fps = options.fps or min(max(shot.scene.fps / step, FPS.lo), FPS.hi)
     spent = [0.0]
 
     def labelled() -> Iterator[np.ndarray]:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from blastvox.bounds import MAX_OUTPUT_PIXELS, MAX_PIXELS, Bound, fmt
+from blastvox.bounds import COORDINATE, MAX_OUTPUT_PIXELS, MAX_PIXELS, Bound, fmt
 from blastvox.errors import BlastvoxError, BudgetError
 
 FORMATS = (".png", ".gif", ".mp4")
@@ -30,10 +30,9 @@ SHEET_FRAMES = 6          #: frames on a PNG contact sheet when --frames is not 
 MAX_SIDE_PX = 8192
 MIN_SIDE_PX = 16
 #: Animation rates: a GIF delay is 1/100 s to 655 s; ffmpeg wants a sane rate.
-FPS = Bound(0.01, 1000.0, "frames/s")
-#: Explicit cameras: within +-1000 km (m); focal length 1 mm to 10 m (mm).
-CAMERA_COORDINATE_M = Bound(-1e6, 1e6, "m")
-FOCAL_MM = Bound(1.0, 10_000.0, "mm")
+FPS = Bound(0.01, 1000.0, unit="frames/s")
+#: Explicit cameras: within +-1000 km (bounds.COORDINATE, m); focal length 1 mm to 10 m (mm).
+FOCAL_MM = Bound(1.0, 10_000.0, unit="mm")
 MIN_CAMERA_DISTANCE_M = 1e-6
 
 
@@ -219,7 +218,7 @@ def _vector(text: str, what: str, spec: str) -> tuple[float, float, float]:
         raise BlastvoxError(f"--camera: {what} {text!r} in {spec!r} is not three "
                             f"numbers") from None
     for axis, value in zip("XYZ", values, strict=True):
-        CAMERA_COORDINATE_M.check(value, f"--camera {spec!r}: {what} {axis}")
+        COORDINATE.named(value, f"--camera {spec!r}: {what} {axis}")
     return values  # type: ignore[return-value]
 
 
@@ -244,7 +243,7 @@ def parse_camera(text: str | None) -> CameraSpec | None:
         except ValueError:
             raise BlastvoxError(f"--camera: focal length {parts[2]!r} in {text!r} is not a "
                                 f"number (mm)") from None
-        FOCAL_MM.check(focal, f"--camera {text!r}: focal length")
+        FOCAL_MM.named(focal, f"--camera {text!r}: focal length")
     if math.dist(position, target) < MIN_CAMERA_DISTANCE_M:
         raise BlastvoxError(f"--camera: position and look-at point in {text!r} are the same "
                             f"(less than {fmt(MIN_CAMERA_DISTANCE_M)} m apart)")
@@ -271,5 +270,5 @@ def check_supersample(value: int) -> int:
 
 def check_fps(value: float | None) -> float | None:
     """--fps: a rate within :data:`FPS` (or None)."""
-    return None if value is None else FPS.check(value, "--fps")
+    return None if value is None else FPS.named(value, "--fps")
 

@@ -22,11 +22,12 @@ import numpy as np
 from blastvox.bounds import (
     CHARGE_KG,
     CHARGE_TIME_S,
-    COORDINATE_M,
+    COORDINATE,
     MAX_FRAMES,
     MAX_MEMORY_GIB,
     MAX_PARTICLES,
     MAX_STEPS,
+    SEED,
     Bound,
     check_count,
     fmt,
@@ -37,8 +38,6 @@ from blastvox.errors import BlastvoxError, BudgetError
 #: (index, position, orientation, centre of mass: 88 B) and the pieces' float64 and
 #: float32 transforms packed at the end (84 B).
 RECORD_BYTES_PER_PIECE_FRAME = 88 + 84
-#: Seeds are unsigned 64-bit integers.
-MAX_SEED = 2**64 - 1
 
 
 @dataclass(frozen=True)
@@ -82,22 +81,22 @@ class Origin:
 #: duration is bounded by the budgets; gravity <= 1000 m/s^2 (about 100 g) and charge
 #: times <= 1e9 s keep every speed and position finite.
 BOUNDS: dict[str, Bound] = {
-    "dt": Bound(1e-9, None, "s"),
-    "fps": Bound(1e-3, 1e6, "frames/s"),
-    "duration": Bound(0.0, None, "s", open_low=True),
-    "gravity": Bound(0.0, 1000.0, "m/s^2"),
-    "linear_drag": Bound(0.0, None, "1/s"),
-    "angular_drag": Bound(0.0, None, "1/s"),
+    "dt": Bound(1e-9, unit="s"),
+    "fps": Bound(1e-3, 1e6, unit="frames/s"),
+    "duration": Bound(0.0, lo_open=True, unit="s"),
+    "gravity": Bound(0.0, 1000.0, unit="m/s^2"),
+    "linear_drag": Bound(0.0, unit="1/s"),
+    "angular_drag": Bound(0.0, unit="1/s"),
     "weakening": Bound(0.0, 1.0),
     "orientation_factor": Bound(0.0, 1.0),
     "damage_b": Bound(0.0),
-    "damage_c": Bound(0.0, None, "1/(Pa s)"),
+    "damage_c": Bound(0.0, unit="1/(Pa s)"),
     "friction": Bound(0.0),
-    "rest_damping": Bound(0.0, None, "1/s"),
-    "sleep_speed": Bound(0.0, None, "m/s"),
+    "rest_damping": Bound(0.0, unit="1/s"),
+    "sleep_speed": Bound(0.0, unit="m/s"),
     "fire_pressure_scale": Bound(0.0),
-    "fire_spread": Bound(0.0, None, "Pa/s"),
-    "burn_rate": Bound(0.0, None, "1/s"),
+    "fire_spread": Bound(0.0, unit="Pa/s"),
+    "burn_rate": Bound(0.0, unit="1/s"),
     "fire_side_factor": Bound(0.0),
 }
 
@@ -231,12 +230,7 @@ def settings_from_scene(scene, source: str = "the scene", budget: Budget | None 
 
 def check_seed(value: object, name: str = "--seed", source: str | None = None) -> int:
     """A seed: a whole number 0 .. 2**64 - 1, else a one-line BlastvoxError."""
-    where = f"{source}: " if source else ""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (
-            0 <= int(value) <= MAX_SEED):
-        raise BlastvoxError(f"{where}{name} {value!r} must be a whole number from 0 to "
-                            f"2**64 - 1")
-    return int(value)
+    return SEED.named(int(value) if isinstance(value, np.integer) else value, name, source)
 
 
 def _count(value: float) -> str:
@@ -251,16 +245,16 @@ def check_bounds(settings: SimSettings) -> None:
     :mod:`blastvox.bounds`), else one BlastvoxError line naming it (see :class:`Origin`)."""
     origin = settings.origin
     for key, bound in BOUNDS.items():
-        bound.check(getattr(settings, key), origin.name(key), origin.source)
+        bound.named(getattr(settings, key), origin.name(key), origin.source)
     check_seed(settings.seed, origin.name("seed"), origin.source)
     charges = origin.name("charges")
     for i, c in enumerate(settings.charges):
-        CHARGE_KG.check(c.mass_kg, f"{charges}[{i}].mass_kg", origin.source)
-        CHARGE_TIME_S.check(c.time_s, f"{charges}[{i}].time_s", origin.source)
+        CHARGE_KG.named(c.mass_kg, f"{charges}[{i}].mass_kg", origin.source)
+        CHARGE_TIME_S.named(c.time_s, f"{charges}[{i}].time_s", origin.source)
         if len(c.position) != 3:
             raise BlastvoxError(f"{origin.source}: {charges}[{i}].position must be X, Y, Z")
         for axis, value in zip("xyz", c.position, strict=True):
-            COORDINATE_M.check(value, f"{charges}[{i}].position {axis}", origin.source)
+            COORDINATE.named(value, f"{charges}[{i}].position {axis}", origin.source)
 
 
 def run_size(settings: SimSettings) -> tuple[float, float]:
@@ -280,7 +274,7 @@ def run_size(settings: SimSettings) -> tuple[float, float]:
 def _check_budget_values(budget: Budget, where: str) -> None:
     for key, low in (("max_steps", 1), ("max_frames", 1), ("max_particles", 0)):
         check_count(getattr(budget, key), "--" + key.replace("_", "-"), low, where)
-    Bound(0.0, None, "GiB", open_low=True).check(budget.max_memory_gib, "--max-memory", where)
+    Bound(0.0, lo_open=True, unit="GiB").named(budget.max_memory_gib, "--max-memory", where)
 
 
 def check_budget(settings: SimSettings) -> None:
@@ -323,7 +317,7 @@ def check_settings(settings: SimSettings) -> None:
     refused for its steps), then any setting outside its bound (:func:`check_bounds`)."""
     origin = settings.origin
     for key in ("dt", "fps", "duration"):
-        Bound(0.0, None, BOUNDS[key].unit, open_low=True).check(
+        Bound(0.0, lo_open=True, unit=BOUNDS[key].unit).named(
             getattr(settings, key), origin.name(key), origin.source)
     check_budget(settings)
     check_bounds(settings)

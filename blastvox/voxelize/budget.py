@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
+from blastvox.bounds import MAX_VOXELS_LIMIT, MIN_VOXEL_SIZE_M
 from blastvox.errors import BudgetError, InputError
-from blastvox.validate_values import MAX_VOXELS_LIMIT, MIN_VOXEL_SIZE_M
 
 #: Grid cells searched per voxel of budget, so huge sparse grids fail early.
 GRID_CELLS_PER_BUDGET_VOXEL = 16

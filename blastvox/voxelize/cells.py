@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from blastvox.bounds import printable
 from blastvox.errors import MeshError
 from blastvox.jit import kernel
-from blastvox.validate_values import printable
 from blastvox.voxelize.lattice import Grid
 from blastvox.voxelize.mesh_io import Part
 from blastvox.voxelize.occupancy import winding_numbers

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from blastvox.bounds import printable, regular_file
 from blastvox.errors import InputError, MeshError
 from blastvox.geometry.voxel_faces import VTK_CELL_FACES
-from blastvox.validate_values import printable, regular_file
 
 #: Suffixes read through meshio as volume meshes rather than through trimesh.
 VOLUME_SUFFIXES = {".vtu", ".vtk", ".msh", ".mesh", ".xdmf", ".med", ".inp", ".vol"}

@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from blastvox import __version__
+from blastvox.bounds import MAX_COORDINATE_M, printable
 from blastvox.errors import MeshError
 from blastvox.geometry.frames import up_index
 from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG, hex_triangles
 from blastvox.materials import MaterialLibrary, material_table, perturbed
 from blastvox.model import VoxelModel
-from blastvox.validate_values import MAX_COORDINATE_M, printable
 from blastvox.voxelize import budget
 from blastvox.voxelize import cells as cellsel
 from blastvox.voxelize.components import component_labels

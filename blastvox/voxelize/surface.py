@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from blastvox.bounds import printable
 from blastvox.errors import MeshError
-from blastvox.validate_values import printable
 from blastvox.voxelize.mesh_io import Part
 
 #: Largest fraction of inside cells whose winding number is ambiguous (rays
