@@ -247,7 +247,7 @@ _FLOAT_TEXT = st.floats().map(repr) | st.sampled_from(
      "0.25", "0.3", "1e6", "1e6000"])
 
 
-@settings(max_examples=25, deadline=None,
+@settings(max_examples=25, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(text=_FLOAT_TEXT, flag=st.sampled_from(["--voxel-size", "--ground", "--jitter"]))
 @example(text="0.3", flag="--voxel-size")
@@ -260,7 +260,7 @@ def test_fuzz_float_flags(tmp_path: Path, cube: Path, text: str, flag: str) -> N
     _fuzz_one(tmp_path, args, flag)
 
 
-@settings(max_examples=15, deadline=None,
+@settings(max_examples=15, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(value=st.integers(-2**70, 2**70) | st.integers(0, 40))
 @example(value=2**63)
