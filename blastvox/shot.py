@@ -64,9 +64,8 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     from blastvox.simulate.settings import settings_from_scene as sim_settings
 
     sim = sim_settings(scene, str(scene_path))
-    if not sim.charges:
-        raise SceneError(f"{scene_path}: charges: the scene has no [[charges]] to simulate")
-    check_settings(sim)  # a run over its budget is refused before voxelize runs
+    if sim.charges:  # a run over its budget is refused before voxelize runs
+        check_settings(sim)
     model = None
     if force or _stale(out.model, voxel_inputs):
         from blastvox.voxelize.pipeline import voxelize
@@ -83,6 +82,8 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
         from blastvox.model import VoxelModel
         from blastvox.simulate.engine import Progress, simulate
 
+        if not sim.charges:
+            raise SceneError(f"{scene_path}: charges: the scene has no [[charges]] to simulate")
         model = model or VoxelModel.load(out.model)
         log(f"simulate -> {out.cache}")
         cache = simulate(model, sim, progress=Progress(notes=log), warn=warn)
