@@ -223,3 +223,16 @@ def test_an_interrupt_swallowed_by_a_ctypes_callback_still_surfaces(capfd) -> No
     assert "after the callback" in ran
     assert time.perf_counter() - started < 2.0
     assert "Exception ignored" not in capfd.readouterr().err
+
+
+def test_running_out_of_memory_is_one_line(work: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A MemoryError (here raised where the model is read) is a line, not a traceback."""
+    from blastvox.model import VoxelModel
+
+    def exhausted(path):
+        raise MemoryError
+
+    monkeypatch.setattr(VoxelModel, "load", exhausted)
+    with unchanged(work, [work / p for p in INPUTS]):
+        outcome = run_blastvox(*commands("new.npz")["simulate"], cwd=work)
+    assert_clean_failure(outcome, [], words=["out of memory"])
