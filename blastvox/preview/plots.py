@@ -12,9 +12,10 @@ Helpers any part of blastvox (or a benchmark) can reuse:
   optional), e.g. a trade-off curve of error against run time.
 
 :func:`blast_figure` draws, for a charge and the requested distances, the
-bounded modified Friedlander pressure-time curves (negative phase included)
-and the peak overpressure and impulses against distance (log-log), straight
-from :mod:`blastvox.blast`.
+pressure-time curves a face sees (modified Friedlander positive phase, then
+Granström's cubic negative phase, as the simulator loads faces) and the peak
+overpressure and impulses against distance (log-log), straight from
+:mod:`blastvox.blast`.
 """
 
 from __future__ import annotations
@@ -115,17 +116,22 @@ def line_plot(path: str | Path, series: Sequence[Series], xlabel: str, ylabel: s
 def pressure_time(distance_m: float, charge_kg: float, explosive: str = "TNT",
                   samples: int = 1200, burst: str = "air") -> tuple[np.ndarray, np.ndarray]:
     """(t (N,) s after detonation, p - p0 (N,) Pa) at ``distance_m`` of an "air" or
-    "surface" burst: from just before arrival to the end of the bounded negative
-    phase, the jump at arrival included."""
+    "surface" burst, as the simulator loads a face: the modified Friedlander positive
+    phase, then Granström's cubic negative phase (:mod:`blastvox.blast.underpressure`),
+    from just before arrival to after the negative phase ends, the jump at arrival
+    included."""
     import blastvox.blast as blast
 
     p = blast.blast_parameters(distance_m, charge_kg, explosive, burst)
     ta, td = float(p.arrival_time_s), float(p.positive_duration_s)
-    _, tau_end = blast.negative_phase(p.peak_overpressure_pa, p.decay_coefficient)
-    end = ta + float(tau_end) * td
+    z = distance_m / float(np.cbrt(charge_kg * blast.tnt_equivalent(explosive)))
+    p_min, _, td_neg = (float(v) for v in blast.negative_parameters(z, p.impulse_pa_s))
+    end = ta + td + td_neg
     lead = 0.1 * (end - ta)
     t = np.concatenate([[max(0.0, ta - lead)], [ta], np.linspace(ta, end + lead, samples)])
-    pressure = p.overpressure(t)
+    s = (t - ta - td) / td_neg if td_neg > 0.0 else np.full_like(t, 2.0)
+    under = np.where((s > 0.0) & (s < 1.0), -p_min * 6.75 * s * (1.0 - s) ** 2, 0.0)
+    pressure = np.where(t <= ta + td, p.overpressure(t), under)
     pressure[:2] = 0.0  # before arrival; the jump to Ps is at t = ta
     return t, pressure
 
@@ -165,7 +171,8 @@ def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float],
     if positive and max(positive) / min(positive) > 30.0:  # several decades: symmetric log
         ax_pt.set_yscale("symlog", linthresh=min(positive) / 1e3 / 10.0)
     fig.suptitle(f"{charge_kg:g} kg {explosive} = {charge_kg * factor:.4g} kg TNT, "
-                 f"{blast.BURST_TITLES[burst]} (Kingery-Bulmash, modified Friedlander)",
+                 f"{blast.BURST_TITLES[burst]} (Kingery-Bulmash, modified Friedlander, "
+                 f"Granström negative phase)",
                  fontsize="medium")
     which = ("each distance" if len(drawn) == given_count else
              f"{len(drawn)} of the {given_count:,} distances, spread over them")
@@ -179,9 +186,7 @@ def blast_figure(charge_kg: float, explosive: str, distances: Sequence[float],
     hi = max((given.max() if len(given) else blast.Z_MAX * cube) * 3.0, 10.0 * lo)
     r = np.geomspace(lo, hi, 400)
     p = blast.blast_parameters(r, charge_kg, explosive, burst)
-    _, tau_end = blast.negative_phase(p.peak_overpressure_pa, p.decay_coefficient)
-    ta, td = p.arrival_time_s, p.positive_duration_s
-    negative = -p.impulse(ta + td, ta + tau_end * td)
+    _, negative, _ = blast.negative_parameters(r / cube, p.impulse_pa_s)
     ax_ps = fig.add_subplot(grid[1, 0])
     ax_i = fig.add_subplot(grid[1, 1])
     ax_ps.loglog(r, p.peak_overpressure_pa / 1e3, label="incident Ps")
