@@ -236,9 +236,10 @@ def regular_file(path: str | os.PathLike, what: str, max_bytes: int | None = Non
     if stat.S_ISDIR(info.st_mode):
         raise InputError(f"{shown}: is a directory, not a {what}")
     if not stat.S_ISREG(info.st_mode):
-        kind = ("a FIFO" if stat.S_ISFIFO(info.st_mode) else
-                "a socket" if stat.S_ISSOCK(info.st_mode) else "a device")
-        raise InputError(f"{shown}: is {kind}, not a regular file; give a {what}")
+        from blastvox.io.outputs import file_kind  # one naming of file kinds, in and out
+
+        raise InputError(f"{shown}: is {file_kind(info.st_mode)}, not a regular file; "
+                         f"give a {what}")
     if max_bytes is not None and info.st_size > max_bytes:
         raise InputError(f"{shown}: {info.st_size:,} bytes is too large for a {what} "
                          f"(at most {max_bytes:,})")

@@ -18,6 +18,7 @@ import signal
 import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from typing import NoReturn
 
 
 class Interrupted(BaseException):  # noqa: N818 - like KeyboardInterrupt, not an error
@@ -160,14 +161,13 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None) -> NoReturn:
     """Run the CLI with ``argv`` (default ``sys.argv[1:]``) and exit with its code.
 
     User errors (:class:`~blastvox.errors.BlastvoxError`) and out-of-memory become
     one ``blastvox: error: ...`` line on stderr and exit 1.
     """
-    code = run(argv)
-    sys.exit(code)
+    sys.exit(run(argv))
 
 
 def run(argv: Sequence[str] | None = None) -> int:
