@@ -71,6 +71,15 @@ class Material:
         voxel_impulse: Pa s; the same for a voxel turning to dust.
         pi_shape: K / (P0 I0) of the hyperbola (P - P0)(I - I0) = K (0 = two
             independent asymptotes).
+        compressive_strength, tensile_strength, shear_strength: Pa; the stresses
+            a link carries under gravity and impact before it breaks (the stress
+            solver, :mod:`blastvox.simulate.stress`); ``inf`` = never.
+        youngs_modulus: Pa; the links' stiffness, which shares loads between the
+            paths of a statically indeterminate structure.
+        chunk_size: m; mean size of the chunks voxelize groups voxels into (0 =
+            every voxel its own chunk).
+        chunk_weibull: Weibull modulus of the chunk volumes (large = uniform).
+        chunk_bond_scale: factor (>= 1) on the strength of links inside a chunk.
     """
 
     name: str
@@ -88,6 +97,13 @@ class Material:
     link_impulse: float = 0.0
     voxel_impulse: float = 0.0
     pi_shape: float = 0.0
+    compressive_strength: float = math.inf
+    tensile_strength: float = math.inf
+    shear_strength: float = math.inf
+    youngs_modulus: float = 30e9
+    chunk_size: float = 0.0
+    chunk_weibull: float = 2.0
+    chunk_bond_scale: float = 1.0
 
 
 # Field name -> kind; the kind selects the check in _check_field.
@@ -106,6 +122,13 @@ _FIELD_KINDS: dict[str, str] = {
     "link_impulse": "impulse",
     "voxel_impulse": "impulse",
     "pi_shape": "shape",
+    "compressive_strength": "strength",
+    "tensile_strength": "strength",
+    "shear_strength": "strength",
+    "youngs_modulus": "modulus",
+    "chunk_size": "length",
+    "chunk_weibull": "weibull",
+    "chunk_bond_scale": "bond_scale",
 }
 #: The range of each numeric kind (documented in docs/user-guide.md, Limits): finite
 #: limits keep the simulator's products of yields, impulses and areas far from overflow.
@@ -113,6 +136,8 @@ MAX_DENSITY = 1e5        # kg/m^3 (osmium: 22,590)
 MAX_PRESSURE_PA = 1e12   # a yield or threshold; inf means "never"
 MAX_IMPULSE_PA_S = 1e9
 MAX_PI_SHAPE = 1e6
+MAX_MODULUS_PA = 1e13    # diamond: 1.2e12
+MAX_CHUNK_M = 1e4
 _BOUNDS: dict[str, Bound] = {
     "positive": Bound(0.0, MAX_DENSITY, lo_open=True, unit="kg/m^3"),
     "threshold": Bound(0.0, MAX_PRESSURE_PA, unit="Pa", allow_inf=True),
@@ -120,8 +145,15 @@ _BOUNDS: dict[str, Bound] = {
     "impulse": Bound(0.0, MAX_IMPULSE_PA_S, unit="Pa s"),
     "shape": Bound(0.0, MAX_PI_SHAPE),
     "unit": Bound(0.0, 1.0, interval=True),
+    "strength": Bound(0.0, MAX_PRESSURE_PA, lo_open=True, unit="Pa", allow_inf=True),
+    "modulus": Bound(0.0, MAX_MODULUS_PA, lo_open=True, unit="Pa"),
+    "length": Bound(0.0, MAX_CHUNK_M, unit="m"),
+    "weibull": Bound(0.1, 100.0),
+    "bond_scale": Bound(1.0, 1e6),
 }
-_OPTIONAL = ("description", "link_impulse", "voxel_impulse", "pi_shape")
+_OPTIONAL = ("description", "link_impulse", "voxel_impulse", "pi_shape",
+             "compressive_strength", "tensile_strength", "shear_strength", "youngs_modulus",
+             "chunk_size", "chunk_weibull", "chunk_bond_scale")
 _REQUIRED = [k for k in _FIELD_KINDS if k not in _OPTIONAL]
 _SCALARS = [k for k, kind in _FIELD_KINDS.items() if kind not in ("rgb", "text")]
 _TOML_POSITION = re.compile(r"\s*\(at (line \d+, column \d+|end of document)\)$")

@@ -115,12 +115,21 @@ MATERIAL_ARRAYS: dict[str, Spec] = {
     "material_voxel_yield_var": (_F8, ("M",)), "material_foundation_yield": (_F8, ("M",)),
     "material_restitution": (_F8, ("M",)), "material_combustibility": (_F8, ("M",)),
     "material_link_impulse": (_F8, ("M",)), "material_voxel_impulse": (_F8, ("M",)),
-    "material_pi_shape": (_F8, ("M",)), "material_color": (_F8, ("M", 3)),
+    "material_pi_shape": (_F8, ("M",)), "material_compressive_strength": (_F8, ("M",)),
+    "material_tensile_strength": (_F8, ("M",)), "material_shear_strength": (_F8, ("M",)),
+    "material_youngs_modulus": (_F8, ("M",)), "material_chunk_size": (_F8, ("M",)),
+    "material_chunk_weibull": (_F8, ("M",)), "material_chunk_bond_scale": (_F8, ("M",)),
+    "material_color": (_F8, ("M", 3)),
     "material_damage_color": (_F8, ("M", 3)), "material_description": (np.str_, ("M",)),
 }
-#: Material arrays a file may lack (older models; the simulator reads 0, export a grey).
+#: Material arrays a file may lack (older models: the simulator reads the
+#: Material defaults, e.g. 0 impulse and infinite strengths).
 OPTIONAL_MATERIAL_ARRAYS = ("material_link_impulse", "material_voxel_impulse",
-                            "material_pi_shape", "material_description")
+                            "material_pi_shape", "material_description",
+                            "material_compressive_strength", "material_tensile_strength",
+                            "material_shear_strength", "material_youngs_modulus",
+                            "material_chunk_size", "material_chunk_weibull",
+                            "material_chunk_bond_scale")
 #: Every member a VoxelModel file may hold besides ``meta``; others are never read.
 ARRAY_NAMES = frozenset(_REQUIRED) | frozenset(MATERIAL_ARRAYS)
 
@@ -335,6 +344,13 @@ _MATERIAL_RANGES: dict[str, tuple[float, float | None, bool, bool]] = {
     "material_link_impulse": (0.0, None, False, True),
     "material_voxel_impulse": (0.0, None, False, True),
     "material_pi_shape": (0.0, None, False, True),
+    "material_compressive_strength": (0.0, None, True, False),
+    "material_tensile_strength": (0.0, None, True, False),
+    "material_shear_strength": (0.0, None, True, False),
+    "material_youngs_modulus": (0.0, None, True, True),
+    "material_chunk_size": (0.0, None, False, True),
+    "material_chunk_weibull": (0.0, None, True, True),
+    "material_chunk_bond_scale": (1.0, None, False, True),
     "material_color": (0.0, 1.0, False, True),
     "material_damage_color": (0.0, 1.0, False, True),
 }
