@@ -2,9 +2,12 @@
 
 Repairs are the ones trimesh does well: merging split vertices (ignoring UV
 and normal seams), dropping degenerate and duplicate triangles, making winding
-consistent and outward, and filling small holes. A surface still too open to
-have an inside (a triangle soup, a single sheet) is refused with a one-line
-:class:`MeshError` naming the file and the defect.
+consistent within each shell and filling small holes; then each closed shell
+is turned to face the way its nesting says (outward, or inward for a sealed
+cavity: :mod:`blastvox.voxelize.shells`), so the winding number keeps cavities
+hollow. A surface still too open to have an inside (a triangle soup, a single
+sheet) is refused with a one-line :class:`MeshError` naming the file and the
+defect.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import trimesh
 from blastvox.bounds import printable
 from blastvox.errors import MeshError
 from blastvox.voxelize.mesh_io import Part
+from blastvox.voxelize.shells import orient_shells
 
 #: Largest fraction of inside cells whose winding number is ambiguous (rays
 #: through holes disagree) before a surface counts as too open to voxelize.
@@ -39,7 +43,8 @@ class SurfaceReport:
 
 
 def prepare_surface(part: Part) -> tuple[trimesh.Trimesh, SurfaceReport]:
-    """Return a cleaned, outward-oriented copy of ``part.mesh`` and a report."""
+    """Return a cleaned copy of ``part.mesh``, every shell oriented by its nesting
+    (material on the inside of each shell's normals), and a report."""
     mesh = part.mesh.copy()
     report = SurfaceReport(triangles_in=len(mesh.faces), triangles_out=0, open_edges=0)
     where = printable(part.source) + (
@@ -69,7 +74,7 @@ def prepare_surface(part: Part) -> tuple[trimesh.Trimesh, SurfaceReport]:
             filled = open_before - _open_edges(mesh)
             if filled > 0:
                 report.repairs.append(f"closed {filled} open edges by filling holes")
-        trimesh.repair.fix_inversion(mesh, multibody=True)
+        report.repairs.extend(orient_shells(mesh))
     report.open_edges = _open_edges(mesh)
     report.triangles_out = len(mesh.faces)
     if mesh.is_watertight and mesh.volume <= 0:
