@@ -213,6 +213,9 @@ SEED = Bound(0, MAX_SEED, integer=True)
 MAX_VOXELS = Bound(1, MAX_VOXELS_LIMIT, integer=True)
 LENGTH = Bound(0.0, MAX_COORDINATE_M, lo_open=True, unit="m")
 STRENGTH_SCALE = Bound(0.0, 1e6, lo_open=True)
+#: A chunk size (m): 0 = no chunks; the voxelizer also refuses one below a voxel or above
+#: the object (blastvox.voxelize.chunks). The top is the materials' chunk_size limit.
+CHUNK_SIZE = Bound(0.0, 1e4, unit="m")
 CHARGE_KG = Bound(MIN_CHARGE_KG, MAX_CHARGE_KG, unit="kg")
 CHARGE_TIME_S = Bound(0.0, MAX_TIME_S, unit="s")
 DISTANCE_M = Bound(0.0, MAX_DISTANCE_M, unit="m")

@@ -34,6 +34,9 @@ link_midpoint             (L, 3) f8       m, area centroid of the shared face
 link_direction            (L, 3) f8       unit vector from centroid a to centroid b
 link_area                 (L,) f8         m^2, contact area
 link_yield                (L,) f8         Pa, overpressure at the midpoint that breaks it
+                                          (x the chunk_bond_scale inside a chunk)
+voxel_chunk               (N,) i4         optional: chunk of the voxel, 0..K-1 numbered by
+                                          lowest voxel (absent: every voxel its own chunk)
 conform_voxels            (C,) i4         voxels with exact cell-and-mesh geometry
 conform_offsets           (C+1,) i8       triangle ranges per conform voxel
 conform_triangles         (T, 3, 3) f8    m, outward triangles of cell and mesh
@@ -107,6 +110,9 @@ _REQUIRED: dict[str, Spec] = {
     "conform_triangles": (_F8, ("T", 3, 3)), "conform_tag": (_U1, ("T",)),
 }
 
+#: Per-voxel arrays a file may lack (older models): name -> (dtype, shape).
+OPTIONAL_ARRAYS: dict[str, Spec] = {"voxel_chunk": (_I4, ("N",))}
+
 #: The material table (blastvox.materials.material_table), one row per name in
 #: meta["materials"] (M): name -> (dtype, shape).
 MATERIAL_ARRAYS: dict[str, Spec] = {
@@ -131,7 +137,7 @@ OPTIONAL_MATERIAL_ARRAYS = ("material_link_impulse", "material_voxel_impulse",
                             "material_chunk_size", "material_chunk_weibull",
                             "material_chunk_bond_scale")
 #: Every member a VoxelModel file may hold besides ``meta``; others are never read.
-ARRAY_NAMES = frozenset(_REQUIRED) | frozenset(MATERIAL_ARRAYS)
+ARRAY_NAMES = frozenset(_REQUIRED) | frozenset(OPTIONAL_ARRAYS) | frozenset(MATERIAL_ARRAYS)
 
 _MEANING = {"N": "one per voxel", "L": "one per link", "V": "one per vertex",
             "C": "one per conform voxel", "C1": "one more than the conform voxels",
@@ -213,6 +219,8 @@ class VoxelModel:
             "foundation_voxel_count": int(np.count_nonzero(a["voxel_foundation"])),
             "boundary_voxel_count": int(np.count_nonzero(a["voxel_boundary"])),
             "conform_voxel_count": int(len(a["conform_voxels"])),
+            "chunk_count": (len(np.unique(a["voxel_chunk"])) if "voxel_chunk" in a
+                            else self.voxel_count),
             "total_volume_m3": float(a["voxel_volume"].sum()),
             "total_mass_kg": float(a["voxel_mass"].sum()),
             "bounds_m": bounds,
@@ -233,7 +241,7 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     areas > 0, yields >= 0, voxel_boundary < 128, link_face 1/3/5, conform_tag
     <= 6, inertia symmetric with a positive diagonal, unit link directions,
     material values as :mod:`blastvox.materials` allows them); an index out of
-    bounds (vertices, voxels, objects, materials; link_voxels a < b; conform
+    bounds (vertices, voxels, objects, materials, chunks < N; link_voxels a < b; conform
     voxels listed once; conform_offsets from 0 to T, never decreasing);
     coordinates beyond :data:`COORD_LIMIT_M` or spanning more than
     :data:`MAX_SPAN_VOXELS` voxel sizes; and bad meta (``up_axis``,
@@ -252,11 +260,13 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     check_layout(path, a, _REQUIRED, prefix, "VoxelModel")
     names = _check_meta(path, meta, prefix)
     check_layout(path, a, MATERIAL_ARRAYS, prefix, "VoxelModel", OPTIONAL_MATERIAL_ARRAYS)
+    check_layout(path, a, OPTIONAL_ARRAYS, prefix, "VoxelModel", tuple(OPTIONAL_ARRAYS))
     n, c = len(a["voxel_mass"]), len(a["conform_voxels"])
     dims = {"N": n, "V": len(a["vertices"]), "L": len(a["link_voxels"]), "C": c,
             "C1": c + 1, "T": len(a["conform_triangles"]), "M": len(names)}
     check_shapes(path, a, _REQUIRED, dims, prefix, _MEANING)
     check_shapes(path, a, MATERIAL_ARRAYS, dims, prefix, _MEANING)
+    check_shapes(path, a, OPTIONAL_ARRAYS, dims, prefix, _MEANING)
     if n == 0:
         fail(path, f"array '{prefix}voxel_mass' is empty: the VoxelModel holds no voxels")
 
@@ -268,6 +278,8 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     check_index(path, name("voxel_vertices"), a["voxel_vertices"], dims["V"], "vertex")
     check_index(path, name("voxel_object"), a["voxel_object"], len(meta["objects"]), "object")
     check_index(path, name("voxel_material"), a["voxel_material"], dims["M"], "material")
+    if "voxel_chunk" in a:  # ids only: a chunk's connectedness is not checked
+        check_index(path, name("voxel_chunk"), a["voxel_chunk"], n, "chunk")
     check_range(path, name("voxel_ijk"), a["voxel_ijk"], 0, rule="a lattice index >= 0")
     links = a["link_voxels"]
     check_index(path, name("link_voxels"), links, n, "voxel")

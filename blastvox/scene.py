@@ -1,30 +1,29 @@
 """Scene files: the TOML configuration shared by every stage.
 
-A scene names the meshes to voxelize (``[[objects]]``), the charges
-(``[[charges]]``), the simulation settings, which effects to model, an optional
-camera and output paths, plus optional extra materials (``materials_file`` and
-inline ``[materials.<name>]`` tables in the format of :mod:`blastvox.materials`).
+A scene names the meshes to voxelize (``[[objects]]``), the charges (``[[charges]]``),
+the simulation settings, which effects to model, an optional camera and output paths,
+plus optional extra materials (``materials_file`` and inline ``[materials.<name>]``
+tables in the format of :mod:`blastvox.materials`).
 
 Conventions (all SI: metres, seconds, kilograms, pascals):
 
-* Every coordinate in the scene (transforms, rule regions, charge positions,
-  camera, ``ground`` height) is in the scene's world frame, whose up axis is
-  ``up_axis`` -- the same axis that points up in the input meshes. Rule regions
-  are tested against voxel centres *after* the object's transform.
-* ``transform`` maps mesh coordinates to world: scale, then rotate, then
-  translate. ``rotate_deg`` is XYZ Euler in degrees, extrinsic (rotate about X,
-  then Y, then Z: R = Rz @ Ry @ Rx), as Blender's ``XYZ`` mode.
-* Paths are relative to the scene file and are stored resolved (absolute).
-  Mesh files are not checked here: the voxelize stage reads them, and records
-  each mesh path as the scene wrote it (``SceneObject.mesh_as_written``), so a
-  build is byte-identical wherever the scene and its meshes are.
-* Every number is finite and within a documented range
-  (:mod:`blastvox.bounds`; docs/user-guide.md, Limits and exit codes):
-  coordinates within 1e6 m of the origin, seeds 0 .. 2**63 - 1, and so on.
-  ``charges[i].explosive`` must be a known explosive.
+* Every coordinate in the scene (transforms, rule regions, charge positions, camera,
+  ``ground`` height) is in the scene's world frame, whose up axis is ``up_axis`` -- the
+  same axis that points up in the input meshes. Rule regions are tested against voxel
+  centres *after* the object's transform.
+* ``transform`` maps mesh coordinates to world: scale, then rotate, then translate.
+  ``rotate_deg`` is XYZ Euler in degrees, extrinsic (rotate about X, then Y, then Z: R =
+  Rz @ Ry @ Rx), as Blender's ``XYZ`` mode.
+* Paths are relative to the scene file and are stored resolved (absolute). Mesh files
+  are not checked here: the voxelize stage reads them, and records each mesh path as the
+  scene wrote it (``SceneObject.mesh_as_written``), so a build is byte-identical
+  wherever the scene and its meshes are.
+* Every number is finite and within a documented range (:mod:`blastvox.bounds`;
+  docs/user-guide.md, Limits and exit codes): coordinates within 1e6 m of the origin,
+  seeds 0 .. 2**63 - 1, and so on. ``charges[i].explosive`` must be a known explosive.
 
-Loading never raises anything but :class:`~blastvox.errors.SceneError`, whose
-message is one line: ``<file>: <key.path>: <what is wrong>``.
+Loading never raises anything but :class:`~blastvox.errors.SceneError`, whose message is
+one line: ``<file>: <key.path>: <what is wrong>``.
 """
 
 from __future__ import annotations
@@ -159,6 +158,8 @@ Seed = Annotated[int, limits.SEED.constraints()]
 Jitter = Annotated[float, limits.JITTER.constraints()]
 Length = Annotated[float, limits.LENGTH.constraints()]
 StrengthScale = Annotated[float, limits.STRENGTH_SCALE.constraints()]
+ChunkSize = Annotated[float, limits.CHUNK_SIZE.constraints()]
+_CHUNK = "Chunk size instead of the material's: 0 (no chunks) or one voxel to the object's size."
 # The simulation's settings and budgets (simulation.*, particles.*, charges' mass and
 # time) are bounded where they are used: blastvox.simulate.settings.check_settings names
 # the scene file and key; here they need only be finite and of the right sign.
@@ -258,14 +259,15 @@ class Rule(_Model):
     strength_scale: StrengthScale | None = Field(None, description=(
         "Factor on the link, voxel and foundation yields inside the region "
         "(a link takes the smaller factor of its two voxels)."))
+    chunk_size: ChunkSize | None = Field(None, description=_CHUNK + " Inside the region.")
 
     @model_validator(mode="after")
     def _complete(self) -> Rule:
         given = [k for k in ("box", "sphere", "halfspace") if getattr(self, k) is not None]
         if len(given) != 1:
             raise ValueError(f"needs exactly one of box, sphere, halfspace (got {given or 'none'})")
-        if self.material is None and self.strength_scale is None:
-            raise ValueError("needs material and/or strength_scale (otherwise it does nothing)")
+        if self.material is None and self.strength_scale is None and self.chunk_size is None:
+            raise ValueError("needs material, strength_scale or chunk_size (else it does nothing)")
         return self
 
     @property
@@ -294,6 +296,7 @@ class SceneObject(_Model):
     jitter: Jitter = Field(0.0, description=(
         "Moves each lattice vertex by a seeded random fraction of the voxel size; "
         "neighbouring voxels share vertices, so faces stay shared."))
+    chunk_size: ChunkSize | None = Field(None, description=_CHUNK)
     material: MaterialName = Field("concrete", description=(
         "Material of the object's voxels where neither material_map nor a rule sets one."))
     material_map: dict[str, MaterialName] = Field({}, description=(
@@ -603,10 +606,8 @@ def load_scene(path: Path) -> Scene:
 
 
 def scene_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Scene:
-    """Validate ``data`` (a parsed scene file) with relative paths resolved against ``base_dir``.
-
-    ``source`` names the file in error messages.
-    """
+    """Validate ``data`` (a parsed scene file, named ``source`` in error messages) with
+    relative paths resolved against ``base_dir``."""
     context = {"source": source, "base_dir": Path(base_dir).absolute()}
     try:
         return Scene.model_validate(data, context=context)

@@ -266,7 +266,7 @@ def test_ground_forms(ground: Any) -> None:
          "sphere": {"center": [0, 0, 0], "radius": 1}, "material": "glass"}]}]},
      "objects[0].rules[0]", "exactly one of box, sphere, halfspace"),
     ({"objects": [{"mesh": "a.obj", "rules": [{"sphere": {"center": [0, 0, 0], "radius": 1}}]}]},
-     "objects[0].rules[0]", "needs material and/or strength_scale"),
+     "objects[0].rules[0]", "needs material, strength_scale or chunk_size"),
     ({"objects": [{"mesh": "a.obj", "rules": [
         {"sphere": {"center": [0, 0, 0], "radius": 0}, "material": "glass"}]}]},
      "objects[0].rules[0].sphere.radius", "must be > 0"),

@@ -48,6 +48,7 @@ UNITS: dict[str, str] = {
     "objects.voxel_size": "m",
     "objects.resolution": "voxels",
     "objects.jitter": "voxel edges",
+    "objects.chunk_size": "m",
     "objects.transform.translate": "m",
     "objects.transform.rotate_deg": "degrees",
     "objects.transform.scale": "-",
@@ -58,6 +59,7 @@ UNITS: dict[str, str] = {
     "objects.rules.halfspace.point": "m",
     "objects.rules.halfspace.normal": "-",
     "objects.rules.strength_scale": "-",
+    "objects.rules.chunk_size": "m",
     "charges.position": "m",
     "charges.mass_kg": "kg",
     "charges.time_s": "s",
@@ -106,11 +108,26 @@ MATERIAL_UNITS: dict[str, str] = {
     "link_impulse": "Pa s",
     "voxel_impulse": "Pa s",
     "pi_shape": "-",
+    "compressive_strength": "Pa",
+    "tensile_strength": "Pa",
+    "shear_strength": "Pa",
+    "youngs_modulus": "Pa",
+    "chunk_size": "m",
+    "chunk_weibull": "-",
+    "chunk_bond_scale": "-",
 }
 
 #: Meanings that replace the Material docstring's where it gives only a unit.
 MATERIAL_MEANINGS: dict[str, str] = {
     "density": "Mass per unit volume: a voxel's mass is its volume times this.",
+    "chunk_size": ("Mean chunk size, the equivalent cube side of the mean chunk: voxelize "
+                   "groups the voxels into irregular chunks of about this size cubed. 0, or "
+                   "a size below one voxel: every voxel its own chunk. An object's or a "
+                   "rule's `chunk_size` replaces it."),
+    "chunk_weibull": ("Weibull modulus of the chunk volumes (Grady-Kipp fragment "
+                      "statistics): small = a wide spread of sizes, large = even sizes."),
+    "chunk_bond_scale": ("Factor (>= 1) on the yield of links inside a chunk, so fracture "
+                         "runs along chunk boundaries first (1 = chunks change nothing)."),
 }
 
 #: How each kind of material field (``_FIELD_KINDS``) is checked, in words.
@@ -444,15 +461,15 @@ def material_descriptions() -> dict[str, str]:
             continue
         if not in_attributes:
             continue
-        match = re.match(r"^    (\w+): (.*)$", line)
+        match = re.match(r"^    (\w+(?:, \w+)*): (.*)$", line)  # "a, b: text" gives both
         if match:
-            current = match.group(1)
-            found[current] = match.group(2).strip()
+            current = match.group(1).split(", ")
+            found.update({name: match.group(2).strip() for name in current})
         elif current and line.startswith("        "):
-            found[current] += " " + line.strip()
-    found = {k: re.sub(r"``([^`]+)``", r"`\1`", v) for k, v in found.items()}
-    # the units have their own column: drop a leading "Pa; " or "kg/m^3."
-    found = {k: re.sub(r"^(Pa|kg/m\^3)[;.]\s*", "", v) for k, v in found.items()}
+            found.update({name: found[name] + " " + line.strip() for name in current})
+    found = {k: re.sub(r"(:\w+:)?``?([^`]+)``?", r"`\2`", v) for k, v in found.items()}
+    # the units have their own column: drop a leading "Pa; ", "Pa s; ", "m; " or "kg/m^3."
+    found = {k: re.sub(r"^(Pa s|Pa|m|kg/m\^3)[;.]\s*", "", v) for k, v in found.items()}
     found.update(MATERIAL_MEANINGS)
     return {k: v[:1].upper() + v[1:] for k, v in found.items() if v}
 

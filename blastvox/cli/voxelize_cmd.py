@@ -66,6 +66,9 @@ def voxelize(
                                 "conform: boundary voxels are the exact cell-and-mesh shape."),
     jitter: float = typer.Option(0.0, "--jitter", help="Displace lattice vertices by a seeded "
                                  "random fraction of the voxel size, [0, 0.5)."),
+    chunk_size: float = typer.Option(None, "--chunk-size", help="Mean chunk size in metres "
+                                     "(a chunk's equivalent cube side), overriding the "
+                                     "materials' chunk_size; 0: no chunks."),
     material: str = typer.Option("concrete", "--material", help="Default material "
                                  "(see `blastvox materials`)."),
     materials_file: Path = typer.Option(None, "--materials", help="TOML file of extra or "
@@ -96,11 +99,13 @@ def voxelize(
         raise BlastvoxError(f"{scene}: give either --scene or MESH arguments, not both")
     if scene is None and not meshes:
         raise BlastvoxError("no input: give MESH files or --scene SCENE.toml")
-    from blastvox.bounds import JITTER, MAX_VOXELS, RESOLUTION, check_seed, printable
+    from blastvox.bounds import CHUNK_SIZE, JITTER, MAX_VOXELS, RESOLUTION, check_seed, printable
 
     where = printable(scene or meshes[0])
     MAX_VOXELS.at(max_voxels, f"{where}: --max-voxels")
     JITTER.at(jitter, f"{where}: --jitter")
+    if chunk_size is not None:
+        CHUNK_SIZE.at(chunk_size, f"{where}: --chunk-size")
     size = _parse_size(voxel_size, where) if voxel_size is not None else None
     if resolution is not None:
         RESOLUTION.at(resolution, f"{where}: --resolution")
@@ -114,7 +119,7 @@ def voxelize(
         mesh_flags = (("--voxel-size", voxel_size), ("--resolution", resolution),
                       ("--material", None if material == "concrete" else material),
                       ("--shape", None if shape == Shape.cube else shape),
-                      ("--jitter", jitter or None))
+                      ("--jitter", jitter or None), ("--chunk-size", chunk_size))
         given = [flag for flag, value in mesh_flags if value is not None]
         if given:
             raise BlastvoxError(f"{where}: {given[0]} applies to MESH arguments; with --scene "
@@ -148,7 +153,8 @@ def voxelize(
         if size is None and resolution is None:
             resolution = DEFAULT_RESOLUTION
         requests = [ObjectRequest(mesh=m, voxel_size=size, resolution=resolution,
-                                  shape=shape.value, jitter=jitter, material=material)
+                                  shape=shape.value, jitter=jitter, material=material,
+                                  chunk_size=chunk_size)
                     for m in meshes]
         settings = VoxelizeSettings(up_axis=up_axis.value if up_axis else "Y",
                                     ground=ground_value,
@@ -193,11 +199,13 @@ def _recorded(requests, settings, scene) -> dict:
             "mesh": printable(Path(r.mesh).name), "name": r.name,
             "voxel_size": list(r.voxel_size) if r.voxel_size else None,
             "resolution": r.resolution, "shape": r.shape, "jitter": r.jitter,
+            "chunk_size": r.chunk_size,
             "material": r.material, "material_map": dict(r.material_map),
             "transform": r.transform.tolist() if r.transform is not None else None,
             "rules": [{"kind": x.kind, "a": list(x.a), "b": x.b if isinstance(x.b, float)
                        else list(x.b), "material": x.material,
-                       "strength_scale": x.strength_scale} for x in r.rules],
+                       "strength_scale": x.strength_scale, "chunk_size": x.chunk_size}
+                      for x in r.rules],
         } for r in requests],
     }
 

@@ -22,7 +22,7 @@ from blastvox.geometry.frames import up_index
 from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG, hex_triangles
 from blastvox.materials import MaterialLibrary, material_table, perturbed
 from blastvox.model import VoxelModel
-from blastvox.voxelize import budget
+from blastvox.voxelize import budget, chunks
 from blastvox.voxelize import cells as cellsel
 from blastvox.voxelize.components import component_labels
 from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
@@ -53,6 +53,8 @@ class ObjectRequest:
     shape: "cube" or "conform"; jitter: fraction of the voxel size, [0, 0.5).
     material: default library material; material_map: mesh material name -> library name.
     transform: (4, 4) applied to the mesh before voxelizing.
+    chunk_size: m, mean chunk size overriding the materials' (0: no chunks; None: the
+    material's), see :mod:`blastvox.voxelize.chunks`.
     """
 
     mesh: Path
@@ -65,6 +67,7 @@ class ObjectRequest:
     material_map: dict[str, str] = field(default_factory=dict)
     transform: np.ndarray | None = None
     rules: list[RegionRule] = field(default_factory=list)
+    chunk_size: float | None = None
     #: how the model's metadata names the mesh (objects[i].source): the path as written
     #: in the scene file, relative to it; default ``mesh`` as given.
     source: str | None = None
@@ -191,6 +194,7 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     if np.any(spacing <= 0) or not np.all(np.isfinite(spacing)):
         raise MeshError(f"{label} gives voxels of {_fmt_size(spacing)} m: the mesh is flat "
                         f"or a point")
+    chunks.check_request(request, spacing, bounds)
     volume = float(sum(abs(float(s.mesh.volume)) for s in solids))
     budget.check_lattice(label, bounds, spacing, volume if np.isfinite(volume) else 0.0,
                          budget_left, settings.max_voxels, settings.budget_hint)
@@ -347,7 +351,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "vertices", "voxel_vertices", "voxel_ijk", "voxel_object", "material_name_idx",
         "voxel_volume", "voxel_centroid", "voxel_inertia", "voxel_boundary", "strength",
         "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
-        "conform_offsets", "conform_triangles", "conform_tag")}
+        "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side")}
     voxel_base = vertex_base = tri_base = 0
 
     def material_index(name: str) -> int:
@@ -387,6 +391,8 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         per["voxel_inertia"].append(lat.inertia)
         per["voxel_boundary"].append(lat.boundary)
         per["strength"].append(scale)
+        per["chunk_size"].append(chunks.requested_sizes(lat.request, lat.centroid))
+        per["voxel_side"].append(np.full(n, float(np.cbrt(np.prod(lat.grid.spacing)))))
         per["link_voxels"].append(lat.link_voxels + voxel_base)
         per["link_face"].append(lat.link_face)
         per["link_midpoint"].append(lat.link_midpoint)
@@ -456,7 +462,7 @@ def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up
     strength = cat["strength"]
     n = len(mat)
     seq = np.random.SeedSequence(settings.seed)
-    rng_voxel, rng_link, rng_found = (np.random.default_rng(s) for s in seq.spawn(3))
+    rng_voxel, rng_link, rng_found, rng_chunk = (np.random.default_rng(s) for s in seq.spawn(4))
     voxel_yield = perturbed(table["material_voxel_yield_mean"][mat],
                             table["material_voxel_yield_var"][mat], rng_voxel, n) * strength
     lv = cat["link_voxels"].astype(np.int64).reshape(-1, 2)
@@ -466,7 +472,11 @@ def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up
     link_strength = np.minimum(strength[lv[:, 0]], strength[lv[:, 1]])
     link_yield = perturbed(link_mean[weaker], table["material_link_yield_var"][weaker],
                            rng_link, len(lv)) * link_strength
-    table.update(voxel_yield=voxel_yield, link_yield=link_yield,
+    voxel_chunk = chunks.group(mat, cat["chunk_size"], cat["voxel_side"], cat["voxel_volume"],
+                               cat["voxel_centroid"].reshape(-1, 3), lv, table, rng_chunk)
+    link_yield = link_yield * chunks.bond_factor(voxel_chunk, lv,
+                                                 table["material_chunk_bond_scale"][weaker])
+    table.update(voxel_yield=voxel_yield, link_yield=link_yield, voxel_chunk=voxel_chunk,
                  voxel_combustibility=table["material_combustibility"][mat].astype(np.float64),
                  _rng_found=np.asarray(rng_found.random(n)))
     return table

@@ -3,7 +3,7 @@
 Martins 2001 §4.2: "a game designer may want a specific building wall to be
 easily destroyed"; a rule assigns a material and/or scales the yield limits
 of every voxel whose centroid lies in its region. Rules apply in order; later
-rules win for the material, strength scales multiply.
+rules win for the material and the chunk size, strength scales multiply.
 """
 
 from __future__ import annotations
@@ -17,13 +17,15 @@ import numpy as np
 class RegionRule:
     """One rule. ``kind`` is "box" (lo, hi), "sphere" (centre, radius) or
     "halfspace" (point, normal; inside where (x - point) . normal >= 0).
-    Coordinates in metres in the model frame."""
+    Coordinates in metres in the model frame. chunk_size: m, the mean chunk size
+    inside (0: no chunks; None: unchanged), see :mod:`blastvox.voxelize.chunks`."""
 
     kind: str
     a: tuple[float, float, float]
     b: tuple[float, float, float] | float
     material: str | None = None
     strength_scale: float = 1.0
+    chunk_size: float | None = None
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Boolean mask (N,) of the points (N, 3) inside the region."""

@@ -24,13 +24,15 @@ def transform_matrix(translate, rotate_deg, scale) -> np.ndarray:
 def rule_from_scene(rule: Any) -> RegionRule:
     """Convert a scene ``Rule`` into a :class:`RegionRule`."""
     scale = 1.0 if rule.strength_scale is None else float(rule.strength_scale)
+    chunk = None if rule.chunk_size is None else float(rule.chunk_size)
     if rule.box is not None:
-        return RegionRule("box", tuple(rule.box.min), tuple(rule.box.max), rule.material, scale)
+        return RegionRule("box", tuple(rule.box.min), tuple(rule.box.max), rule.material, scale,
+                          chunk)
     if rule.sphere is not None:
         return RegionRule("sphere", tuple(rule.sphere.center), float(rule.sphere.radius),
-                          rule.material, scale)
+                          rule.material, scale, chunk)
     return RegionRule("halfspace", tuple(rule.halfspace.point), tuple(rule.halfspace.normal),
-                      rule.material, scale)
+                      rule.material, scale, chunk)
 
 
 def requests_from_scene(scene: Any) -> list[ObjectRequest]:
@@ -46,6 +48,7 @@ def requests_from_scene(scene: Any) -> list[ObjectRequest]:
             origin=f"{source}: objects[{i}]" if source else None,
             voxel_size=tuple(obj.voxel_size) if obj.voxel_size is not None else None,
             resolution=obj.resolution, shape=obj.shape, jitter=obj.jitter,
+            chunk_size=obj.chunk_size,
             material=obj.material, material_map=dict(obj.material_map),
             transform=None if np.allclose(matrix, np.eye(4)) else matrix,
             rules=[rule_from_scene(r) for r in obj.rules]))
