@@ -442,6 +442,10 @@ class Effects(_Model):
     fire: Annotated[bool, Field(strict=True)] = Field(True, description=(
         "Ignition, burning and spread, with flame and smoke particles (only where a "
         "material can burn)."))
+    stress: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Load paths: founded structures carry their weight through their links to the "
+        "ground, and a link stressed past its material's strength breaks (the stress "
+        "solver; only where something is founded)."))
     dust: Annotated[bool, Field(strict=True)] = Field(True, description=(
         "Dust particles from destroyed voxels, impacts, the passing shock and the "
         "shock's ring on the ground."))

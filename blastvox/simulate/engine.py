@@ -86,6 +86,8 @@ from blastvox.simulate.state import (
     Voxels,
     empty_bodies,
 )
+from blastvox.simulate.stress import Stress, invalidate, stress_phase
+from blastvox.simulate.stress import start as start_stress
 from blastvox.simulate.topology import split_phase
 from blastvox.simulate.warmup import compile_ahead
 from blastvox.simulate.wave import Charges, build_charges
@@ -179,6 +181,7 @@ class Run:
     fire: Fire | None
     rooms: Rooms | None = None
     gas: np.ndarray | None = None
+    stress: Stress | None = None
 
     @classmethod
     def start(cls, model: VoxelModel, settings: SimSettings) -> Run:
@@ -198,6 +201,10 @@ class Run:
             effects=Effects(settings.budgets, settings.seed, len(charges.tnt_kg)),
             # model only what the scene needs: no combustible material, no fire
             fire=Fire.start(state) if settings.fire and combustible else None,
+            # model only what the scene needs: no founded body, no load paths
+            stress=start_stress(model.arrays, len(state.bodies.mass),
+                                bool(state.bodies.fixed.any()),
+                                settings.gravity if settings.stress else 0.0),
             **_rooms(sm, state, charges))
 
     def effects_on(self) -> dict[str, bool]:
@@ -205,6 +212,7 @@ class Run:
         s = self.settings
         return {"collisions": s.collisions, "ground": self.ground is not None,
                 "fire": self.fire is not None, "dust": s.dust, "fireball": s.fireball,
+                "stress": self.stress is not None,
                 "shock_sphere": s.shock_sphere,
                 "camera_shake": s.camera_shake and s.camera is not None}
 
@@ -246,6 +254,8 @@ def step(run: Run, n: int, frame_next: int) -> None:
         run.effects.fireball(charges, t0, t1)
     if s.dust and run.ground is not None:
         run.effects.ground_ring(model, charges, run.ground, t1, front.outer, dt)
+    if run.stress is not None and stress_phase(model, state, run.stress, run.gravity):
+        split(run, n, t1, frame_next)
     blast_phase(model, state, charges, t0, t1, front.outer)
     if run.rooms is not None:
         gas_phase(model, state, run.rooms, t0, t1)
@@ -281,6 +291,8 @@ def split(run: Run, n: int, t1: float, frame_next: int) -> None:
     broken, destroyed = split_phase(run.model, state, n)
     if not broken.size and not destroyed.size:
         return
+    if run.stress is not None:
+        invalidate(run.stress, state.voxels.body, run.model.links.voxels, broken, destroyed)
     if run.rooms is not None:  # a room whose wall broke vents
         run.rooms.vent(np.concatenate([run.model.links.voxels[broken].ravel(), destroyed]), t1)
     run.recorder.link_breaks(broken, t1)
@@ -404,6 +416,8 @@ def _cache(run: Run, model: VoxelModel, frames: int, per_frame: int,
             "effects": run.effects_on(), "gravity_vector": run.gravity.tolist(),
             "particle_systems": particle_meta(),
             "camera": settings.to_dict()["camera"],
-            "confinement": [] if run.rooms is None else run.rooms.meta()}
+            "confinement": [] if run.rooms is None else run.rooms.meta(),
+            "stress": None if run.stress is None else {
+                "solves": run.stress.solves, "links_broken": run.stress.broken}}
     # wall time is reported by the CLI, never stored: caches must be byte-identical
     return SimCache(arrays=arrays, model=model, meta=meta)

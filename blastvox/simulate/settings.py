@@ -123,7 +123,7 @@ class SimSettings:
     collide with each other. friction: Coulomb mu at the ground; rest_damping:
     1/s decay of momenta in resting ground contact; sleep_speed: m/s below which
     a balanced resting body is clamped to rest.
-    fire, dust, fireball, shock_sphere, camera_shake: effects on/off (an effect
+    fire, stress, dust, fireball, shock_sphere, camera_shake: effects on/off (an effect
     that is off costs nothing); fire_*/burn_rate: see blastvox.simulate.fire;
     budgets: particles per system; camera: (position, look_at, focal mm).
     budget: the run's resource :class:`Budget`; origin: where the values came from, for
@@ -148,6 +148,7 @@ class SimSettings:
     rest_damping: float = 5.0
     sleep_speed: float = 0.05
     fire: bool = True
+    stress: bool = True
     dust: bool = True
     fireball: bool = True
     shock_sphere: bool = True
@@ -180,7 +181,7 @@ class SimSettings:
                                            "linear_drag", "angular_drag", "weakening",
                                            "orientation_factor", "damage_b", "damage_c", "seed",
                                            "ground", "collisions", "friction", "rest_damping",
-                                           "sleep_speed", "fire", "dust",
+                                           "sleep_speed", "fire", "stress", "dust",
                                            "fireball", "shock_sphere", "camera_shake",
                                            "fire_pressure_scale", "fire_spread", "burn_rate",
                                            "fire_side_factor")}
@@ -214,6 +215,7 @@ def settings_from_scene(scene, source: str = "the scene", budget: Budget | None 
                        damage_b=s.damage_b, damage_c=s.damage_c, seed=scene.seed,
                        ground=scene.effects.ground and scene.ground != "none",
                        collisions=scene.effects.collisions, fire=scene.effects.fire,
+                       stress=scene.effects.stress,
                        dust=scene.effects.dust, fireball=scene.effects.fireball,
                        shock_sphere=scene.effects.shock_sphere,
                        camera_shake=scene.effects.camera_shake, friction=s.friction,

@@ -1,0 +1,504 @@
+"""Load paths: the stress solver on the link graph of founded structures.
+
+A founded (fixed) body carries its own weight through its links to its
+foundation voxels. The solve runs on a coarse graph, like NVIDIA Blast's stress
+solver on its support chunks: voxels are grouped into nodes (the connected
+voxels of one cell of a grid k voxels wide, k chosen so that a body has at most
+:data:`TARGET_NODES` nodes; foundation voxels apart), and the alive links
+between two nodes form one interface. Each node is a rigid element with six
+degrees of freedom (translation and rotation about its centre of mass); each
+interface is a set of springs at its area centroid, the rigid-body-spring model
+of Kawai (1978, "New discrete models and their application to seismic response
+analysis of structures", Nucl. Eng. Des. 48): normal k_n = sum(E a) / L, shear
+k_s = k_n / (2 (1 + nu)), bending sum(E (a y y' + a^2/12)) / L over the
+interface's links at offsets y from its centroid (the section's second moment,
+parallel axis theorem), torsion the same with the polar moment. A single link
+(k = 1) is a beam of its own square face (I = a^2 / 12, J = 0.1406 a^2).
+
+Under gravity the structure is in static equilibrium: K q = f, with f the
+nodes' weights and q = 0 at foundation nodes; K is symmetric positive definite
+and solved directly (SuperLU, :mod:`scipy.sparse`). Each link of an interface
+then takes beam theory's stresses over the section:
+
+    sigma_n = E (delta_n + (phi x y) . d) / L         (axial and section bending)
+    sigma_t = sigma_n + E |phi_perp| s / (2 L)        (plus its own face's bending)
+    sigma_c = -sigma_n + E |phi_perp| s / (2 L)
+    tau = V / A + G |phi . d| (|y| + s / 2) / L       (shear and torsion)
+
+with s = sqrt(a) the link's side. A link whose stress passes its material's
+tensile, compressive or shear strength (:class:`blastvox.materials.Material`)
+breaks. For a statically determinate structure (a cantilever, a column) the
+stresses are exact statics at any k. Links inside a node are not checked: cracks
+run along node boundaries, as Blast's run along its chunks' bonds.
+
+Breaking is event by event (sequentially linear analysis, Rots et al. 2008,
+"Sequentially linear analysis of fracture of quasi-brittle materials"): each
+solve breaks only the links within :data:`EVENT_BAND` of the worst overload, and
+the body is solved again on the next step, so a crack grows across a section
+and an undermined structure comes down progressively. Only bodies whose voxels
+or links changed are solved again.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from blastvox.jit import kernel
+
+#: Poisson's ratio of the shear springs (concrete 0.2; the solve is not sensitive to it).
+POISSON = 0.2
+#: Torsion constant of a square section over a^2 (J = 0.1406 s^4; Roark, Table 10.7).
+TORSION_J = 0.1406
+#: Each solve breaks the overloaded links whose utilization is within this fraction
+#: of the worst: one crack front per step, not every link past its limit at once.
+EVENT_BAND = 0.8
+#: Most nodes of one solve: the grid cell k (voxels) grows until the solve has at most
+#: this many (the cost of the sparse solve grows faster than linearly with it).
+TARGET_NODES = 300
+
+
+class LinkSprings(NamedTuple):
+    """What the stress solver needs of the model's L links (read-only).
+
+    midpoint (L, 3) m; direction (L, 3) unit, first voxel to second; area (L,) m^2;
+    modulus (L,) Pa: Young's modulus of the link (its two halves in series);
+    tensile, compressive, shear (L,) Pa: the limits (inf: never).
+    """
+
+    midpoint: np.ndarray
+    direction: np.ndarray
+    area: np.ndarray
+    modulus: np.ndarray
+    tensile: np.ndarray
+    compressive: np.ndarray
+    shear: np.ndarray
+
+
+def _column(arrays: dict, name: str, default: float, count: int) -> np.ndarray:
+    values = arrays.get(f"material_{name}")
+    if values is None:
+        return np.full(count, default)
+    return np.asarray(values, dtype=np.float64)
+
+
+def link_springs(arrays: dict) -> LinkSprings:
+    """The links' moduli and strength limits from VoxelModel ``arrays``.
+
+    A link takes the limits of its weaker material (as the voxelizer chose it for
+    the link yield: the lower link_yield_mean), scaled by the link's yield over
+    that material's mean yield, so the random spread, the scene's strength_scale
+    and chunk bonds scale the stress limits as they scale the blast yield.
+    """
+    lv = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
+    mat = np.asarray(arrays["voxel_material"], dtype=np.int64)
+    centroid = np.asarray(arrays["voxel_centroid"], dtype=np.float64)
+    midpoint = np.asarray(arrays["link_midpoint"], dtype=np.float64).reshape(-1, 3)
+    direction = np.asarray(arrays["link_direction"], dtype=np.float64).reshape(-1, 3)
+    area = np.maximum(np.asarray(arrays["link_area"], dtype=np.float64), 1e-12)
+    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
+    mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
+    weaker = np.where(mean[la] <= mean[lb], la, lb)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = np.asarray(arrays["link_yield"], dtype=np.float64) / mean[weaker]
+    factor = np.where(np.isfinite(factor) & (factor > 0.0), factor, 1.0)
+    count = len(mean)
+    modulus = _column(arrays, "youngs_modulus", 30e9, count)
+    half_a = np.abs(np.einsum("ij,ij->i", midpoint - centroid[lv[:, 0]], direction))
+    half_b = np.abs(np.einsum("ij,ij->i", centroid[lv[:, 1]] - midpoint, direction))
+    length = np.maximum(half_a + half_b, 1e-12)
+    series = length / (np.maximum(half_a, 0.0) / modulus[la] + np.maximum(half_b, 0.0)
+                       / modulus[lb] + 1e-300)
+
+    def limit(name: str) -> np.ndarray:
+        return np.ascontiguousarray(_column(arrays, name, math.inf, count)[weaker] * factor)
+
+    return LinkSprings(
+        midpoint=np.ascontiguousarray(midpoint), direction=np.ascontiguousarray(direction),
+        area=area, modulus=series, tensile=limit("tensile_strength"),
+        compressive=limit("compressive_strength"), shear=limit("shear_strength"))
+
+
+def has_limits(springs: LinkSprings) -> bool:
+    """Can any link break under stress (a finite limit)?"""
+    return bool(np.isfinite(springs.tensile).any() or np.isfinite(springs.compressive).any()
+                or np.isfinite(springs.shear).any())
+
+
+class Graph(NamedTuple):
+    """The coarse graph of one solve.
+
+    node (N,) int64: each voxel's node (-1 outside the solve); node_mass (M,) kg,
+    node_com (M, 3) m, node_fixed (M,) bool; pair (K, 2) the nodes of each
+    interface (first < second); centroid (K, 3) m, direction (K, 3) unit first to
+    second, area (K,) m^2, length (K,) m: distance between the node centres along
+    the direction; trans, rot (K, 3, 3): translational (N/m) and rotational
+    (N m/rad) spring tensors; links (J,) the alive links across interfaces and
+    link_interface (J,), link_sign (J,) +1 if the link points first to second."""
+
+    node: np.ndarray
+    node_mass: np.ndarray
+    node_com: np.ndarray
+    node_fixed: np.ndarray
+    pair: np.ndarray
+    centroid: np.ndarray
+    direction: np.ndarray
+    area: np.ndarray
+    length: np.ndarray
+    trans: np.ndarray
+    rot: np.ndarray
+    links: np.ndarray
+    link_interface: np.ndarray
+    link_sign: np.ndarray
+
+
+def cell_size(voxel_count: int) -> int:
+    """Grid cell k (voxels per side) for a solve of ``voxel_count`` voxels."""
+    return max(1, math.ceil((voxel_count / TARGET_NODES) ** (1.0 / 3.0) - 1e-9))
+
+
+def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
+                 fixed: np.ndarray, link_alive: np.ndarray, voxel_key: np.ndarray,
+                 mass: np.ndarray, centroid: np.ndarray) -> Graph:
+    """Group the voxels flagged in voxel_in (N,) into nodes by ``voxel_key`` (N, 5)
+    int64 (body, foundation flag, cell i, j, k) and connectivity, and the alive links
+    between nodes into interfaces. mass (N,) kg and centroid (N, 3) m of the voxels."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(voxel_in)
+    inside = np.flatnonzero(voxel_in)
+    local = np.full(n, -1, dtype=np.int64)
+    local[inside] = np.arange(len(inside))
+    ends_in = voxel_in[link_voxels[:, 0]] & voxel_in[link_voxels[:, 1]]
+    alive = np.flatnonzero(link_alive & ends_in)
+    a, b = link_voxels[alive, 0], link_voxels[alive, 1]
+    same = (voxel_key[a] == voxel_key[b]).all(axis=1)
+    m = len(inside)
+    graph = coo_matrix((np.ones(int(same.sum())), (local[a[same]], local[b[same]])),
+                       shape=(m, m))
+    count, labels = connected_components(graph, directed=False)
+    node = np.full(n, -1, dtype=np.int64)
+    node[inside] = labels
+    node_mass = np.bincount(labels, weights=mass[inside], minlength=count)
+    node_com = np.stack([np.bincount(labels, weights=mass[inside] * centroid[inside, i],
+                                     minlength=count) for i in range(3)], axis=1)
+    node_com /= np.maximum(node_mass, 1e-300)[:, None]
+    node_fixed = np.bincount(labels, weights=fixed[inside].astype(np.float64),
+                             minlength=count) > 0
+    across = alive[~same]
+    na, nb = node[link_voxels[across, 0]], node[link_voxels[across, 1]]
+    sign = np.where(na < nb, 1.0, -1.0)
+    first, second = np.minimum(na, nb), np.maximum(na, nb)
+    pairs, interface = np.unique(first * count + second, return_inverse=True)
+    interface = interface.ravel()
+    pair = np.stack([pairs // count, pairs % count], axis=1)
+    trans, rot, centre, direction, area, length = _interfaces(
+        springs, across, interface, sign, len(pairs), pair, node_com)
+    return Graph(node, node_mass, node_com, node_fixed, pair, centre, direction, area, length,
+                 trans, rot, across, interface, sign)
+
+
+def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
+                sign: np.ndarray, count: int, pair: np.ndarray, node_com: np.ndarray):
+    """Each interface's spring tensors, centroid, direction, area and length."""
+    a = springs.area[links]
+    e = springs.modulus[links]
+
+    def total(values: np.ndarray) -> np.ndarray:
+        if values.ndim == 1:
+            return np.bincount(interface, weights=values, minlength=count)
+        flat = values.reshape(len(values), -1)
+        out = np.stack([np.bincount(interface, weights=flat[:, i], minlength=count)
+                        for i in range(flat.shape[1])], axis=1)
+        return out.reshape((count,) + values.shape[1:])
+
+    area = total(a)
+    centre = total(a[:, None] * springs.midpoint[links]) / area[:, None]
+    direction = total(a[:, None] * sign[:, None] * springs.direction[links])
+    direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-300)
+    span = node_com[pair[:, 1]] - node_com[pair[:, 0]]
+    length = np.maximum(np.abs(np.einsum("ij,ij->i", span, direction)), 1e-9)
+    d = direction[interface]
+    offset = springs.midpoint[links] - centre[interface]
+    offset -= np.einsum("ij,ij->i", offset, d)[:, None] * d
+    lever = np.cross(offset, d)
+    eye = np.eye(3)
+    plane = eye[None] - d[:, :, None] * d[:, None, :]
+    shear_modulus = e / (2.0 * (1.0 + POISSON))
+    bend = total(e[:, None, None] * (a[:, None, None] * lever[:, :, None] * lever[:, None, :]
+                                     + (a * a / 12.0)[:, None, None] * plane))
+    twist = total(shear_modulus * (a * np.einsum("ij,ij->i", offset, offset)
+                                   + TORSION_J * a * a))
+    k_normal = total(e * a) / length
+    k_shear = total(shear_modulus * a) / length
+    dd = direction[:, :, None] * direction[:, None, :]
+    trans = k_normal[:, None, None] * dd + k_shear[:, None, None] * (eye[None] - dd)
+    rot = bend / length[:, None, None] + (twist / length)[:, None, None] * dd
+    return (np.ascontiguousarray(trans), np.ascontiguousarray(rot), np.ascontiguousarray(centre),
+            np.ascontiguousarray(direction), area, length)
+
+
+@kernel
+def _jacobian(centroid, node_com, pair, k, jac) -> None:
+    """jac (3, 12): the relative displacement, second node minus first, at the
+    centroid of interface k from (u_a, theta_a, u_b, theta_b):
+    delta = u_b + theta_b x r_b - u_a - theta_a x r_a."""
+    jac[:] = 0.0
+    ia, ib = pair[k, 0], pair[k, 1]
+    rax = centroid[k, 0] - node_com[ia, 0]
+    ray = centroid[k, 1] - node_com[ia, 1]
+    raz = centroid[k, 2] - node_com[ia, 2]
+    rbx = centroid[k, 0] - node_com[ib, 0]
+    rby = centroid[k, 1] - node_com[ib, 1]
+    rbz = centroid[k, 2] - node_com[ib, 2]
+    for i in range(3):
+        jac[i, i] = -1.0
+        jac[i, 6 + i] = 1.0
+    # theta x r = -[r]x theta, so +[r_a]x for the first node, -[r_b]x for the second
+    jac[0, 4], jac[0, 5] = -raz, ray
+    jac[1, 3], jac[1, 5] = raz, -rax
+    jac[2, 3], jac[2, 4] = -ray, rax
+    jac[0, 10], jac[0, 11] = rbz, -rby
+    jac[1, 9], jac[1, 11] = -rbz, rbx
+    jac[2, 9], jac[2, 10] = rby, -rbx
+
+
+@kernel
+def assemble(graph, dof) -> tuple:
+    """The stiffness matrix of the K interfaces of ``graph`` (:class:`Graph`) in COO
+    triplets (rows, cols, values).
+
+    dof (M,): each node's block (its six unknowns are 6 dof .. 6 dof + 5), -1 for a
+    fixed node. Units N/m, N/rad and N m/rad about the nodes' centres of mass."""
+    centroid, node_com, pair, trans, rot = (graph.centroid, graph.node_com, graph.pair,
+                                            graph.trans, graph.rot)
+    n = pair.shape[0]
+    rows = np.empty(n * 144, dtype=np.int64)
+    cols = np.empty(n * 144, dtype=np.int64)
+    vals = np.empty(n * 144)
+    jac = np.empty((3, 12))
+    block = np.empty((12, 12))
+    index = np.empty(12, dtype=np.int64)
+    out = 0
+    for k in range(n):
+        _jacobian(centroid, node_com, pair, k, jac)
+        for p in range(12):  # J^T C J, by hand (numba's @ would need BLAS)
+            for q in range(12):
+                total = 0.0
+                for r in range(3):
+                    for t in range(3):
+                        total += jac[r, p] * trans[k, r, t] * jac[t, q]
+                block[p, q] = total
+        for p in range(3):  # rotations: phi = theta_b - theta_a
+            for q in range(3):
+                block[3 + p, 3 + q] += rot[k, p, q]
+                block[9 + p, 9 + q] += rot[k, p, q]
+                block[3 + p, 9 + q] -= rot[k, p, q]
+                block[9 + p, 3 + q] -= rot[k, p, q]
+        da, db = dof[pair[k, 0]], dof[pair[k, 1]]
+        for p in range(6):
+            index[p] = 6 * da + p if da >= 0 else -1
+            index[6 + p] = 6 * db + p if db >= 0 else -1
+        for p in range(12):
+            if index[p] < 0:
+                continue
+            for q in range(12):
+                if index[q] >= 0:
+                    rows[out], cols[out], vals[out] = index[p], index[q], block[p, q]
+                    out += 1
+    return rows[:out], cols[:out], vals[:out]
+
+
+@kernel
+def link_stresses(springs, graph, dof, q, out) -> None:
+    """Fill ``out`` (J, 4) with each interface link's largest tensile, compressive and
+    shear stress (Pa) and its utilization, the largest of the three over its limit.
+
+    graph: the solve's :class:`Graph`; q (6 M',): the solved displacements (m) and
+    rotations (rad) of the free nodes (dof, as for :func:`assemble`)."""
+    jac = np.empty((3, 12))
+    x = np.zeros(12)
+    delta = np.zeros(3)
+    phi = np.zeros(3)
+    force = np.zeros(3)
+    y = np.zeros(3)
+    for j in range(graph.links.shape[0]):
+        link, k = graph.links[j], graph.link_interface[j]
+        _jacobian(graph.centroid, graph.node_com, graph.pair, k, jac)
+        da, db = dof[graph.pair[k, 0]], dof[graph.pair[k, 1]]
+        for p in range(6):
+            x[p] = q[6 * da + p] if da >= 0 else 0.0
+            x[6 + p] = q[6 * db + p] if db >= 0 else 0.0
+        for r in range(3):
+            delta[r] = 0.0
+            for p in range(12):
+                delta[r] += jac[r, p] * x[p]
+            phi[r] = x[9 + r] - x[3 + r]
+        for r in range(3):
+            force[r] = 0.0
+            for t in range(3):
+                force[r] += graph.trans[k, r, t] * delta[t]
+        d = graph.direction[k]
+        stretch = delta[0] * d[0] + delta[1] * d[1] + delta[2] * d[2]
+        axial = force[0] * d[0] + force[1] * d[1] + force[2] * d[2]
+        phi_n = phi[0] * d[0] + phi[1] * d[1] + phi[2] * d[2]
+        sliding = 0.0
+        bend = 0.0
+        for r in range(3):
+            sliding += (force[r] - axial * d[r]) ** 2
+            bend += (phi[r] - phi_n * d[r]) ** 2
+            y[r] = springs.midpoint[link, r] - graph.centroid[k, r]
+        along = y[0] * d[0] + y[1] * d[1] + y[2] * d[2]
+        for r in range(3):
+            y[r] -= along * d[r]
+        turn = ((phi[1] * y[2] - phi[2] * y[1]) * d[0] + (phi[2] * y[0] - phi[0] * y[2]) * d[1]
+                + (phi[0] * y[1] - phi[1] * y[0]) * d[2])  # (phi x y) . d
+        e = springs.modulus[link]
+        side = math.sqrt(springs.area[link])
+        span = graph.length[k]
+        normal = e * (stretch + turn) / span
+        own = e * math.sqrt(bend) * side / (2.0 * span)
+        radius = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) + 0.5 * side
+        tau = (math.sqrt(sliding) / graph.area[k]
+               + e / (2.0 * (1.0 + POISSON)) * abs(phi_n) * radius / span)
+        tension = normal + own
+        compression = -normal + own
+        out[j, 0], out[j, 1], out[j, 2] = tension, compression, tau
+        out[j, 3] = max(tension / springs.tensile[link],
+                        compression / springs.compressive[link], tau / springs.shear[link])
+
+
+class Solution(NamedTuple):
+    """One solve: links (J,) the interface links, stress (J, 4) their largest tensile,
+    compressive and shear stress (Pa) and utilization (see :func:`link_stresses`);
+    nodes: the solve's node count."""
+
+    links: np.ndarray
+    stress: np.ndarray
+    nodes: int
+
+
+def solve(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
+          fixed: np.ndarray, link_alive: np.ndarray, voxel_key: np.ndarray,
+          mass: np.ndarray, centroid: np.ndarray, gravity: np.ndarray) -> Solution:
+    """Static equilibrium under gravity (3,) m/s^2 of the voxels flagged in voxel_in
+    (N,), those flagged in fixed (N,) held still; only alive links (L,) carry load.
+    voxel_key (N, 5): see :func:`coarse_graph`. Every component must hold a fixed voxel."""
+    from scipy.sparse import csc_matrix
+    from scipy.sparse.linalg import splu
+
+    g = coarse_graph(springs, link_voxels, voxel_in, fixed, link_alive, voxel_key, mass,
+                     centroid)
+    stress = np.zeros((len(g.links), 4))
+    free = ~g.node_fixed
+    dof = np.full(len(free), -1, dtype=np.int64)
+    dof[free] = np.arange(int(free.sum()))
+    size = 6 * int(free.sum())
+    if size == 0 or len(g.links) == 0:
+        return Solution(g.links, stress, len(free))
+    rows, cols, vals = assemble(g, dof)
+    matrix = csc_matrix((vals, (rows, cols)), shape=(size, size))
+    rhs = np.zeros(size)
+    blocks = np.flatnonzero(free)
+    for axis in range(3):
+        rhs[6 * dof[blocks] + axis] = g.node_mass[blocks] * gravity[axis]
+    q = splu(matrix, permc_spec="COLAMD").solve(rhs)
+    link_stresses(springs, g, dof, q, stress)
+    return Solution(g.links, stress, len(free))
+
+
+def overloaded(solution: Solution) -> np.ndarray:
+    """Link ids to break after a solve: utilization above 1 and within
+    :data:`EVENT_BAND` of the worst (one crack front at a time)."""
+    use = solution.stress[:, 3]
+    if not len(use) or not (use > 1.0).any():
+        return np.zeros(0, dtype=np.int64)
+    worst = float(use.max())
+    return solution.links[(use > 1.0) & (use >= EVENT_BAND * worst)]
+
+
+@dataclass
+class Stress:
+    """The stress solver's memory over a run: springs (the model's links), cell (N, 3)
+    each voxel's lattice index, solved (B,) bodies whose current solution is known (a
+    body's voxels or links changed: it is solved again), and run totals (solves,
+    seconds of wall time, links broken, the worst utilization of the last solve)."""
+
+    springs: LinkSprings
+    cell: np.ndarray
+    solved: np.ndarray
+    solves: int = 0
+    seconds: float = 0.0
+    broken: int = 0
+    peak: dict = field(default_factory=dict)
+
+
+def start(arrays: dict, capacity: int, fixed_any: bool, gravity: float) -> Stress | None:
+    """The run's stress solver, or None where the scene needs none: no founded body,
+    no gravity, or no link with a finite strength."""
+    if not fixed_any or gravity <= 0.0:
+        return None
+    springs = link_springs(arrays)
+    if not has_limits(springs):
+        return None
+    return Stress(springs=springs, cell=np.asarray(arrays["voxel_ijk"], dtype=np.int64),
+                  solved=np.zeros(capacity, dtype=bool))
+
+
+def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
+    """Phase: solve the founded bodies whose voxels or links changed since their last
+    solve, and mark the overloaded links broken (state.marks.broken, bodies dirty).
+
+    Reads bodies (live, fixed, dust), voxels (body, alive, foundation) and the
+    model's masses; writes links.alive, marks.broken, marks.dirty, stress.solved and
+    counters.broken_links.
+    Returns whether any link broke (the caller splits)."""
+    bodies, voxels = state.bodies, state.voxels
+    n = state.n_bodies
+    todo = bodies.live[:n] & bodies.fixed[:n] & ~bodies.dust[:n] & ~stress.solved[:n]
+    if not todo.any():
+        return False
+    started = time.perf_counter()
+    target = np.zeros(len(stress.solved), dtype=bool)
+    target[:n] = todo
+    voxel_in = voxels.alive & target[voxels.body]
+    k = cell_size(int(np.count_nonzero(voxel_in)))
+    fixed = voxels.foundation & voxels.alive
+    key = np.concatenate([voxels.body[:, None], fixed[:, None].astype(np.int64),
+                          stress.cell // k], axis=1)
+    solution = solve(stress.springs, model.links.voxels, voxel_in, fixed, state.links.alive,
+                     key, model.voxels.mass, model.voxels.centroid, gravity)
+    stress.solves += 1
+    stress.solved[:n] |= todo
+    broken = overloaded(solution)
+    if len(solution.links):
+        worst = int(np.argmax(solution.stress[:, 3]))
+        stress.peak = {"utilization": float(solution.stress[worst, 3]),
+                       "link": int(solution.links[worst]), "nodes": solution.nodes}
+    stress.seconds += time.perf_counter() - started
+    if not broken.size:
+        return False
+    stress.broken += int(broken.size)
+    state.counters.broken_links += int(broken.size)
+    state.links.alive[broken] = False
+    state.marks.broken[broken] = True
+    owners = voxels.body[model.links.voxels[broken, 0]]
+    state.marks.dirty[:n] = False  # what earlier phases flagged was split already
+    state.marks.dirty[owners] = True
+    stress.solved[owners] = False  # solved again after the split
+    return True
+
+
+def invalidate(stress: Stress, voxel_body: np.ndarray, link_voxels: np.ndarray,
+               broken: np.ndarray, destroyed: np.ndarray) -> None:
+    """After a split: the bodies that now hold the ends of ``broken`` links or
+    ``destroyed`` voxels must be solved again (new bodies are unsolved already)."""
+    if broken.size:
+        stress.solved[voxel_body[link_voxels[broken].ravel()]] = False
+    if destroyed.size:
+        stress.solved[voxel_body[destroyed]] = False
