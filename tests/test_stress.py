@@ -173,3 +173,26 @@ def test_stress_off_leaves_the_overhang_standing(tmp_path):
     run, _ = _run(model, 0.5, stress=False)
     assert run.stress is None
     assert _moved(run, model).max() < 1e-9
+
+
+def test_slab_dropped_on_its_edge_breaks_on_impact(tmp_path):
+    """A plain concrete slab dropped 3 m tilted onto the ground lands on an edge at
+    ~7.7 m/s: its deceleration over the contact time 2 L / c loads it far past
+    concrete's tensile strength, and it breaks (impact fracture)."""
+    slab = box((4.0, 4.0, 0.3), (0.0, 0.0, 0.0))
+    slab.apply_transform(trimesh.transformations.rotation_matrix(0.3, (1.0, 0.0, 0.0)))
+    slab.apply_translation((0.0, 0.0, 3.0 - slab.bounds[0, 2]))
+    model = model_of(tmp_path, slab, 0.2, ground=0.0)
+    run, _ = _run(model, 1.2)
+    assert run.stress.broken > 0
+    live = run.state.bodies.live[:run.state.n_bodies] & ~run.state.bodies.dust[:run.state.n_bodies]
+    assert live.sum() >= 2
+
+
+def test_slab_set_down_gently_stays_whole(tmp_path):
+    """The control: the same slab dropped flat from 2 cm lands on its whole face
+    (0.6 m/s) and does not break."""
+    slab = box((4.0, 4.0, 0.3), (0.0, 0.0, 0.17))
+    model = model_of(tmp_path, slab, 0.2, ground=0.0)
+    run, _ = _run(model, 0.5)
+    assert run.stress.broken == 0

@@ -13,12 +13,15 @@ and writes:
 3. split: bodies that lost links or voxels are searched again and split
    (:func:`~blastvox.simulate.topology.split_phase`);
 4. fire: burning and spreading (:func:`~blastvox.simulate.fire.burn_phase`);
+   load paths: founded bodies that changed are solved under gravity and their
+   overloaded links break (:func:`~blastvox.simulate.stress.stress_phase`);
 5. forces: the exact blast impulse of the step on exposed faces
    (:func:`~blastvox.simulate.forces.blast_phase`);
 6. integrate velocities: blast impulse, gravity, drag;
 7. collide: fragments (:func:`~blastvox.simulate.collide.collide_phase`), then the
    ground (:func:`~blastvox.simulate.ground.ground_phase`), at velocity level;
-   sleeping;
+   impact fracture of the bodies the contacts stopped hard
+   (:func:`~blastvox.simulate.stress.impact_phase`); sleeping;
 8. integrate positions and orientations;
 9. record: at every frame boundary, live body transforms and damage
    (:class:`~blastvox.simulate.recorder.Recorder`); particle cues
@@ -86,7 +89,7 @@ from blastvox.simulate.state import (
     Voxels,
     empty_bodies,
 )
-from blastvox.simulate.stress import Stress, invalidate, stress_phase
+from blastvox.simulate.stress import Stress, impact_phase, invalidate, stress_phase
 from blastvox.simulate.stress import start as start_stress
 from blastvox.simulate.topology import split_phase
 from blastvox.simulate.warmup import compile_ahead
@@ -202,9 +205,7 @@ class Run:
             # model only what the scene needs: no combustible material, no fire
             fire=Fire.start(state) if settings.fire and combustible else None,
             # model only what the scene needs: no founded body, no load paths
-            stress=start_stress(model.arrays, len(state.bodies.mass),
-                                bool(state.bodies.fixed.any()),
-                                settings.gravity if settings.stress else 0.0),
+            stress=start_stress(model.arrays, len(state.bodies.mass), settings.stress),
             **_rooms(sm, state, charges))
 
     def effects_on(self) -> dict[str, bool]:
@@ -265,6 +266,7 @@ def step(run: Run, n: int, frame_next: int) -> None:
         return
     integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag, state.loads,
                          state.bodies)
+    before = state.bodies.lin[:state.n_bodies].copy() if run.stress is not None else None
     if s.collisions:
         resolved = collide_phase(model, state, s, dt)
         if s.dust and resolved:
@@ -273,6 +275,8 @@ def step(run: Run, n: int, frame_next: int) -> None:
             split(run, n, t1, frame_next)
     if run.ground is not None:
         ground_phase(model, state, s, dt, run.ground)
+    if before is not None and impact_phase(model, state, run.stress, before):
+        split(run, n, t1, frame_next)
     if s.collisions or run.ground is not None:
         settle(state.bodies, s.sleep_speed, run.still_steps)
     integrate_positions(dt, state.bodies)

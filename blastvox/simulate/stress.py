@@ -211,10 +211,10 @@ def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
 
     def total(values: np.ndarray) -> np.ndarray:
         if values.ndim == 1:
-            return np.bincount(interface, weights=values, minlength=count)
-        flat = values.reshape(len(values), -1)
+            return np.bincount(interface, weights=values, minlength=count).astype(np.float64)
+        flat = values.reshape(len(values), int(np.prod(values.shape[1:])))
         out = np.stack([np.bincount(interface, weights=flat[:, i], minlength=count)
-                        for i in range(flat.shape[1])], axis=1)
+                        for i in range(flat.shape[1])], axis=1).astype(np.float64)
         return out.reshape((count,) + values.shape[1:])
 
     area = total(a)
@@ -425,12 +425,15 @@ def overloaded(solution: Solution) -> np.ndarray:
 @dataclass
 class Stress:
     """The stress solver's memory over a run: springs (the model's links), cell (N, 3)
-    each voxel's lattice index, solved (B,) bodies whose current solution is known (a
+    each voxel's lattice index, chunk (N,) its chunk or None, wave_speed (N,) m/s its
+    material's bar wave speed sqrt(E / rho), solved (B,) bodies whose current solution is known (a
     body's voxels or links changed: it is solved again), and run totals (solves,
     seconds of wall time, links broken, the worst utilization of the last solve)."""
 
     springs: LinkSprings
     cell: np.ndarray
+    chunk: np.ndarray | None
+    wave_speed: np.ndarray
     solved: np.ndarray
     solves: int = 0
     seconds: float = 0.0
@@ -438,16 +441,37 @@ class Stress:
     peak: dict = field(default_factory=dict)
 
 
-def start(arrays: dict, capacity: int, fixed_any: bool, gravity: float) -> Stress | None:
-    """The run's stress solver, or None where the scene needs none: no founded body,
-    no gravity, or no link with a finite strength."""
-    if not fixed_any or gravity <= 0.0:
+def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
+    """The run's stress solver, or None where the scene needs none (off, or no link
+    with a finite strength)."""
+    if not enabled:
         return None
     springs = link_springs(arrays)
     if not has_limits(springs):
         return None
+    material = np.asarray(arrays["voxel_material"], dtype=np.int64)
+    count = len(arrays["material_density"])
+    modulus = _column(arrays, "youngs_modulus", 30e9, count)
+    speed = np.sqrt(modulus / np.asarray(arrays["material_density"], dtype=np.float64))
+    chunk = arrays.get("voxel_chunk")
     return Stress(springs=springs, cell=np.asarray(arrays["voxel_ijk"], dtype=np.int64),
-                  solved=np.zeros(capacity, dtype=bool))
+                  chunk=None if chunk is None else np.asarray(chunk, dtype=np.int64),
+                  wave_speed=speed[material], solved=np.zeros(capacity, dtype=bool))
+
+
+def node_key(stress: Stress, voxel_body: np.ndarray, fixed: np.ndarray,
+             voxel_in: np.ndarray) -> np.ndarray:
+    """Each voxel's node key (N, 5) for :func:`coarse_graph`: body, foundation flag
+    and chunk (when the model has chunks and the solve has at most
+    :data:`TARGET_NODES` of them), else the grid cell of :func:`cell_size`."""
+    count = int(np.count_nonzero(voxel_in))
+    head = [voxel_body[:, None], fixed[:, None].astype(np.int64)]
+    if stress.chunk is not None:
+        chunks = np.unique(stress.chunk[voxel_in]).size
+        if chunks <= TARGET_NODES:
+            zeros = np.zeros((len(voxel_body), 2), dtype=np.int64)
+            return np.concatenate(head + [stress.chunk[:, None], zeros], axis=1)
+    return np.concatenate(head + [stress.cell // cell_size(count)], axis=1)
 
 
 def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
@@ -464,13 +488,15 @@ def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
     if not todo.any():
         return False
     started = time.perf_counter()
+    gravity_on = float(np.dot(gravity, gravity)) > 0.0
+    if not gravity_on:
+        stress.solved[:n] |= todo
+        return False
     target = np.zeros(len(stress.solved), dtype=bool)
     target[:n] = todo
     voxel_in = voxels.alive & target[voxels.body]
-    k = cell_size(int(np.count_nonzero(voxel_in)))
     fixed = voxels.foundation & voxels.alive
-    key = np.concatenate([voxels.body[:, None], fixed[:, None].astype(np.int64),
-                          stress.cell // k], axis=1)
+    key = node_key(stress, voxels.body, fixed, voxel_in)
     solution = solve(stress.springs, model.links.voxels, voxel_in, fixed, state.links.alive,
                      key, model.voxels.mass, model.voxels.centroid, gravity)
     stress.solves += 1
@@ -502,3 +528,72 @@ def invalidate(stress: Stress, voxel_body: np.ndarray, link_voxels: np.ndarray,
         stress.solved[voxel_body[link_voxels[broken].ravel()]] = False
     if destroyed.size:
         stress.solved[voxel_body[destroyed]] = False
+
+
+#: Contact decelerations below this (m/s^2, 20 g) are resting contact, not impacts.
+IMPACT_ACCELERATION = 20.0 * 9.81
+
+
+def impact_phase(model, state, stress: Stress, lin_before: np.ndarray) -> bool:
+    """Phase: impact fracture. A free body whose momentum the contacts of this step
+    changed by dp (N s, lin_before (B, 3) the momenta before the collide and ground
+    phases) was stopped over a contact time tau = 2 L / c (L its length along dp, c
+    the bar wave speed: the duration of an elastic rod's impact, Goldsmith 1960,
+    "Impact", ch. 2): it decelerates at a = dp / (m tau). Its voxels carry the
+    inertial load -m a to the voxels in contact (within one voxel of its face
+    towards the contact), solved as for gravity; every link past its limit breaks.
+
+    Reads bodies and voxels; writes links.alive, marks.broken, marks.dirty and
+    counters.broken_links. Returns whether any link broke (the caller splits)."""
+    bodies = state.bodies
+    n = len(lin_before)  # bodies split off since (by collisions) are not judged this step
+    dp = bodies.lin[:n] - lin_before
+    candidates = np.flatnonzero(bodies.live[:n] & ~bodies.fixed[:n] & ~bodies.dust[:n]
+                                & (np.einsum("ij,ij->i", dp, dp) > 0.0))
+    if not candidates.size:
+        return False
+    started = time.perf_counter()
+    any_broken = False
+    for b in candidates:
+        any_broken |= _impact(model, state, stress, int(b), dp[b])
+    stress.seconds += time.perf_counter() - started
+    return any_broken
+
+
+def _impact(model, state, stress: Stress, b: int, dp: np.ndarray) -> bool:
+    """Impact fracture of body b under the contact impulse dp (3,) N s, world frame."""
+    bodies, voxels = state.bodies, state.voxels
+    dv = float(np.linalg.norm(dp)) / bodies.mass[b]
+    # a prefilter: the shortest contact time (a one-voxel body of the fastest material)
+    if dv < IMPACT_ACCELERATION * 2e-4:
+        return False
+    members = np.flatnonzero((voxels.body == b) & voxels.alive)
+    if members.size < 2:
+        return False
+    rest_dir = bodies.rot[b].T @ (dp / np.linalg.norm(dp))
+    along = model.voxels.centroid[members] @ rest_dir
+    size = 2.0 * float(np.median(model.voxels.contact_radius[members]))
+    length = float(along.max() - along.min()) + size
+    speed = float(np.average(stress.wave_speed[members], weights=model.voxels.mass[members]))
+    tau = 2.0 * length / speed
+    acceleration = dv / tau
+    if acceleration < IMPACT_ACCELERATION:
+        return False
+    voxel_in = np.zeros(len(voxels.body), dtype=bool)
+    voxel_in[members] = True
+    fixed = np.zeros_like(voxel_in)
+    fixed[members[along <= along.min() + 0.5 * size]] = True
+    key = node_key(stress, voxels.body, fixed, voxel_in)
+    solution = solve(stress.springs, model.links.voxels, voxel_in, fixed, state.links.alive,
+                     key, model.voxels.mass, model.voxels.centroid,
+                     -acceleration * rest_dir)
+    stress.solves += 1
+    broken = solution.links[solution.stress[:, 3] > 1.0]
+    if not broken.size:
+        return False
+    stress.broken += int(broken.size)
+    state.counters.broken_links += int(broken.size)
+    state.links.alive[broken] = False
+    state.marks.broken[broken] = True
+    state.marks.dirty[b] = True
+    return True
