@@ -107,7 +107,9 @@ def winding_numbers(triangles: np.ndarray, origin: np.ndarray, spacing: np.ndarr
                     shape: tuple[int, int, int]) -> np.ndarray:
     """Ray-averaged winding number at every cell centre of a grid.
 
-    triangles: (F, 3, 3) float64 vertex positions in metres, outward-oriented.
+    triangles: (F, 3, 3) float64 vertex positions in metres, every shell facing away
+    from the material (a cavity's shell into the cavity: :mod:`.shells`), so that
+    nested shells add up to 0 in a cavity.
     origin, spacing: (3,) metres; shape: cell counts (nx, ny, nz).
     Returns a float32 array of ``shape``: ~1 inside, ~0 outside, near 0.5 where
     the surface has holes the rays disagree about.

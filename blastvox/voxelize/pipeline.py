@@ -31,6 +31,7 @@ from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
 from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
 from blastvox.voxelize.mesh_io import check_readable, load_parts
 from blastvox.voxelize.regions import RegionRule
+from blastvox.voxelize.slivers import MIN_CONFORM_FRACTION, Cells, merge_slivers
 from blastvox.voxelize.topology import (
     face_neighbours,
     hex_face_area_centroid,
@@ -39,8 +40,9 @@ from blastvox.voxelize.topology import (
 )
 
 DEFAULT_MAX_VOXELS = 4_000_000
-#: Conform cells keeping less than this fraction of the cell volume are dropped.
-MIN_CONFORM_FRACTION = 1e-6
+#: Conform cells keeping no more than this fraction of the cell volume (numerical
+#: noise of the clip) are dropped; larger slivers are merged (MIN_CONFORM_FRACTION).
+MIN_CLIP_FRACTION = 1e-9
 #: Links whose contact area is below this fraction of the face area are not made.
 MIN_LINK_FRACTION = 1e-6
 
@@ -82,7 +84,12 @@ class ObjectRequest:
 
 @dataclass
 class VoxelizeSettings:
-    """Settings shared by all inputs. ground: "auto", a height in metres, or None."""
+    """Settings shared by all inputs. ground: "auto", a height in metres, or None.
+
+    min_conform_fraction: conform voxels keeping less than this fraction of their
+    lattice cell's volume are merged into a neighbour (0: keep them as they are);
+    see :mod:`blastvox.voxelize.slivers`.
+    """
 
     up_axis: str = "Y"
     ground: str | float | None = "auto"
@@ -91,6 +98,7 @@ class VoxelizeSettings:
     library: MaterialLibrary = field(default_factory=MaterialLibrary.builtin)
     recorded: dict = field(default_factory=dict)  # settings to record in the file
     budget_hint: str = budget.HINT  # how a refusal says to raise the budget
+    min_conform_fraction: float = MIN_CONFORM_FRACTION
 
 
 class Progress:
@@ -208,6 +216,7 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     vertex_ids, positions, voxel_vertices = _place_vertices(
         chosen.ijk, grid, request.jitter, settings.seed, index, up)
     volume, centroid, inertia = hex_mass_properties(positions, voxel_vertices)
+    cell_volume = volume.copy()
     keep = chosen.inside.copy()
     conform_data = (np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros((0, 3, 3)),
                     np.zeros(0, np.uint8))
@@ -237,6 +246,9 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                    conform_tags=conform_data[3], link_voxels=None, link_face=None,
                    link_midpoint=None, link_area=None, boundary=None)
     _link(lat)
+    if conform:
+        _merge_slivers(lat, cell_volume[keep], settings.min_conform_fraction, source, warn)
+    _boundary(lat)
     return lat
 
 
@@ -280,7 +292,7 @@ def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progres
     corners = positions[voxel_vertices[candidates]]
     local_tris = _local_hex_triangles(voxel_vertices[candidates])
     clipped = clip_cells(solid, corners, local_tris, block_keys_for(chosen.ijk[candidates]),
-                         MIN_CONFORM_FRACTION * hex_volume[candidates], progress.advance)
+                         MIN_CLIP_FRACTION * hex_volume[candidates], progress.advance)
     keep = chosen.inside & ~chosen.touched
     keep[candidates[clipped.cells]] = True
     return keep, (candidates[clipped.cells], clipped.offsets, clipped.triangles, clipped.tags)
@@ -295,7 +307,7 @@ def _local_hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:
 
 
 def _link(lat: _Lattice) -> None:
-    """Fill in the links and exposed faces of one lattice's voxels."""
+    """Fill in the links of one lattice's voxels (one per shared face)."""
     grid = index_grid(lat.ijk, lat.grid.shape)
     neighbours = face_neighbours(lat.ijk, grid)
     is_conform = np.zeros(len(lat.ijk), dtype=bool)
@@ -330,6 +342,41 @@ def _link(lat: _Lattice) -> None:
     lat.link_voxels, lat.link_face = voxels[order], face[order]
     lat.link_midpoint = np.concatenate(mid_list)[order]
     lat.link_area = np.concatenate(area_list)[order]
+
+
+def _merge_slivers(lat: _Lattice, cell_volume: np.ndarray, fraction: float, source: str,
+                   warn) -> None:
+    """Merge the lattice's conform slivers into neighbours (see :mod:`.slivers`)."""
+    cells = Cells(ijk=lat.ijk, part=lat.part, positions=lat.positions,
+                  voxel_vertices=lat.voxel_vertices, cell_volume=cell_volume,
+                  volume=lat.volume, centroid=lat.centroid, inertia=lat.inertia,
+                  conform_local=lat.conform_local, conform_offsets=lat.conform_offsets,
+                  conform_triangles=lat.conform_triangles, conform_tags=lat.conform_tags,
+                  link_voxels=lat.link_voxels, link_face=lat.link_face,
+                  link_midpoint=lat.link_midpoint, link_area=lat.link_area)
+    result = merge_slivers(cells, fraction)
+    if result.dropped:
+        warn(f"{source}: dropped {result.dropped} conform sliver(s) below {fraction:g} of a "
+             f"cell ({result.dropped_volume:.3g} m³ in all) touching no voxel to merge into")
+    if result.cells is cells:
+        return
+    if len(result.anchor) == 0:
+        raise MeshError(f"{source}: every voxel is a conform sliver below {fraction:g} of a "
+                        f"cell; use a smaller voxel size")
+    c = result.cells
+    used, corners = np.unique(c.voxel_vertices, return_inverse=True)
+    lat.vertex_ids, lat.positions = lat.vertex_ids[used], lat.positions[used]
+    lat.voxel_vertices = corners.reshape(-1, 8)
+    lat.ijk, lat.part = c.ijk, c.part
+    lat.volume, lat.centroid, lat.inertia = c.volume, c.centroid, c.inertia
+    lat.conform_local, lat.conform_offsets = c.conform_local, c.conform_offsets
+    lat.conform_triangles, lat.conform_tags = c.conform_triangles, c.conform_tags
+    lat.link_voxels, lat.link_face = c.link_voxels, c.link_face
+    lat.link_midpoint, lat.link_area = c.link_midpoint, c.link_area
+
+
+def _boundary(lat: _Lattice) -> None:
+    """Fill in the exposed faces (and the surface bit) of one lattice's voxels."""
     linked = np.zeros((len(lat.ijk), 6), dtype=bool)
     linked[lat.link_voxels[:, 0], lat.link_face] = True
     linked[lat.link_voxels[:, 1], lat.link_face - 1] = True
@@ -500,6 +547,9 @@ def _foundations(arrays: dict, ground: float | None, up: int, strength: np.ndarr
         arrays["voxel_foundation_yield"] = np.zeros(n)
         return
     lowest = arrays["vertices"][arrays["voxel_vertices"], up].min(axis=1)
+    # a merged conform voxel (slivers) may reach below its anchor cell
+    owner = np.repeat(arrays["conform_voxels"], np.diff(arrays["conform_offsets"]))
+    np.minimum.at(lowest, owner, arrays["conform_triangles"][:, :, up].min(axis=1))
     size = np.cbrt(np.maximum(arrays["voxel_volume"], 0.0))
     found = lowest <= ground + 1e-3 * size
     mat = arrays["voxel_material"]
