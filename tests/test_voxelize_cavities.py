@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from blastvox.geometry.voxel_faces import FACE_OFFSETS
 from blastvox.model import VoxelModel, check_model
 from blastvox.voxelize.mass import soup_mass_properties
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
@@ -186,6 +187,18 @@ def test_conform_slivers_merge_into_neighbours(tmp_path):
                                        raw.conform_triangles[:, 2] - raw.conform_triangles[:, 0]),
                               axis=1).sum()
     assert area < area_raw  # shared faces between members removed
+    # a cell-face triangle faces its tag's direction, also those of absorbed members
+    tri, tags = merged.conform_triangles, merged.conform_tag
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    on_face = tags < 6
+    along = np.einsum("ij,ij->i", normal[on_face], FACE_OFFSETS[tags[on_face]])
+    np.testing.assert_allclose(along, np.linalg.norm(normal[on_face], axis=1), rtol=1e-6)
+    # the intact object exposes just the mesh's surface: no contact lost a link
+    owner = np.repeat(merged.conform_voxels, np.diff(merged.conform_offsets))
+    exposed = ~on_face
+    exposed[on_face] = (merged.voxel_boundary[owner[on_face]] >> tags[on_face]) & 1 == 1
+    half_area = 0.5 * np.linalg.norm(normal, axis=1)
+    assert half_area[exposed].sum() == pytest.approx(trimesh.load(path).area, rel=1e-6)
     # the ball still stands on its foundation, and is one object
     assert len(merged.meta["objects"]) == 1
     assert merged.arrays["voxel_foundation"].any()
