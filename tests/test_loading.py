@@ -43,12 +43,14 @@ def _model(tmp_path: Path, boxes, size: float, material: str = "solid", ground=N
 
 
 def _founded_wall(tmp_path: Path, material: str):
-    """A 3 x 3 m wall, 0.25 m thick (one 0.25 m voxel), standing on the ground at x = 0."""
+    """A 3 x 3 m wall, 0.25 m thick (one 0.25 m voxel), standing on the ground at x = 0;
+    no chunks (chunk_size 0): the calibration is of one link's pressure-impulse curve."""
     path = tmp_path / "wall.stl"
     mesh = trimesh.creation.box(extents=(0.25, 3.0, 3.0))
     mesh.apply_translation((0.0, 0.0, 1.5))
     mesh.export(path)
-    return voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material=material)],
+    return voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material=material,
+                                   chunk_size=0.0)],
                     VoxelizeSettings(up_axis="Z", ground="auto"))
 
 

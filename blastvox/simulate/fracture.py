@@ -194,7 +194,8 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
             if params.pressure_impulse:
                 peak, imp, _, thick = element_load(front, c, r, mx, my, mz, exposure, b, True)
                 owner = link_voxels[link, 0]
-                i0 = strength.link_impulse[owner] * thick / REFERENCE_THICKNESS
+                i0 = (strength.link_impulse[owner] * strength.link_factor[link] * thick
+                      / REFERENCE_THICKNESS)
                 breaks = pi_exceeded(peak, imp, limit, i0, strength.pi_shape[owner])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])

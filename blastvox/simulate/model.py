@@ -68,11 +68,31 @@ class LinkGeometry(NamedTuple):
 class Strength(NamedTuple):
     """Pressure-impulse strength of each voxel's material (N,): link_impulse and
     voxel_impulse, Pa s, the impulse asymptotes for a 0.25 m element; pi_shape,
-    K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`)."""
+    K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`); link_factor
+    (L,): each link's strength relative to its material (:func:`link_strength_factor`),
+    which scales its impulse asymptote as its yield."""
 
     link_impulse: np.ndarray
     voxel_impulse: np.ndarray
     pi_shape: np.ndarray
+    link_factor: np.ndarray
+
+
+def link_strength_factor(arrays: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Each link's (L,) strength relative to its material, and that material (L,).
+
+    The material is the weaker of the link's two voxels (the lower link_yield_mean,
+    as the voxelizer chose it); the factor is the link's yield over that material's
+    mean: its random spread, the scene's strength_scale and a chunk bond's scale
+    (1 where the mean is 0 or infinite)."""
+    lv = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
+    mat = np.asarray(arrays["voxel_material"], dtype=np.int64)
+    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
+    mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
+    weaker = np.where(mean[la] <= mean[lb], la, lb)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = np.asarray(arrays["link_yield"], dtype=np.float64) / mean[weaker]
+    return np.where(np.isfinite(factor) & (factor > 0.0), factor, 1.0), weaker
 
 
 @dataclass(frozen=True)
@@ -166,7 +186,9 @@ def _strength(arrays: dict) -> Strength:
             return np.zeros(len(material))
         return np.ascontiguousarray(np.asarray(values, dtype=np.float64)[material])
 
-    return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"))
+    factor, _ = link_strength_factor(arrays)
+    return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"),
+                    np.ascontiguousarray(factor))
 
 
 @kernel

@@ -49,6 +49,7 @@ from typing import NamedTuple
 import numpy as np
 
 from blastvox.jit import kernel
+from blastvox.simulate.model import link_strength_factor
 
 #: Poisson's ratio of the shear springs (concrete 0.2; the solve is not sensitive to it).
 POISSON = 0.2
@@ -102,10 +103,7 @@ def link_springs(arrays: dict) -> LinkSprings:
     area = np.maximum(np.asarray(arrays["link_area"], dtype=np.float64), 1e-12)
     la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
     mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
-    weaker = np.where(mean[la] <= mean[lb], la, lb)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        factor = np.asarray(arrays["link_yield"], dtype=np.float64) / mean[weaker]
-    factor = np.where(np.isfinite(factor) & (factor > 0.0), factor, 1.0)
+    factor, weaker = link_strength_factor(arrays)
     count = len(mean)
     modulus = _column(arrays, "youngs_modulus", 30e9, count)
     half_a = np.abs(np.einsum("ij,ij->i", midpoint - centroid[lv[:, 0]], direction))
