@@ -1,12 +1,19 @@
-"""Make the example meshes that are ours (the building comes from trimesh's test models).
+"""Make the example meshes.
 
     python examples/make_assets.py
 
 house/house.obj: a small house (Martins 2001 Fig. 9): 0.5 m brick walls with a
 door and a window, and a pitched roof, about 150 voxels at 0.5 m.
+building/building.glb: a three-storey building (Martins 2001 Fig. 10), a shell of
+0.3 m walls and floor slabs on a 20 x 11.5 m footprint with windows, a door and
+three inner columns, about 4,300 conform voxels at 0.5 m. glTF is Y-up: plan x is
+X, plan y is Z, heights are Y.
+sealed_room/room.obj: a closed room, 4 x 4 x 3 m inside, 0.25 m walls, floor and
+ceiling all round (a sealed cavity: the voxels stay a hollow shell).
 logo/digit_<i>.obj: the four digits of "2001" (Martins 2001 Fig. 11), each a
 separate object, 0.5 m pixels of a 3x5 bitmap font.
-Meshes are built with manifold3d (exact CSG), so they are closed and manifold.
+Meshes are built with manifold3d (exact CSG), so they are closed and manifold, and
+the files are the same on every run.
 """
 
 from __future__ import annotations
@@ -42,6 +49,48 @@ def house() -> trimesh.Trimesh:
     return to_trimesh(walls + roof)
 
 
+def plan_box(size, corner) -> m3d.Manifold:
+    """A box given in plan coordinates (x, y, height), built Y-up (x, height, y)."""
+    (sx, sy, sz), (cx, cy, cz) = size, corner
+    return box((sx, sz, sy), (cx, cz, cy))
+
+
+def building() -> trimesh.Trimesh:
+    """Y-up, metres: 20 x 11.5 m footprint (plan x along X, plan y along Z), three 3 m
+    storeys. 0.3 m outer walls from the ground to the roof, 0.3 m floor slabs on top
+    of each storey (their top at 3.4, 6.4 and 9.4 m), 0.4 m columns at x = 5, 10 and
+    15 m on the middle line, y = 5.75 m. Every face lies inside a 0.5 m lattice cell, none on a
+    cell face, so at voxel_size = 0.5 each wall and slab is one layer of voxels.
+    Windows 2.6 x 1.7 m, one per 5 m bay on the long sides and per 5.75 m bay on the
+    short ones, on every storey; a 1.6 x 2.2 m door in the front's third bay."""
+    width, depth, storey, wall = 20.0, 11.5, 3.0, 0.3
+    top = 3 * storey + 0.4
+    shell = plan_box((width, depth, top), (0, 0, 0)) - plan_box(
+        (width - 2 * wall, depth - 2 * wall, top + 1.0), (wall, wall, -0.5))
+    parts = [shell]
+    parts += [plan_box((width, depth, 0.3), (0, 0, k * storey + 0.1)) for k in (1, 2, 3)]
+    parts += [plan_box((0.4, 0.4, top), (x + 0.05, 5.55, 0)) for x in (5.0, 10.0, 15.0)]
+    solid = m3d.Manifold.batch_boolean(parts, m3d.OpType.Add)
+    holes = []
+    for k in range(3):
+        sill = k * storey + 0.9
+        for i in range(4):
+            for y in (-0.5, depth - 0.5):
+                if k == 0 and i == 2 and y < 0:
+                    holes.append(plan_box((1.6, 1.0, 2.3), (5 * i + 1.7, y, -0.1)))  # door
+                else:
+                    holes.append(plan_box((2.6, 1.0, 1.7), (5 * i + 1.2, y, sill)))
+        for j in range(2):
+            for x in (-0.5, width - 0.5):
+                holes.append(plan_box((1.0, 2.6, 1.7), (x, 5.75 * j + 1.6, sill)))
+    return to_trimesh(solid - m3d.Manifold.batch_boolean(holes, m3d.OpType.Add))
+
+
+def sealed_room() -> trimesh.Trimesh:
+    """Z-up, metres: a closed box room, 4 x 4 x 3 m inside, 0.25 m thick all round."""
+    return to_trimesh(box((4.5, 4.5, 3.5), (0, 0, 0)) - box((4.0, 4.0, 3.0), (0.25, 0.25, 0.25)))
+
+
 FONT = {  # 3 x 5 pixels, top row first
     "2": ["###", "..#", "###", "#..", "###"],
     "0": ["###", "#.#", "#.#", "#.#", "###"],
@@ -57,9 +106,13 @@ def digit(char: str, x0: float, pixel: float = 0.5, depth: float = 0.5) -> trime
 
 def main() -> None:
     house().export(HERE / "house" / "house.obj")
+    building().export(HERE / "building" / "building.glb")
+    (HERE / "sealed_room").mkdir(exist_ok=True)
+    sealed_room().export(HERE / "sealed_room" / "room.obj")
     for i, char in enumerate("2001"):
         digit(char, x0=i * 2.0).export(HERE / "logo" / f"digit_{i}.obj")
-    print("wrote house/house.obj and logo/digit_[0-3].obj")
+    print("wrote house/house.obj, building/building.glb, sealed_room/room.obj and "
+          "logo/digit_[0-3].obj")
 
 
 if __name__ == "__main__":
