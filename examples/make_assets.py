@@ -8,8 +8,9 @@ building/building.glb: a three-storey building (Martins 2001 Fig. 10), a shell o
 0.3 m walls and floor slabs on a 20 x 11.5 m footprint with windows, a door and
 three inner columns, about 4,300 conform voxels at 0.5 m. glTF is Y-up: plan x is
 X, plan y is Z, heights are Y.
-sealed_room/room.obj: a closed room, 4 x 4 x 3 m inside, 0.25 m walls, floor and
-ceiling all round (a sealed cavity: the voxels stay a hollow shell).
+sealed_room/room.obj: a closed room, 4 x 4 x 3 m inside, 0.5 m walls, floor and
+ceiling all round (a sealed cavity: the voxels stay a hollow shell), 416 voxels
+at 0.5 m.
 logo/digit_<i>.obj: the four digits of "2001" (Martins 2001 Fig. 11), each a
 separate object, 0.5 m pixels of a 3x5 bitmap font.
 Meshes are built with manifold3d (exact CSG), so they are closed and manifold, and
@@ -86,9 +87,10 @@ def building() -> trimesh.Trimesh:
     return to_trimesh(solid - m3d.Manifold.batch_boolean(holes, m3d.OpType.Add))
 
 
-def sealed_room() -> trimesh.Trimesh:
-    """Z-up, metres: a closed box room, 4 x 4 x 3 m inside, 0.25 m thick all round."""
-    return to_trimesh(box((4.5, 4.5, 3.5), (0, 0, 0)) - box((4.0, 4.0, 3.0), (0.25, 0.25, 0.25)))
+def sealed_room(wall: float = 0.5) -> trimesh.Trimesh:
+    """Z-up, metres: a closed box room, 4 x 4 x 3 m inside, ``wall`` thick all round."""
+    outer = (4.0 + 2 * wall, 4.0 + 2 * wall, 3.0 + 2 * wall)
+    return to_trimesh(box(outer, (0, 0, 0)) - box((4.0, 4.0, 3.0), (wall, wall, wall)))
 
 
 FONT = {  # 3 x 5 pixels, top row first
