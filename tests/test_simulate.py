@@ -175,8 +175,10 @@ def test_split_conserves_linear_and_angular_momentum(tmp_path, seed):
 
 
 def test_founded_wall_sheds_debris_but_stands(tmp_path):
-    # 15 kg 3 m off a 0.5 m brick wall: pressure-impulse fracture breaks ~350 links and
-    # throws off chunks and dust from the loaded face while the founded rest stands
+    # 15 kg 3 m off a 0.5 m brick wall: pressure-impulse fracture breaks ~300 links and
+    # frees pieces of the loaded face while the founded rest stands; the wave presses
+    # them against the wall, whose contacts hold them (voxel spheres let them sink
+    # 15 cm into it, and turned the pressed voxels to dust)
     model = box_model(tmp_path, (4.0, 0.5, 3.0), 0.25, material="brick", ground="auto")
     assert model.voxel_foundation.any()
     settings = SimSettings(fps=24.0, duration=0.5, charges=(ChargeSpec((0.0, -3.0, 2.0), 15.0),))
@@ -189,7 +191,10 @@ def test_founded_wall_sheds_debris_but_stands(tmp_path):
                                   np.broadcast_to([1, 0, 0, 0], (cache.frame_count,
                                                                  len(founded), 4)))
     debris = np.setdiff1d(np.arange(cache.piece_count), founded)
-    assert np.any(moved[debris] > 0.01)
+    assert len(debris) >= 5
+    into_wall = cache.piece_position[:, debris, 1] - cache.piece_position[0, debris, 1]
+    assert into_wall.max() < 0.01 * 0.25  # < 1 % of a voxel into the standing wall
+    assert len(cache.dust_voxel) == 0  # pressed, not struck: no impact dust
 
 
 def _loose_momentum(cache) -> float:

@@ -1,10 +1,21 @@
-"""Fragment collisions (Martins 2001 §5.1).
+"""Fragment collisions (Martins 2001 §5.1), solved with the ground's contacts.
 
-Fragments: bounding spheres of bodies (broad phase), then a spatial hash of
-the boundary voxels of bodies whose spheres overlap, then voxel spheres of
-radius (volume)^(1/3) / 2. Each touching, approaching voxel pair is resolved
-once per step with an impulse along the centre line at its midpoint, with the
-smaller restitution of the two voxels. Impacts weaken voxels; a voxel whose
+Broad phase: bounding spheres of bodies, then a spatial hash of the boundary
+voxels of bodies whose spheres overlap (:func:`static_hash` keeps resting
+bodies' voxels). Narrow phase: each voxel is a box (:func:`voxel_boxes`), and
+two boxes of different bodies that touch, or may touch within the step
+(speculative contacts), make one contact row: the separating axis of least
+penetration over the six face normals picks a reference face, the facing face
+of the other box is clipped to it (as Bullet's and ODE's box-box tests do),
+and the clipped points make a patch: a point at its centre, the separation of
+its closest point, and its half extents. The normal impulse at the centre,
+with moments about the two tangents bounded by the normal impulse times the
+patch's half extents, is exactly what forces at the patch corners can do, so a
+box rests on a face, tips over an edge and rolls on a corner. The rows, and
+the ground's (:mod:`blastvox.simulate.ground`), are solved together by
+:func:`~blastvox.simulate.kernels.solve_contacts`: sequential impulses, warm
+started, restitution the smaller of the two voxels', Coulomb friction,
+penetration removed by moving bodies. Impacts weaken voxels; a voxel whose
 strength runs out turns to dust.
 """
 
@@ -15,228 +26,109 @@ from typing import NamedTuple
 
 import numpy as np
 
-from blastvox.geometry.transforms_nb import to_rest
 from blastvox.jit import helper, kernel
-from blastvox.simulate.bodies import apply_impulse, effective_inverse_mass, point_velocity
 from blastvox.simulate.boundary import boundary_of
-from blastvox.simulate.integrate import angular_velocity, moving, world_tensor_times
-from blastvox.simulate.kernels import damp_resting
-from blastvox.simulate.spatial_hash import bucket, cell_key, cell_of, hash_buckets
+from blastvox.simulate.ground import (
+    SLOP,
+    ground_rows,
+    grow_rows,
+    new_memory,
+    pick_four,
+    settle_on_ground,
+    solver_params,
+)
+from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.kernels import solve_contacts
+from blastvox.simulate.limits import voxel_size
+from blastvox.simulate.spatial_hash import (
+    bucket,
+    cell_key,
+    cell_of,
+    hash_buckets,
+    near_voxels,
+    rest_grid,
+    static_hash,
+)
 from blastvox.simulate.state import Contacts
 
 
-@kernel
-def static_hash(geometry, offsets, members, bodies, cell):
-    """Spatial hash of the boundary voxels of bodies that do not move (fixed or asleep).
-
-    Returns (voxels (S,), positions (S, 3), keys (S,), start): the voxels, their
-    world centres and cell keys in bucket order, and the :func:`hash_buckets`
-    offsets, so bucket s is the range start[s]:start[s+1] of the three arrays.
-    Rebuilt only when the set of resting bodies changes.
-    """
-    voxel_centroid = geometry.centroid
-    body_com, body_pos, body_rot = bodies.com, bodies.pos, bodies.rot
-    body_live, body_dust, body_fixed = bodies.live, bodies.dust, bodies.fixed
-    body_asleep, n_bodies = bodies.asleep, bodies.count[0]
-    count = 0
-    for b in range(n_bodies):
-        if body_live[b] and not body_dust[b] and (body_fixed[b] or body_asleep[b]):
-            count += offsets[b + 1] - offsets[b]
-    vox = np.empty(count, dtype=np.int64)
-    pos = np.empty((count, 3))
-    keys = np.empty(count, dtype=np.int64)
-    n = np.int64(0)  # not a literal 0: the callee would compile twice
-    for b in range(n_bodies):
-        if not (body_live[b] and not body_dust[b] and (body_fixed[b] or body_asleep[b])):
-            continue
-        for k in range(offsets[b], offsets[b + 1]):
-            _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, pos, n)
-            vox[n] = members[k]
-            keys[n] = cell_key(cell_of(pos[n, 0], cell), cell_of(pos[n, 1], cell),
-                           cell_of(pos[n, 2], cell))
-            n += 1
-    start, entries = hash_buckets(keys)
-    return vox[entries], pos[entries], keys[entries], start
-
-
-@helper
-def _place(v, b, voxel_centroid, body_com, body_pos, body_rot, pos, n) -> None:
-    rot = body_rot[b]
-    x = voxel_centroid[v, 0] - body_com[b, 0]
-    y = voxel_centroid[v, 1] - body_com[b, 1]
-    z = voxel_centroid[v, 2] - body_com[b, 2]
-    for a in range(3):
-        pos[n, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y + rot[a, 2] * z
-
-
 class CollideParams(NamedTuple):
-    """wake_speed: m/s of approach that wakes a sleeping body (the sleep speed);
-    rest_speed: m/s below which a contact is resting, not an impact; friction:
-    Coulomb mu; weakening: fraction of an impact's pressure taken off a voxel's
-    yield; cell: hash cell, m (twice the largest contact radius); up (3,)."""
+    """dt: step, s; wake_speed: m/s of approach that wakes a sleeping body (the sleep
+    speed); rest_speed: m/s below which a contact is resting, not an impact;
+    weakening: fraction of an impact's pressure taken off a voxel's yield; cell: hash
+    cell, m (twice the largest box half diagonal, plus reach); reach: m, the most a
+    contact looks ahead (half the largest voxel); slop: m, the solver's
+    (:func:`~blastvox.simulate.ground.solver_params`)."""
 
+    dt: float
     wake_speed: float
     rest_speed: float
-    friction: float
     weakening: float
     cell: float
-    up: np.ndarray
-
-
-# A moving body with at most this many boundary voxels is hashed whole every step;
-# a bigger one only where it is inside the bounding sphere of a body it may touch.
-SMALL_BODY = 64
-_FIELD = 16384  # 14 bits per rest-cell coordinate in a rest-grid key
-
-
-@helper
-def _rest_key(body, i, j, k) -> int:
-    """Key of rest cell (i, j, k) of a body; coordinates wrap at 2^14 (a wrapped cell
-    only adds candidates, which the distance test then rejects)."""
-    return ((body * _FIELD + (i & (_FIELD - 1))) * _FIELD + (j & (_FIELD - 1))) * _FIELD \
-        + (k & (_FIELD - 1))
+    reach: float
+    slop: float
 
 
 @kernel
-def rest_grid(voxel_centroid, voxel_body, members, cell):
-    """Boundary voxels hashed by (body, cell of their rest centroid).
+def voxel_boxes(vertices, corners, contact_radius):
+    """Contact boxes (half extents (N, 3) m, half diagonals (N,) m) of the voxels.
 
-    Rest positions never change, so this is rebuilt only when the boundary does.
-    Returns (slots (M,), keys (M,), start): boundary slots and their keys in
-    bucket order, and the :func:`hash_buckets` offsets.
+    A voxel's box is its corners' bounding box in the rest frame, scaled about the
+    centroid to the voxel's volume ((2 contact_radius)^3, m^3): the voxel itself
+    for a lattice cell, a box of the same volume and proportions for a jittered
+    or conform one (whose corners span more than its solid).
     """
-    keys = np.empty(members.shape[0], dtype=np.int64)
-    for k in range(members.shape[0]):
-        v = members[k]
-        keys[k] = _rest_key(voxel_body[v], cell_of(voxel_centroid[v, 0], cell),
-                            cell_of(voxel_centroid[v, 1], cell),
-                            cell_of(voxel_centroid[v, 2], cell))
-    start, entries = hash_buckets(keys)
-    return entries, keys[entries], start
-
-
-@helper
-def _mark_near_rest(b, o, reach, cell, voxel_centroid, members, bodies, rest, world,
-                    near) -> int:
-    """Mark b's boundary voxels within ``reach`` (m) of body o's centre, found through
-    b's rest grid ``rest`` (:func:`rest_grid`): o's centre is taken into b's rest frame.
-    Returns how many."""
-    body_com, body_pos, body_rot = bodies.com, bodies.pos, bodies.rot
-    rest_slot, rest_keys, rest_start = rest
-    cx, cy, cz = to_rest(body_rot[b], body_pos[b], body_com[b], body_pos[o, 0],
-                         body_pos[o, 1], body_pos[o, 2])
-    count = 0
-    for i in range(cell_of(cx - reach, cell), cell_of(cx + reach, cell) + 1):
-        for j in range(cell_of(cy - reach, cell), cell_of(cy + reach, cell) + 1):
-            for k in range(cell_of(cz - reach, cell), cell_of(cz + reach, cell) + 1):
-                key = _rest_key(b, i, j, k)
-                lo, hi = bucket(key, rest_start)
-                for s in range(lo, hi):
-                    if rest_keys[s] != key:
-                        continue
-                    slot = rest_slot[s]
-                    if near[slot]:
-                        continue
-                    v = members[slot]
-                    if ((voxel_centroid[v, 0] - cx) ** 2 + (voxel_centroid[v, 1] - cy) ** 2
-                            + (voxel_centroid[v, 2] - cz) ** 2) < reach * reach:
-                        near[slot] = True
-                        _place(v, b, voxel_centroid, body_com, body_pos, body_rot, world, slot)
-                        count += 1
-    return count
-
-
-@helper
-def _near_voxels(voxel_centroid, offsets, members, bodies, cell, rest, world, near):
-    """Mark (in ``near``, by boundary slot) the voxels of moving bodies that may touch
-    another body this step, with their world centres in ``world``; returns how many.
-
-    Small bodies (<= SMALL_BODY boundary voxels) take part whole: the voxel hash
-    is their broad phase. A bigger moving body takes part where it is within
-    ``cell`` of the bounding sphere of a live body whose sphere its own meets:
-    a scan of its voxels against a big neighbour, its rest grid (:func:`rest_grid`)
-    around a small one, so a big block among thousands of chips stays cheap.
-    """
-    body_radius, body_com, body_pos, body_rot = bodies.radius, bodies.com, bodies.pos, bodies.rot
-    body_fixed, body_live, body_dust = bodies.fixed, bodies.live, bodies.dust
-    body_asleep, n_bodies = bodies.asleep, bodies.count[0]
-    count = 0
-    for b in range(n_bodies):
-        if not moving(b, body_live, body_fixed, body_dust, body_asleep):
-            continue
-        first, last = offsets[b], offsets[b + 1]
-        if last - first <= SMALL_BODY:
-            for k in range(first, last):
-                _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, world, k)
-                near[k] = True
-            count += last - first
-            continue
-        placed = False
-        for o in range(n_bodies):
-            if o == b or not body_live[o] or body_dust[o]:
-                continue
-            d2 = ((body_pos[b, 0] - body_pos[o, 0]) ** 2 + (body_pos[b, 1] - body_pos[o, 1]) ** 2
-                  + (body_pos[b, 2] - body_pos[o, 2]) ** 2)
-            if d2 >= (body_radius[b] + body_radius[o]) ** 2:
-                continue
-            reach = body_radius[o] + cell
-            cells = (2.0 * reach / cell + 2.0) ** 3
-            if cells < last - first:
-                count += _mark_near_rest(b, o, reach, cell, voxel_centroid, members, bodies,
-                                         rest, world, near)
-                continue
-            if not placed:
-                for k in range(first, last):
-                    _place(members[k], b, voxel_centroid, body_com, body_pos, body_rot, world, k)
-                placed = True
-            for k in range(first, last):
-                if not near[k] and ((world[k, 0] - body_pos[o, 0]) ** 2
-                                    + (world[k, 1] - body_pos[o, 1]) ** 2
-                                    + (world[k, 2] - body_pos[o, 2]) ** 2) < reach * reach:
-                    near[k] = True
-                    count += 1
-    return count
+    n = corners.shape[0]
+    half = np.empty((n, 3))
+    radius = np.empty(n)
+    for v in range(n):
+        for a in range(3):
+            lo = vertices[corners[v, 0], a]
+            hi = lo
+            for c in range(1, 8):
+                x = vertices[corners[v, c], a]
+                lo = min(lo, x)
+                hi = max(hi, x)
+            half[v, a] = 0.5 * (hi - lo)
+        box = 8.0 * half[v, 0] * half[v, 1] * half[v, 2]
+        volume = (2.0 * contact_radius[v]) ** 3
+        if box > 0.0 and volume < box * (1.0 - 1e-9):
+            scale = (volume / box) ** (1.0 / 3.0)
+            for a in range(3):
+                half[v, a] *= scale
+        radius[v] = math.sqrt(half[v, 0] ** 2 + half[v, 1] ** 2 + half[v, 2] ** 2)
+    return half, radius
 
 
 @kernel
-def collide_bodies(geometry, voxels, bodies, contacts, marks, params, boundary, static,
-                   rest) -> int:
-    """Find and resolve voxel-sphere contacts between different bodies, once each.
+def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, memory) -> int:
+    """Contact rows (memory.rows, from row 0) of voxel boxes of different bodies, once each.
 
-    geometry.contact_radius (N,): collision radius (m), at most params.cell / 2;
     boundary: (offsets, members) each body's boundary voxels; params:
-    :class:`CollideParams`; static: :func:`static_hash`; rest: :func:`rest_grid`. The boundary
-    voxels of moving bodies that may touch something (:func:`_near_voxels`) go
-    into a spatial hash each step; voxels of bodies at rest (fixed or asleep)
-    come from ``static_*`` (:func:`static_hash`), so a big standing structure
-    costs nothing per step. Contacts are resolved in hash order (deterministic)
-    with restitution and Coulomb ``friction`` (mu), and rolling resistance
-    (:func:`_resist_rolling`). A gentle contact (approach speed below
-    ``rest_speed``, m/s) does not bounce, flags both bodies in ``resting`` (B,)
-    for resting-contact damping, and, where one body lies on the other (along
-    ``up`` (3,)), lets the lower one hold like the ground if it is flagged in
-    ``supported`` (B,) (last step's); the upper one is then flagged in
-    ``supported_next`` (B,).
-    Impacts weaken the voxels they hit by ``weakening`` x the impact pressure
-    rho v_n^2 / 2 (Pa; rho the voxel's density in kg/m^3, v_n the approach
-    speed): a stone voxel shrugs off 5 m/s (33 kPa) and turns to dust at
-    20 m/s (520 kPa, above its yield). A voxel whose yield that pressure
-    exceeds is marked in ``destroyed`` (its body in ``dirty``). hits_out (H, 4)
-    receives contact points and approach speeds (m/s, for dust); returns the
-    number of contacts resolved.
+    :class:`CollideParams`; static: :func:`static_hash`; rest: :func:`rest_grid`.
+    The boundary voxels of moving bodies that may touch something
+    (:func:`~blastvox.simulate.spatial_hash.near_voxels`) go into a spatial hash
+    each step; voxels of bodies at rest (fixed or asleep) come from ``static``,
+    so a big standing structure costs nothing per step. Pairs whose bounding
+    spheres (memory.radius) may touch within the step (:func:`_lookahead`) go to the
+    box test
+    (:func:`_box_contact`), in hash order (deterministic). Returns the number of
+    rows; rows past the capacity are counted, not written (grow and call again). When
+    they fit, the sleeping bodies they strike wake (:func:`_wake_struck`).
     """
     offsets, members = boundary
     static_vox, static_pos, static_keys, static_start = static
-    voxel_alive, voxel_body, voxel_radius = voxels.alive, voxels.body, geometry.contact_radius
-    cell = params.cell
+    voxel_alive, voxel_body = voxels.alive, voxels.body
+    radius, cell, reach = memory.radius, params.cell, params.reach
     world = np.empty((members.shape[0], 3))  # world centres, by boundary slot
     near = np.zeros(members.shape[0], dtype=np.bool_)
-    count = _near_voxels(geometry.centroid, offsets, members, bodies, cell, rest, world, near)
+    count = near_voxels(geometry.centroid, offsets, members, bodies, cell, rest, world, near)
     if count == 0:
         return 0
     slot = np.empty(count, dtype=np.int64)
     ijk = np.empty((count, 3), dtype=np.int64)
     keys = np.empty(count, dtype=np.int64)
+    motion = np.empty((count, 4))  # body velocity (m/s), then spin x reach of the box (m/s)
     n = 0
     for k in range(members.shape[0]):
         if near[k]:
@@ -244,228 +136,396 @@ def collide_bodies(geometry, voxels, bodies, contacts, marks, params, boundary, 
             for a in range(3):
                 ijk[n, a] = cell_of(world[k, a], cell)
             keys[n] = cell_key(ijk[n, 0], ijk[n, 1], ijk[n, 2])
+            _motion(members[k], voxel_body[members[k]], world[k], bodies, radius, motion[n])
             n += 1
     start, entries = hash_buckets(keys)
-    resolved = np.int64(0)  # not a literal 0: the callee would compile twice
+    centres = np.empty((2, 3))
+    still = np.zeros(4)
+    work = (np.empty((3, 3)), np.empty((3, 8, 3)), np.empty(32))
+    pair = np.empty(8, dtype=np.int64)  # bodies and voxels, then picks
+    found = np.int64(0)  # not a literal 0: the callee would compile twice
     for i in range(n):
         vi = members[slot[i]]
         bi = voxel_body[vi]
-        ci = world[slot[i]]
+        if not voxel_alive[vi]:
+            continue
+        for a in range(3):
+            centres[0, a] = world[slot[i], a]
         for dx in range(-1, 2):
             for dy in range(-1, 2):
                 for dz in range(-1, 2):
                     key = cell_key(ijk[i, 0] + dx, ijk[i, 1] + dy, ijk[i, 2] + dz)
-                    # moving against moving: each pair once (lower voxel first)
+                    # moving against moving, each pair once: from the cell of either,
+                    # the other in one of the 13 cells that follow it, or in the same
+                    # cell, the lower voxel first
+                    forward = (dx, dy, dz) > (0, 0, 0)
                     lo, hi = bucket(key, start)
-                    for jj in range(lo, hi):
+                    for jj in range(lo if forward or (dx, dy, dz) == (0, 0, 0) else hi, hi):
                         j = entries[jj]
                         if keys[j] != key:
                             continue
                         vj = members[slot[j]]
                         bj = voxel_body[vj]
-                        if vj <= vi or bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:
+                        if (not forward and vj <= vi) or bj == bi or not voxel_alive[vj]:
                             continue
-                        cj = world[slot[j]]
-                        if not _touching(ci, cj, voxel_radius[vi] + voxel_radius[vj]):
+                        ahead = _lookahead(motion[i], motion[j], reach, params.dt)
+                        if not _touching(centres[0], world[slot[j]],
+                                         radius[vi] + radius[vj] + ahead):
                             continue
-                        resolved += _resolve_pair(vi, vj, ci, cj, geometry, voxels, bodies,
-                                                  contacts, marks, params, resolved)
+                        for a in range(3):
+                            centres[1, a] = world[slot[j], a]
+                        pair[0], pair[1], pair[2], pair[3] = bi, vi, bj, vj
+                        if _box_contact(bodies.rot, memory.half, pair, centres, ahead, work):
+                            _emit(found, vi, vj, bi, bj, work[2], geometry.restitution,
+                                  memory.rows)
+                            found += 1
                     # moving against resting
+                    if static_vox.shape[0] == 0:
+                        continue
                     lo, hi = bucket(key, static_start)
                     for jj in range(lo, hi):
                         if static_keys[jj] != key:
                             continue
                         vj = static_vox[jj]
                         bj = voxel_body[vj]
-                        if bj == bi or not voxel_alive[vi] or not voxel_alive[vj]:
+                        if bj == bi or not voxel_alive[vj]:
                             continue
-                        cj = static_pos[jj]
-                        if not _touching(ci, cj, voxel_radius[vi] + voxel_radius[vj]):
+                        ahead = _lookahead(motion[i], still, reach, params.dt)
+                        if not _touching(centres[0], static_pos[jj],
+                                         radius[vi] + radius[vj] + ahead):
                             continue
-                        resolved += _resolve_pair(vi, vj, ci, cj, geometry, voxels, bodies,
-                                                  contacts, marks, params, resolved)
-    return resolved
+                        for a in range(3):
+                            centres[1, a] = static_pos[jj, a]
+                        pair[0], pair[1], pair[2], pair[3] = bi, vi, bj, vj
+                        if _box_contact(bodies.rot, memory.half, pair, centres, ahead, work):
+                            _emit(found, vi, vj, bi, bj, work[2], geometry.restitution,
+                                  memory.rows)
+                            found += 1
+    if found <= memory.rows.key.shape[0]:
+        _wake_struck(memory.rows, found, bodies, params)
+    return found
 
 
 @helper
 def _touching(ci, cj, reach) -> bool:
-    """Do spheres at ci and cj (3,) with radii summing to ``reach`` (m) overlap?"""
+    """Are ci and cj (3,) closer than ``reach`` (m)?"""
     d2 = (cj[0] - ci[0]) ** 2 + (cj[1] - ci[1]) ** 2 + (cj[2] - ci[2]) ** 2
     return d2 < reach * reach
 
 
 @helper
-def _resolve_pair(vi, vj, ci, cj, geometry, voxels, bodies, contacts, marks, params,
-                  index) -> int:
-    """Resolve the contact of voxel vi at ci (3,) with voxel vj at cj (m), of different
-    bodies, if they touch and approach; the ``index``-th contact of the step is recorded
-    in contacts.hits. Returns 1 if resolved, else 0 (see :func:`collide_bodies`)."""
-    bi, bj = voxels.body[vi], voxels.body[vj]
-    voxel_radius, voxel_restitution = geometry.contact_radius, geometry.restitution
-    voxel_density, voxel_yield, voxel_alive = geometry.density, voxels.yield_pa, voxels.alive
-    body_inv_inertia, body_rot, body_ang = bodies.inv_inertia, bodies.rot, bodies.ang
-    body_pos, body_lin, body_mass = bodies.pos, bodies.lin, bodies.mass
-    body_fixed, body_asleep = bodies.fixed, bodies.asleep
-    wake_speed, rest_speed, friction = params.wake_speed, params.rest_speed, params.friction
-    weakening, up = params.weakening, params.up
-    destroyed, dirty = marks.destroyed, marks.dirty
-    resting, supported, supported_next = (contacts.resting, contacts.supported,
-                                          contacts.supported_next)
-    hits_out = contacts.hits
-    dx, dy, dz = cj[0] - ci[0], cj[1] - ci[1], cj[2] - ci[2]
-    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-    reach = voxel_radius[vi] + voxel_radius[vj]
-    if dist >= reach or dist <= 0.0:
-        return 0
-    nx, ny, nz = dx / dist, dy / dist, dz / dist
-    px, py, pz = 0.5 * (ci[0] + cj[0]), 0.5 * (ci[1] + cj[1]), 0.5 * (ci[2] + cj[2])
-    wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
-    wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
-    va = point_velocity(bi, px, py, pz, body_pos, body_lin, body_mass, wi)
-    vb = point_velocity(bj, px, py, pz, body_pos, body_lin, body_mass, wj)
-    vn = (vb[0] - va[0]) * nx + (vb[1] - va[1]) * ny + (vb[2] - va[2]) * nz
-    if vn >= 0.0:
-        return 0
-    gentle = -vn < rest_speed
-    if gentle:
-        resting[bi] = True
-        resting[bj] = True
-    # an asleep body hit (not gently touched) wakes; otherwise it counts as
-    # immovable. Waking on gentle contacts too had debris creeping at about the
-    # sleep speed wake its resting neighbours every step, and they fell asleep
-    # again the next, for ever.
-    if body_asleep[bi] and not gentle and -vn > wake_speed:
-        body_asleep[bi] = False
-    if body_asleep[bj] and not gentle and -vn > wake_speed:
-        body_asleep[bj] = False
-    move_i = not (body_fixed[bi] | body_asleep[bi])
-    move_j = not (body_fixed[bj] | body_asleep[bj])
-    # shock propagation (Guendelman et al. 2003) for stacks: where one body lies on
-    # the other, the lower one, if it was supported (by the ground, a body at rest,
-    # or a supported body) last step, holds like the ground: what presses it down,
-    # its support takes. Resolving each contact once per step, a column of voxels
-    # otherwise passes its weight down one contact per step and sinks into itself
-    # for ever. A body on something that holds is supported next step.
-    # Only a lower body that is all but still (contact point slower than
-    # wake_speed) holds, so the upper one's velocity is matched to nearly zero:
-    # that can add no more than m (wake_speed)^2 / 2 to it, and usually removes.
-    lift = nx * up[0] + ny * up[1] + nz * up[2]  # > 0: bj is above bi
-    if lift > 0.5:
-        if supported[bi] and va[0] ** 2 + va[1] ** 2 + va[2] ** 2 < wake_speed ** 2:
-            move_i = False
-        if not move_i:
-            supported_next[bj] = True
-    elif lift < -0.5:
-        if supported[bj] and vb[0] ** 2 + vb[1] ** 2 + vb[2] ** 2 < wake_speed ** 2:
-            move_j = False
-        if not move_j:
-            supported_next[bi] = True
-    k = _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, nx, ny, nz, bodies)
-    if k <= 0.0:
-        return 0
-    # a contact slower than a few steps of gravity is resting, not an impact: no
-    # bounce (restitution there would keep a pile hopping, as at the ground)
-    e = 0.0 if gentle else min(voxel_restitution[vi], voxel_restitution[vj])
-    j = -(1.0 + e) * vn / k
-    _impulse_pair(bi, bj, j * nx, j * ny, j * nz, px, py, pz, bodies, move_i, move_j)
-    # Coulomb friction: remove the sliding velocity at the contact, within mu * j
-    wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
-    wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
-    va = point_velocity(bi, px, py, pz, body_pos, body_lin, body_mass, wi)
-    vb = point_velocity(bj, px, py, pz, body_pos, body_lin, body_mass, wj)
-    rx, ry, rz = vb[0] - va[0], vb[1] - va[1], vb[2] - va[2]
-    rn = rx * nx + ry * ny + rz * nz
-    tx, ty, tz = rx - rn * nx, ry - rn * ny, rz - rn * nz
-    slide = math.sqrt(tx * tx + ty * ty + tz * tz)
-    if slide > 1e-12 and friction > 0.0:
-        tx, ty, tz = tx / slide, ty / slide, tz / slide
-        k_t = _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, tx, ty, tz, bodies)
-        jt = min(slide / k_t, friction * j)
-        _impulse_pair(bi, bj, -jt * tx, -jt * ty, -jt * tz, px, py, pz, bodies, move_i,
-                      move_j)
-    _resist_rolling(bi, bj, j * 0.5 * reach, bodies, move_i, move_j)
-    for side in range(2):
-        v = vi if side == 0 else vj
-        b = bi if side == 0 else bj
-        pressure = 0.5 * voxel_density[v] * vn * vn
-        if pressure > voxel_yield[v]:
-            voxel_alive[v] = False
-            destroyed[v] = True
-            dirty[b] = True
-        else:
-            voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * pressure)
-    if index < hits_out.shape[0]:
-        hits_out[index, 0] = px
-        hits_out[index, 1] = py
-        hits_out[index, 2] = pz
-        hits_out[index, 3] = -vn
-    return 1
+def _motion(v, b, centre, bodies, radius, out) -> None:
+    """out (4,): the velocity (m/s) of moving body b, and its spin (rad/s) times the
+    reach of voxel v's box (centre (3,) m, half diagonal radius[v]) from b's centre."""
+    m = bodies.mass[b]
+    for a in range(3):
+        out[a] = bodies.lin[b, a] / m
+    w = angular_velocity(bodies.rot[b], bodies.inv_inertia[b], bodies.ang[b])
+    arm = math.sqrt((centre[0] - bodies.pos[b, 0]) ** 2 + (centre[1] - bodies.pos[b, 1]) ** 2
+                    + (centre[2] - bodies.pos[b, 2]) ** 2) + radius[v]
+    out[3] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * arm
 
 
 @helper
-def _pair_inverse_mass(bi, bj, move_i, move_j, px, py, pz, nx, ny, nz, bodies) -> float:
-    """Inverse mass (1/kg) the pair bi, bj shows an impulse along unit (nx, ny, nz) at
-    point p: :func:`effective_inverse_mass` summed over the bodies that move here."""
-    body_mass, body_rot, body_inv_inertia, body_pos = (bodies.mass, bodies.rot,
-                                                       bodies.inv_inertia, bodies.pos)
-    k = 0.0
-    for side in range(2):
-        b = bi if side == 0 else bj
-        if not (move_i if side == 0 else move_j):
+def _lookahead(a, b, reach, dt) -> float:
+    """How close (m) two boxes whose :func:`_motion` are a and b (4,) may come within a
+    step of dt s: their relative speed bound times dt, at most ``reach`` (m)."""
+    speed = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+    return min(reach, (speed + a[3] + b[3]) * dt)
+
+
+@helper
+def _emit(r, vi, vj, bi, bj, patch, restitution, rows) -> None:
+    """Write the contact :func:`_box_contact` left in patch as row r of rows (unless r is
+    past the capacity): bodies bi, bj, voxels vi, vj, the smaller restitution."""
+    if r >= rows.key.shape[0]:
+        return
+    flip = 1.0 if patch[15] > 0.0 else -1.0  # the normal from a to b
+    for a in range(3):
+        rows.point[r, a] = patch[a]
+        rows.frame[r, 0, a] = flip * patch[3 + a]
+        rows.frame[r, 1, a] = patch[6 + a]
+        rows.frame[r, 2, a] = patch[9 + a]
+        for i in range(4):
+            rows.corners[r, i, a] = patch[16 + 3 * i + a]
+    for i in range(4):
+        rows.corner_gap[r, i] = patch[28 + i]
+    rows.gap[r], rows.arm[r], rows.used[r] = patch[12], patch[13], int(patch[14])
+    rows.body[r, 0], rows.body[r, 1] = bi, bj
+    rows.voxel[r, 0], rows.voxel[r, 1] = vi, vj
+    rows.key[r] = min(vi, vj) * restitution.shape[0] + max(vi, vj)
+    rows.restitution[r] = min(restitution[vi], restitution[vj])
+
+
+@helper
+def _box_contact(rot, half, pair, centres, ahead, work) -> bool:
+    """Do the boxes of voxels pair[1] (of body pair[0], centre centres[0], m) and pair[3]
+    (body pair[2], centres[1]) touch, or come within ``ahead`` (m)? rot (B, 3, 3): the
+    bodies' rotations; half (N, 3): the boxes' half extents (m) along their rest axes.
+    If so the patch is in work[2] (:func:`_manifold`; [15] > 0: on box a's face). work:
+    scratch (3, 3), (3, 8, 3), (32,). Separating axes: the six face normals; the
+    edge-edge axes are left out (a pair they would separate gets a contact a little
+    early)."""
+    cross, poly, patch = work
+    ba, va, bb, vb = pair[0], pair[1], pair[2], pair[3]
+    dx, dy, dz = (centres[1, 0] - centres[0, 0], centres[1, 1] - centres[0, 1],
+                  centres[1, 2] - centres[0, 2])
+    for k in range(3):
+        for m in range(3):
+            cross[k, m] = (rot[ba, 0, k] * rot[bb, 0, m] + rot[ba, 1, k] * rot[bb, 1, m]
+                           + rot[ba, 2, k] * rot[bb, 2, m])
+    sa, ka, sb, kb = -np.inf, 0, -np.inf, 0
+    for k in range(3):
+        s = (abs(dx * rot[ba, 0, k] + dy * rot[ba, 1, k] + dz * rot[ba, 2, k]) - half[va, k]
+             - half[vb, 0] * abs(cross[k, 0]) - half[vb, 1] * abs(cross[k, 1])
+             - half[vb, 2] * abs(cross[k, 2]))
+        if s > sa:
+            sa, ka = s, k
+        s = (abs(dx * rot[bb, 0, k] + dy * rot[bb, 1, k] + dz * rot[bb, 2, k]) - half[vb, k]
+             - half[va, 0] * abs(cross[0, k]) - half[va, 1] * abs(cross[1, k])
+             - half[va, 2] * abs(cross[2, k]))
+        if s > sb:
+            sb, kb = s, k
+    slop = 1e-3 * min(half[va, 0], half[va, 1], half[va, 2], half[vb, 0], half[vb, 1],
+                      half[vb, 2])
+    ahead += slop
+    if max(sa, sb) > ahead:
+        return False
+    on_a = not sb > sa + slop  # a's face unless b's separates clearly more: stable
+    kept = _manifold(rot, half, pair, centres, 0 if on_a else 1, ka if on_a else kb, poly,
+                     ahead, patch, pair[4:])
+    patch[15] = 1.0 if on_a else -1.0
+    return kept > 0
+
+
+@helper
+def _manifold(rot, half, pair, centres, ref, k, poly, ahead, patch, picks) -> int:
+    """Clip the face of the other box (``ref`` 0: box a is the reference, 1: b; see
+    :func:`_box_contact`) that faces the reference box's face across its axis k to that
+    face; keep the points within ``ahead`` (m) of it, or a quarter of the face's smaller
+    half extent, four at most (the deepest, the
+    farthest from it, and the farthest on either side of the line through both). patch
+    (32,) receives: their centre (3, m), the reference normal towards the other box (3),
+    the reference face's axes t1 (3) and t2 (3), the smallest separation (m), the
+    lever of twisting friction (m, 0.54 times the points' mean distance from their
+    centre: 0.765 h, the mean lever of a square of half side h, from its corners),
+    how many points, [16:28] the points (m, midway between the faces), [28:32] their
+    separations (m). Returns how many points were kept (0: no contact)."""
+    br, vr, bi, vi = pair[2 * ref], pair[2 * ref + 1], pair[2 - 2 * ref], pair[3 - 2 * ref]
+    k1, k2 = (k + 1) % 3, (k + 2) % 3
+    t1x, t1y, t1z = rot[br, 0, k1], rot[br, 1, k1], rot[br, 2, k1]
+    t2x, t2y, t2z = rot[br, 0, k2], rot[br, 1, k2], rot[br, 2, k2]
+    nx, ny, nz = rot[br, 0, k], rot[br, 1, k], rot[br, 2, k]
+    dx, dy, dz = (centres[1 - ref, 0] - centres[ref, 0], centres[1 - ref, 1] - centres[ref, 1],
+                  centres[1 - ref, 2] - centres[ref, 2])
+    if dx * nx + dy * ny + dz * nz < 0.0:
+        nx, ny, nz = -nx, -ny, -nz
+    m, best = 0, -1.0
+    for c in range(3):
+        dot = abs(nx * rot[bi, 0, c] + ny * rot[bi, 1, c] + nz * rot[bi, 2, c])
+        if dot > best:
+            m, best = c, dot
+    m1, m2 = (m + 1) % 3, (m + 2) % 3
+    # the incident face's normal opposes the reference's
+    side = -half[vi, m] if nx * rot[bi, 0, m] + ny * rot[bi, 1, m] + nz * rot[bi, 2, m] > 0.0 \
+        else half[vi, m]
+    # incident face centre and half edges, in (t1, t2, n) coordinates of the reference face
+    fx = dx + side * rot[bi, 0, m] - half[vr, k] * nx
+    fy = dy + side * rot[bi, 1, m] - half[vr, k] * ny
+    fz = dz + side * rot[bi, 2, m] - half[vr, k] * nz
+    ex, ey, ez = half[vi, m1] * rot[bi, 0, m1], half[vi, m1] * rot[bi, 1, m1], \
+        half[vi, m1] * rot[bi, 2, m1]
+    gx, gy, gz = half[vi, m2] * rot[bi, 0, m2], half[vi, m2] * rot[bi, 1, m2], \
+        half[vi, m2] * rot[bi, 2, m2]
+    for a in range(3):
+        ux, uy, uz = (t1x, t1y, t1z) if a == 0 else ((t2x, t2y, t2z) if a == 1 else (nx, ny, nz))
+        base = fx * ux + fy * uy + fz * uz
+        e1 = ex * ux + ey * uy + ez * uz
+        e2 = gx * ux + gy * uy + gz * uz
+        poly[0, 0, a] = base + e1 + e2
+        poly[0, 1, a] = base - e1 + e2
+        poly[0, 2, a] = base - e1 - e2
+        poly[0, 3, a] = base + e1 - e2
+    h1, h2 = half[vr, k1], half[vr, k2]
+    n = 4
+    inside = True
+    for i in range(4):
+        inside &= abs(poly[0, i, 0]) <= h1 and abs(poly[0, i, 1]) <= h2
+    if not inside:
+        n = _clip(poly, 0, n, 0, 1.0, h1, 1)
+        n = _clip(poly, 1, n, 0, -1.0, h1, 0)
+        n = _clip(poly, 0, n, 1, 1.0, h2, 1)
+        n = _clip(poly, 1, n, 1, -1.0, h2, 0)
+    kept = 0
+    keep = max(ahead, 0.25 * min(h1, h2))  # near points too: a turn the solve starts
+    for i in range(n):                     # may swing them down within the step
+        if poly[0, i, 2] <= keep:
+            for a in range(3):
+                poly[2, kept, a] = poly[0, i, a]
+            kept += 1
+    if kept == 0:
+        return 0
+    used = pick_four(poly[2], kept, picks)
+    hk = half[vr, k]
+    c1 = c2 = cs = 0.0
+    gap = np.inf
+    for i in range(used):
+        p1, p2, s = poly[2, picks[i], 0], poly[2, picks[i], 1], poly[2, picks[i], 2]
+        c1, c2, cs, gap = c1 + p1 / used, c2 + p2 / used, cs + s / used, min(gap, s)
+        patch[16 + 3 * i] = centres[ref, 0] + (hk + 0.5 * s) * nx + p1 * t1x + p2 * t2x
+        patch[17 + 3 * i] = centres[ref, 1] + (hk + 0.5 * s) * ny + p1 * t1y + p2 * t2y
+        patch[18 + 3 * i] = centres[ref, 2] + (hk + 0.5 * s) * nz + p1 * t1z + p2 * t2z
+        patch[28 + i] = s
+    spread = 0.0
+    for i in range(used):
+        spread += math.sqrt((poly[2, picks[i], 0] - c1) ** 2
+                            + (poly[2, picks[i], 1] - c2) ** 2) / used
+    patch[0] = centres[ref, 0] + (hk + 0.5 * cs) * nx + c1 * t1x + c2 * t2x
+    patch[1] = centres[ref, 1] + (hk + 0.5 * cs) * ny + c1 * t1y + c2 * t2y
+    patch[2] = centres[ref, 2] + (hk + 0.5 * cs) * nz + c1 * t1z + c2 * t2z
+    patch[3], patch[4], patch[5] = nx, ny, nz
+    patch[6], patch[7], patch[8] = t1x, t1y, t1z
+    patch[9], patch[10], patch[11] = t2x, t2y, t2z
+    patch[12], patch[13], patch[14] = gap, 0.54 * spread, used
+    return used
+
+
+@helper
+def _clip(poly, src, n, axis, sign, limit, dst) -> int:
+    """Sutherland-Hodgman: the convex polygon poly[src, :n] (rows (t1, t2, depth)) cut to
+    sign * coordinate ``axis`` <= limit, into poly[dst]; returns its vertex count."""
+    out = 0
+    di = sign * poly[src, 0, axis] - limit
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        dj = sign * poly[src, j, axis] - limit
+        if di <= 0.0:
+            poly[dst, out, 0], poly[dst, out, 1] = poly[src, i, 0], poly[src, i, 1]
+            poly[dst, out, 2] = poly[src, i, 2]
+            out += 1
+        if (di <= 0.0) != (dj <= 0.0):
+            t = di / (di - dj)
+            for a in range(3):
+                poly[dst, out, a] = poly[src, i, a] + t * (poly[src, j, a] - poly[src, i, a])
+            out += 1
+        di = dj
+    return out
+
+
+@helper
+def _wake_struck(rows, count, bodies, params) -> None:
+    """Wake the sleeping bodies that the first ``count`` rows strike: approach faster
+    than params.rest_speed (m/s), closing the gap (but params.slop) within the step,
+    as the solver's bounces (:func:`~blastvox.simulate.kernels.solve_contacts`). A gentle
+    touch does
+    not wake (debris creeping at about the sleep speed woke its resting neighbours every
+    step, and they fell asleep again the next, for ever); an asleep body is immovable."""
+    for r in range(count):
+        a, b = rows.body[r, 0], rows.body[r, 1]
+        if not (bodies.asleep[a] or bodies.asleep[b]):
             continue
-        k += effective_inverse_mass(1.0 / body_mass[b], body_rot[b], body_inv_inertia[b],
-                                     px - body_pos[b, 0], py - body_pos[b, 1],
-                                     pz - body_pos[b, 2], nx, ny, nz)
-    return k
+        vn = 0.0
+        for side in range(2):
+            o = a if side == 0 else b
+            w = angular_velocity(bodies.rot[o], bodies.inv_inertia[o], bodies.ang[o])
+            rx = rows.point[r, 0] - bodies.pos[o, 0]
+            ry = rows.point[r, 1] - bodies.pos[o, 1]
+            rz = rows.point[r, 2] - bodies.pos[o, 2]
+            m = bodies.mass[o]
+            u = (rows.frame[r, 0, 0] * (bodies.lin[o, 0] / m + w[1] * rz - w[2] * ry)
+                 + rows.frame[r, 0, 1] * (bodies.lin[o, 1] / m + w[2] * rx - w[0] * rz)
+                 + rows.frame[r, 0, 2] * (bodies.lin[o, 2] / m + w[0] * ry - w[1] * rx))
+            vn += u if side == 1 else -u
+        if -vn > params.rest_speed and vn * params.dt < params.slop - rows.gap[r]:
+            bodies.asleep[a] = False
+            bodies.asleep[b] = False
+
+
+#: Voxels closer than this fraction of the smaller one's edge at a step's start touch:
+#: a contact between them pushes and never strikes (the solver's slop; a lattice's
+#: shared face is at 0, a gap closing within a step is far wider).
+TOUCHING = 1e-3
 
 
 @helper
-def _resist_rolling(bi, bj, limit, bodies, move_i, move_j) -> None:
-    """Rolling resistance: remove the relative spin of bi and bj with an opposite pair of
-    angular impulses, up to ``limit`` (N m s).
+def _touching_gap(half, va, vb) -> float:
+    """Gap (m) below which voxels va and vb touch (:data:`TOUCHING`)."""
+    edge = 2.0 * min(half[va, 0], half[va, 1], half[va, 2], half[vb, 0], half[vb, 1],
+                     half[vb, 2])
+    return TOUCHING * edge
 
-    The contact spheres stand in for voxels, and a voxel, unlike a sphere, does
-    not roll: tipping a cube over an edge takes a couple of about its weight
-    times half its edge. With limit = j x (half the contact distance), debris
-    on a pile stops rolling instead of creeping down it forever. A couple
-    changes no linear momentum and, being equal and opposite, no angular
-    momentum either; it only removes relative rotation, so it never adds energy.
+
+@kernel
+def contact_effects(rows, count, density, voxels, marks, resting, hits, params, half) -> int:
+    """What the step's solved fragment contacts (the first ``count`` rows) did: a
+    contact that pushed and approached slower than params.rest_speed is resting and
+    flags both bodies in ``resting`` (for :func:`damp_resting`); one that struck
+    weakens both voxels by params.weakening x the impact pressure rho v_n^2 / 2 (Pa;
+    rho the voxel's density in kg/m^3, v_n the approach speed): a stone voxel shrugs
+    off 5 m/s (33 kPa) and turns to dust at 20 m/s (520 kPa, above its yield). A
+    contact strikes if its voxels were apart at the step's start (by more than
+    :data:`TOUCHING` x the smaller voxel's edge; half (N, 3) m: the voxels' contact box
+    half extents); voxels touching already push: a wall's layers,
+    freed by the wave and pressed together by it, do not strike each other (their
+    approach, the wave's push over one step, p dt / (rho L), is dt's, not an
+    impact's). A voxel whose yield the pressure exceeds is marked in
+    marks.destroyed (its body in marks.dirty). hits (H, 4) receives the points and
+    approach speeds (m/s, for dust). Returns how many rows struck. rows:
+    :class:`~blastvox.simulate.ground.ContactRows`; density (N,): voxels' kg/m^3;
+    resting: contacts.resting (B,)."""
+    voxel_density, voxel_yield, voxel_alive = density, voxels.yield_pa, voxels.alive
+    resolved = 0
+    for r in range(count):
+        vn = rows.approach[r]
+        if rows.impulse[r] <= 0.0:
+            continue
+        if -vn < params.rest_speed:
+            resting[rows.body[r, 0]] = True
+            resting[rows.body[r, 1]] = True
+        if vn >= 0.0 or rows.gap[r] <= _touching_gap(half, rows.voxel[r, 0],
+                                                               rows.voxel[r, 1]):
+            continue
+        for side in range(2):
+            v = rows.voxel[r, side]
+            pressure = 0.5 * voxel_density[v] * vn * vn
+            if pressure > voxel_yield[v]:
+                voxel_alive[v] = False
+                marks.destroyed[v] = True
+                marks.dirty[rows.body[r, side]] = True
+            else:
+                voxel_yield[v] = max(0.0, voxel_yield[v] - params.weakening * pressure)
+        if resolved < hits.shape[0]:
+            for a in range(3):
+                hits[resolved, a] = rows.point[r, a]
+            hits[resolved, 3] = -vn
+        resolved += 1
+    return resolved
+
+
+@kernel
+def damp_resting(resting, body_mass, body_inv_inertia, body_rot, body_lin, body_ang,
+                 body_radius, n_bodies, decay, limit) -> None:
+    """Resting-contact damping between fragments (as the ground's, Martins 2001 §5.2).
+
+    Bodies flagged in ``resting`` (B,) (a gentle contact this step) that move
+    slower than ``limit`` (m/s, centre speed and rim speed) lose the fraction
+    1 - ``decay`` of their momenta; the flags are cleared. Only ever removes
+    energy, and lets piles settle and sleep instead of jittering. Called every
+    step with contacts: it takes the arrays it reads (see :func:`body_rotations`).
     """
-    body_rot, body_inv_inertia, body_ang = bodies.rot, bodies.inv_inertia, bodies.ang
-    wi = angular_velocity(body_rot[bi], body_inv_inertia[bi], body_ang[bi])
-    wj = angular_velocity(body_rot[bj], body_inv_inertia[bj], body_ang[bj])
-    sx, sy, sz = wj[0] - wi[0], wj[1] - wi[1], wj[2] - wi[2]
-    spin = math.sqrt(sx * sx + sy * sy + sz * sz)
-    if spin <= 1e-12 or limit <= 0.0:
-        return
-    ux, uy, uz = sx / spin, sy / spin, sz / spin
-    k = 0.0  # spin change per unit angular impulse along u
-    for side in range(2):
-        b = bi if side == 0 else bj
-        if move_i if side == 0 else move_j:
-            ix, iy, iz = world_tensor_times(body_rot[b], body_inv_inertia[b], ux, uy, uz)
-            k += ux * ix + uy * iy + uz * iz
-    if k <= 0.0:
-        return
-    jr = min(spin / k, limit)
-    if move_i:
-        body_ang[bi, 0] += jr * ux
-        body_ang[bi, 1] += jr * uy
-        body_ang[bi, 2] += jr * uz
-    if move_j:
-        body_ang[bj, 0] -= jr * ux
-        body_ang[bj, 1] -= jr * uy
-        body_ang[bj, 2] -= jr * uz
-
-
-@helper
-def _impulse_pair(bi, bj, jx, jy, jz, px, py, pz, bodies, move_i, move_j) -> None:
-    """Impulse (jx, jy, jz) (N s) on bj at point p, and its opposite on bi; a body that
-    does not move here (fixed, asleep or holding a stack) takes none."""
-    if move_i:
-        apply_impulse(bi, (-jx, -jy, -jz), (px, py, pz), bodies.pos, bodies.lin, bodies.ang)
-    if move_j:
-        apply_impulse(bj, (jx, jy, jz), (px, py, pz), bodies.pos, bodies.lin, bodies.ang)
+    for b in range(n_bodies):
+        if not resting[b]:
+            continue
+        resting[b] = False
+        speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) \
+            / body_mass[b]
+        wx, wy, wz = angular_velocity(body_rot[b], body_inv_inertia[b], body_ang[b])
+        spin = math.sqrt(wx * wx + wy * wy + wz * wz) * body_radius[b]
+        if speed > limit or spin > limit:
+            continue
+        for a in range(3):
+            body_lin[b, a] *= decay
+            body_ang[b, a] *= decay
 
 
 def begin_contacts(state) -> None:
@@ -475,29 +535,51 @@ def begin_contacts(state) -> None:
     state.marks.dirty[:state.n_bodies] = False
     c = state.contacts  # swap the two flag arrays (the constructor: _replace is ~10x slower)
     state.contacts = Contacts(c.resting, c.supported_next, c.supported, c.hits, c.points,
-                              c.vertex_stamp)
+                              c.vertex_stamp, c.memory)
     c.supported[:] = False
 
 
 def collide_phase(model, state, settings, dt: float) -> int:
-    """Phase: contacts between fragments, at velocity level, then resting-contact damping.
+    """Phase: contacts between fragments and, with a ground, with the ground, solved
+    together at velocity level; then resting-contact damping.
 
-    Reads the bodies' poses and momenta and the boundary; writes momenta,
-    asleep, voxels' yield and alive (impacts), marks.destroyed and dirty, the
-    contact flags and contacts.hits. Returns how many of this step's contacts
-    are in contacts.hits (for dust); a caller splits bodies when
-    marks.destroyed has any. ``settings``: the run's SimSettings.
+    Reads the bodies' poses and momenta and the boundary; writes momenta, poses
+    (where bodies interpenetrate), asleep, voxels' yield and alive (impacts),
+    marks.destroyed and dirty, the contact flags, memory and hits. Returns how
+    many of this step's contacts are in contacts.hits (for dust); a caller splits
+    bodies when marks.destroyed has any. ``settings``: the run's SimSettings. The
+    ground phase then has nothing left to do (:func:`~blastvox.simulate.ground.ground_phase`).
     """
     s = settings
     boundary = boundary_of(model, state)
     begin_contacts(state)
-    cell = 2.0 * model.max_contact_radius
-    params = CollideParams(wake_speed=s.sleep_speed,
+    memory = state.contacts.memory
+    if memory is None:
+        v = model.voxels
+        memory = new_memory(state, voxel_size(v.contact_radius),
+                            *voxel_boxes(v.vertices, v.corners, v.contact_radius))
+    reach = model.max_contact_radius  # half the largest voxel: the motion limit
+    params = CollideParams(dt=dt, wake_speed=s.sleep_speed,
                            rest_speed=s.sleep_speed + 2.0 * abs(s.gravity) * dt,
-                           friction=s.friction, weakening=s.weakening, cell=cell, up=model.up)
-    resolved = collide_bodies(model.voxels, state.voxels, state.bodies, state.contacts,
-                              state.marks, params, boundary, _static(model, state, cell),
-                              _rest_grid(model, state, cell))
+                           weakening=s.weakening,
+                           cell=2.0 * float(memory.radius.max(initial=0.0)) + reach,
+                           reach=reach, slop=SLOP * memory.size)
+    static, rest = _static(model, state, params.cell), _rest_grid(model, state, params.cell)
+    count = collide_bodies(model.voxels, state.voxels, state.bodies, params, boundary, static,
+                           rest, memory)
+    if count > len(memory.rows.key):
+        memory = grow_rows(state, count, 0)
+        collide_bodies(model.voxels, state.voxels, state.bodies, params, boundary, static, rest,
+                       memory)
+    ground = model.ground_height if s.ground else None
+    end = count if ground is None else ground_rows(model, state, s, dt, ground, count)
+    memory = state.contacts.memory
+    solve_contacts(state.bodies, memory, end, solver_params(memory, s, dt))
+    c = state.contacts
+    resolved = contact_effects(memory.rows, count, model.voxels.density, state.voxels,
+                               state.marks, c.resting, c.hits, params, memory.half)
+    if ground is not None:
+        settle_on_ground(model, state, s, dt, count, end)
     state.counters.collisions += int(resolved)
     b = state.bodies
     damp_resting(state.contacts.resting, b.mass, b.inv_inertia, b.rot, b.lin, b.ang, b.radius,

@@ -8,14 +8,21 @@ coefficient e <= 1.
 Ground: an infinite-mass plane at the scene's ground height. Contact points are the
 corners of a body's boundary voxels that are at or below the plane, or would reach
 it this step (speculative contacts, so fast debris cannot tunnel and resting bodies
-do not sink, without pushing positions around). Normal and tangential impulses are
-solved together by a few projected Gauss-Seidel sweeps; the tangential part is
-Coulomb friction, the "pseudo-friction" of the paper: it opposes the tangential
-velocity and grows with the body's mass and speed up to mu times the normal impulse.
+do not sink, without pushing positions around). They are rows of the contact solver
+(:func:`~blastvox.simulate.kernels.solve_contacts`), with the fragments' contacts when
+fragments collide (:func:`~blastvox.simulate.collide.collide_phase` solves both, so a
+stack's weight reaches the ground), alone otherwise: normal and tangential impulses
+solved together by projected Gauss-Seidel sweeps; the tangential part is Coulomb
+friction, the "pseudo-friction" of the paper: it opposes the tangential velocity and
+grows with the body's mass and speed up to mu times the normal impulse.
 A body in resting contact loses a part of its momenta (damping); with three or more
 contact points, small velocities and its centre of mass over the *exact convex hull*
 of its contact points (the paper used their bounding rectangle to save time), it is
 clamped to rest and sleeps until something wakes it.
+
+Also here, as every contact phase needs them: :class:`ContactRows`, the form both the
+ground's and the fragments' contacts take for the solver, and :class:`ContactMemory`,
+what they keep from step to step.
 """
 
 from __future__ import annotations
@@ -25,10 +32,140 @@ from typing import NamedTuple
 
 import numpy as np
 
-from blastvox.jit import kernel
-from blastvox.simulate.bodies import apply_impulse, effective_inverse_mass, point_velocity
+from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.kernels import solve_contacts
+from blastvox.simulate.limits import voxel_size
+
+#: Penetration (and gap) the contact solver leaves alone, and the most its position
+#: pass moves a contact apart in a step, as fractions of the typical voxel.
+SLOP = 1e-3
+PUSH = 0.05
+
+
+class ContactRows(NamedTuple):
+    """The contacts of one step, M rows (capacity; a step uses the first ``count``).
+
+    body (M, 2) int64: bodies a and b (-1: the ground), the normal pointing from a
+    to b; voxel (M, 2) int64: their voxels (-1: the ground); key (M,) int64: the
+    contact's identity from step to step (a voxel pair, or a body's corner on the
+    ground), for warm starting; frame (M, 3, 3): rows n, t1, t2, orthonormal;
+    corners (M, 4, 3) m and corner_gap (M, 4) m: the contact's points (up to four: a
+    face's manifold) and their separations along n at the step's start (< 0:
+    penetration); used (M,) int64: how many; gap (M,) m: the smallest; point (M, 3) m:
+    their centre, where friction acts; arm (M,) m: the lever of twisting friction
+    about it (0 for a point); restitution (M,). Written by the solver: approach (M,)
+    m/s, the fastest normal approach of a point before the solve (< 0: approaching);
+    impulse (M,) N s, the normal impulse of the step, all points together.
+    """
+
+    body: np.ndarray
+    voxel: np.ndarray
+    key: np.ndarray
+    frame: np.ndarray
+    corners: np.ndarray
+    corner_gap: np.ndarray
+    used: np.ndarray
+    gap: np.ndarray
+    point: np.ndarray
+    arm: np.ndarray
+    restitution: np.ndarray
+    approach: np.ndarray
+    impulse: np.ndarray
+
+
+class ContactMemory(NamedTuple):
+    """What contacts keep from step to step, and their scratch.
+
+    rows: :class:`ContactRows`; keys (M,) int64 and carried (M, 7): the contacts of
+    the last step that carried load, and their impulses (normal N s, then the
+    friction impulse and the angular impulse as world vectors on body b, sign
+    flipped when voxel a > voxel b so that a pair seen either way round agrees);
+    count (1,) int64: how many; local (B,) int64: scratch, -1 for every body;
+    half (N, 3) m: each voxel's contact box, half extents along its rest axes,
+    centred on its centroid
+    (:func:`blastvox.simulate.collide.voxel_boxes`); radius (N,) m: the box's
+    half diagonal; deepest (1,) m: the deepest penetration any step has seen; stats
+    (3,) int64: solves, velocity sweeps, solves that used every sweep; size: the
+    model's typical voxel, m.
+    """
+
+    rows: ContactRows
+    keys: np.ndarray
+    carried: np.ndarray
+    count: np.ndarray
+    local: np.ndarray
+    half: np.ndarray
+    radius: np.ndarray
+    deepest: np.ndarray
+    stats: np.ndarray
+    size: float
+
+
+class SolverParams(NamedTuple):
+    """dt: s; friction: Coulomb mu; rest_speed: m/s of approach below which a contact
+    does not bounce; slop: m of penetration left alone; push: m the position pass
+    may move a contact apart per step."""
+
+    dt: float
+    friction: float
+    rest_speed: float
+    slop: float
+    push: float
+
+
+def empty_rows(capacity: int) -> ContactRows:
+    """``capacity`` unused contact rows."""
+    m = max(int(capacity), 16)
+    return ContactRows(
+        body=np.full((m, 2), -1, dtype=np.int64), voxel=np.full((m, 2), -1, dtype=np.int64),
+        key=np.zeros(m, dtype=np.int64), frame=np.zeros((m, 3, 3)),
+        corners=np.zeros((m, 4, 3)), corner_gap=np.zeros((m, 4)),
+        used=np.zeros(m, dtype=np.int64), gap=np.zeros(m), point=np.zeros((m, 3)),
+        arm=np.zeros(m), restitution=np.zeros(m),
+        approach=np.zeros(m), impulse=np.zeros(m))
+
+
+def new_memory(state, size: float, half: np.ndarray, radius: np.ndarray) -> ContactMemory:
+    """A run's :class:`ContactMemory`, stored in state.contacts.memory; size: the
+    typical voxel (m); half, radius: the voxels' contact boxes (empty when fragments
+    do not collide)."""
+    m = 1024
+    memory = ContactMemory(
+        rows=empty_rows(m), keys=np.zeros(m, dtype=np.int64), carried=np.zeros((m, 7)),
+        count=np.zeros(1, dtype=np.int64),
+        local=np.full(len(state.bodies.mass), -1, dtype=np.int64), half=half, radius=radius,
+        deepest=np.zeros(1), stats=np.zeros(3, dtype=np.int64), size=float(size))
+    state.contacts = state.contacts._replace(memory=memory)
+    return memory
+
+
+def grow_rows(state, need: int, keep: int) -> ContactMemory:
+    """Room for ``need`` contact rows (twice that), keeping the first ``keep`` rows and
+    what is carried over."""
+    memory = state.contacts.memory
+    m = 2 * need
+    rows = empty_rows(m)
+    for new, old in zip(rows, memory.rows, strict=True):
+        new[:keep] = old[:keep]
+    keys = np.zeros(m, dtype=np.int64)
+    carried = np.zeros((m, 7))
+    p = int(memory.count[0])
+    keys[:p] = memory.keys[:p]
+    carried[:p] = memory.carried[:p]
+    memory = memory._replace(rows=rows, keys=keys, carried=carried)
+    state.contacts = state.contacts._replace(memory=memory)
+    return memory
+
+
+def solver_params(memory: ContactMemory, settings, dt: float) -> SolverParams:
+    """The contact solver's parameters for a run's SimSettings and step dt (s): slop and
+    push (:data:`SLOP`, :data:`PUSH`) of the typical voxel (memory.size, m)."""
+    size = memory.size
+    return SolverParams(dt=dt, friction=settings.friction,
+                        rest_speed=settings.sleep_speed + 2.0 * abs(settings.gravity) * dt,
+                        slop=SLOP * size, push=PUSH * size)
 
 
 class GroundParams(NamedTuple):
@@ -88,54 +225,50 @@ def balanced(points: np.ndarray, centre: np.ndarray, tol: float = 0.0) -> bool:
 
 
 @kernel
-def ground_contacts(geometry, offsets, members, bodies, contacts, params) -> int:
-    """Resolve ground contacts of every moving body; returns the number of contact points.
+def ground_contacts(geometry, offsets, members, bodies, contacts, params, memory,
+                    start) -> int:
+    """Contact rows (memory.rows from row ``start``) of every moving body with the ground:
+    one a body, its corners on the plane (four at most, :func:`pick_four`).
 
     geometry: the model's VoxelGeometry; offsets, members: each body's boundary
     voxels (CSR, :func:`blastvox.simulate.boundary.boundary_lists`); params:
-    :class:`GroundParams`. Voxel corners are the contact candidates; a voxel
-    whose corners are all out of reach (its ``radius``, centroid to farthest
-    corner) is skipped. contacts.points (K, 3) is scratch for one body's contact
-    points (grows with the largest body). Bodies touching the plane are flagged
-    in contacts.supported_next (B,) (see :func:`blastvox.simulate.collide.collide_bodies`).
+    :class:`GroundParams`. Voxel corners are the contact candidates, each listed
+    once a body (contacts.vertex_stamp (V,)), into contacts.points (K, 3) as
+    (coordinate along e1, along e2, height above the plane, m); a voxel whose corners
+    are all out of reach (its ``radius``, centroid to farthest corner) is skipped. A
+    row: bodies (-1, b), the plane's normal and axes, the corners and their heights,
+    the restitution of the lowest one's voxel. Returns the row after the last; rows
+    past the capacity are counted, not written (grow and call again).
     """
     dt, ground, up_axis = params.dt, params.ground, params.up_axis
-    friction, rest_damping, sleep_speed = params.friction, params.rest_damping, params.sleep_speed
     vertices, voxel_vertices = geometry.vertices, geometry.corners
     voxel_centroid = geometry.centroid
     voxel_radius, voxel_restitution = geometry.radius, geometry.restitution
-    vertex_stamp, contacts_out, supported_next = (contacts.vertex_stamp, contacts.points,
-                                                  contacts.supported_next)
+    vertex_stamp, points = contacts.vertex_stamp, contacts.points
     body_mass, body_inv_inertia, body_radius = bodies.mass, bodies.inv_inertia, bodies.radius
     body_com, body_pos, body_rot = bodies.com, bodies.pos, bodies.rot
     body_lin, body_ang, body_fixed, body_live = bodies.lin, bodies.ang, bodies.fixed, bodies.live
     body_dust, body_asleep, n_bodies = bodies.dust, bodies.asleep, bodies.count[0]
+    rows = memory.rows
+    capacity = rows.key.shape[0]
     e1 = (up_axis + 1) % 3
     e2 = (up_axis + 2) % 3
-    axes = np.zeros((3, 3))  # rows: the plane normal, then the tangents along e1 and e2
-    axes[0, up_axis] = 1.0
-    axes[1, e1] = 1.0
-    axes[2, e2] = 1.0
-    max_contacts = contacts_out.shape[0]
-    acc_n = np.zeros(max_contacts)
-    acc_t = np.zeros((max_contacts, 2))
-    rest = np.zeros(max_contacts)
-    total = 0
+    owner = np.empty(points.shape[0], dtype=np.int64)
+    picks = np.empty(4, dtype=np.int64)
+    count = start
     for b in range(n_bodies):
         if not body_live[b] or body_fixed[b] or body_dust[b] or body_asleep[b]:
             continue
         m = body_mass[b]
-        inv_m = 1.0 / m
         speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
         rot = body_rot[b]
-        inv = body_inv_inertia[b]
-        omega = angular_velocity(rot, inv, body_ang[b])
+        omega = angular_velocity(rot, body_inv_inertia[b], body_ang[b])
         spin = math.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2)
         reach = (speed + spin * body_radius[b]) * dt + 1e-6
         if body_pos[b, up_axis] - body_radius[b] > ground + reach:
             continue
         # contact candidates: boundary-voxel corners at or near the plane
-        count = 0
+        found = 0
         for k in range(offsets[b], offsets[b + 1]):
             v = members[k]
             x = voxel_centroid[v, 0] - body_com[b, 0]
@@ -155,109 +288,190 @@ def ground_contacts(geometry, offsets, members, bodies, contacts, params) -> int
                 z = vertices[vid, 2] - body_com[b, 2]
                 h = body_pos[b, up_axis] + rot[up_axis, 0] * x + rot[up_axis, 1] * y \
                     + rot[up_axis, 2] * z - ground
-                if h > reach or count >= max_contacts:
+                if h > reach or found >= points.shape[0]:
                     continue
-                for a in range(3):
-                    contacts_out[count, a] = body_pos[b, a] + rot[a, 0] * x + rot[a, 1] * y \
-                        + rot[a, 2] * z
-                rest[count] = voxel_restitution[v]
-                acc_n[count] = 0.0
-                acc_t[count, 0] = 0.0
-                acc_t[count, 1] = 0.0
-                count += 1
+                points[found, 0] = body_pos[b, e1] + rot[e1, 0] * x + rot[e1, 1] * y \
+                    + rot[e1, 2] * z
+                points[found, 1] = body_pos[b, e2] + rot[e2, 0] * x + rot[e2, 1] * y \
+                    + rot[e2, 2] * z
+                points[found, 2] = h
+                owner[found] = v
+                found += 1
         # forget the stamps of this body so later steps see its vertices again
         for k in range(offsets[b], offsets[b + 1]):
             for c in range(8):
                 vertex_stamp[voxel_vertices[members[k], c]] = -1
-        if count == 0:
+        if found == 0:
             continue
-        total += count
-        # approach speeds before the solve decide bounce vs rest
-        target = np.zeros(count)
-        for i in range(count):
-            vel = point_velocity(b, contacts_out[i, 0], contacts_out[i, 1], contacts_out[i, 2],
-                                 body_pos, body_lin, body_mass, omega)
-            vn = vel[up_axis]
-            gap = contacts_out[i, up_axis] - ground
-            if gap > 1e-9:
-                target[i] = -gap / dt  # speculative: arrive, do not pass
-            elif -vn > sleep_speed + 2.0 * 9.81 * dt:
-                target[i] = -rest[i] * vn  # impact: bounce
-            else:
-                target[i] = 0.0
-        for _ in range(8):
-            for i in range(count):
-                px, py, pz = contacts_out[i, 0], contacts_out[i, 1], contacts_out[i, 2]
-                omega = angular_velocity(rot, inv, body_ang[b])
-                vel = point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
-                rx, ry, rz = px - body_pos[b, 0], py - body_pos[b, 1], pz - body_pos[b, 2]
-                k_n = effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, axes[0, 0],
-                                              axes[0, 1], axes[0, 2])
-                dj = (target[i] - vel[up_axis]) / k_n
-                old = acc_n[i]
-                acc_n[i] = max(old + dj, 0.0)
-                dj = acc_n[i] - old
-                apply_impulse(b, (dj * axes[0, 0], dj * axes[0, 1], dj * axes[0, 2]),
-                              (px, py, pz), body_pos, body_lin, body_ang)
-                # Coulomb friction on the two tangent axes, within mu * normal impulse
-                omega = angular_velocity(rot, inv, body_ang[b])
-                vel = point_velocity(b, px, py, pz, body_pos, body_lin, body_mass, omega)
-                limit = friction * acc_n[i]
-                for t in range(2):
-                    axis = e1 if t == 0 else e2
-                    tx, ty, tz = axes[t + 1, 0], axes[t + 1, 1], axes[t + 1, 2]
-                    k_t = effective_inverse_mass(inv_m, rot, inv, rx, ry, rz, tx, ty, tz)
-                    old_t = acc_t[i, t]
-                    acc_t[i, t] = min(max(old_t - vel[axis] / k_t, -limit), limit)
-                    dj = acc_t[i, t] - old_t
-                    apply_impulse(b, (dj * tx, dj * ty, dj * tz), (px, py, pz), body_pos, body_lin,
-                                  body_ang)
-        # resting contact: damp, and clamp to rest when balanced on >= 3 points
-        omega = angular_velocity(rot, inv, body_ang[b])
-        speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
-        spin = math.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * body_radius[b]
-        # touching: within the sag of one step of gravity, or a hair of the body's size
-        touch_tol = 1e-4 * max(1.0, body_radius[b]) + 9.81 * dt * dt
+        if count < capacity:
+            _ground_row(rows, count, b, points, found, picks, up_axis, ground)
+            rows.voxel[count, 1] = owner[picks[0]]
+            rows.restitution[count] = voxel_restitution[owner[picks[0]]]
+        count += 1
+    return count
+
+
+@helper
+def _ground_row(rows, r, b, points, found, picks, up_axis, ground) -> None:
+    """Row r: body b on the ground at up to four of its corner candidates points[:found]
+    ((e1, e2, height) m), the lowest first (picks[0])."""
+    e1, e2 = (up_axis + 1) % 3, (up_axis + 2) % 3
+    used = pick_four(points, found, picks)
+    for a in range(3):
+        for j in range(3):
+            rows.frame[r, j, a] = 0.0
+    rows.frame[r, 0, up_axis] = 1.0
+    rows.frame[r, 1, e1] = 1.0
+    rows.frame[r, 2, e2] = 1.0
+    rows.body[r, 0], rows.body[r, 1] = -1, b
+    rows.voxel[r, 0] = -1
+    rows.key[r] = -1 - b
+    rows.used[r] = used
+    c1 = c2 = ch = 0.0
+    gap = np.inf
+    for i in range(used):
+        p = picks[i]
+        rows.corners[r, i, e1] = points[p, 0]
+        rows.corners[r, i, e2] = points[p, 1]
+        rows.corners[r, i, up_axis] = ground + points[p, 2]
+        rows.corner_gap[r, i] = points[p, 2]
+        c1, c2, ch = c1 + points[p, 0] / used, c2 + points[p, 1] / used, ch + points[p, 2] / used
+        gap = min(gap, points[p, 2])
+    spread = 0.0
+    for i in range(used):
+        spread += math.sqrt((points[picks[i], 0] - c1) ** 2 + (points[picks[i], 1] - c2) ** 2)
+    rows.point[r, e1], rows.point[r, e2], rows.point[r, up_axis] = c1, c2, ground + ch
+    rows.gap[r] = gap
+    rows.arm[r] = 0.54 * spread / used
+
+
+@helper
+def pick_four(points, n, picks) -> int:
+    """At most four of the points[:n] (rows (u, v, depth) m), into picks (4,): the
+    deepest, the farthest from it, and those farthest on either side of the line
+    through both (the manifold reduction of Bullet and Box2D). Returns how many."""
+    first = 0
+    for i in range(1, n):
+        if points[i, 2] < points[first, 2]:
+            first = i
+    far, best = first, -1.0
+    for i in range(n):
+        d = (points[i, 0] - points[first, 0]) ** 2 + (points[i, 1] - points[first, 1]) ** 2
+        if d > best:
+            far, best = i, d
+    ex, ey = points[far, 0] - points[first, 0], points[far, 1] - points[first, 1]
+    left, right, most, least = first, first, 0.0, 0.0
+    for i in range(n):
+        side = ex * (points[i, 1] - points[first, 1]) - ey * (points[i, 0] - points[first, 0])
+        if side > most:
+            left, most = i, side
+        if side < least:
+            right, least = i, side
+    used = 0
+    for c in range(4):
+        pick = first if c == 0 else (far if c == 1 else (left if c == 2 else right))
+        seen = False
+        for d in range(used):
+            seen |= picks[d] == pick
+        if not seen:
+            picks[used] = pick
+            used += 1
+    return used
+
+
+@kernel
+def ground_rest(rows, start, end, bodies, supported_next, params) -> None:
+    """Resting ground contact, after the solve, of the bodies of rows start:end (from
+    :func:`ground_contacts`, a row a body): a body touching the plane (a corner within
+    the sag of one step of gravity, or a hair of its size) is flagged in
+    supported_next (B,); if slow it loses momenta at params.rest_damping (1/s); with
+    three or more corners touching, none sunk deeper, speed and rim speed below
+    params.sleep_speed and its centre of mass over their convex hull, it is clamped to
+    rest and sleeps until something wakes it.
+    """
+    dt, up_axis = params.dt, params.up_axis
+    e1 = (up_axis + 1) % 3
+    e2 = (up_axis + 2) % 3
+    sleep_speed = params.sleep_speed
+    body_lin, body_ang, body_asleep = bodies.lin, bodies.ang, bodies.asleep
+    px = np.empty(4)
+    py = np.empty(4)
+    for r in range(start, end):
+        b = rows.body[r, 1]
+        touch_tol = 1e-4 * max(1.0, bodies.radius[b]) + 9.81 * dt * dt
         touching = np.int64(0)  # not a literal 0: the callee would compile twice
-        for i in range(count):
-            if contacts_out[i, up_axis] - ground <= touch_tol:
+        sunk = False  # deeper than touching: the position pass has yet to lift it
+        for i in range(rows.used[r]):
+            if rows.corner_gap[r, i] <= touch_tol:
+                px[touching] = rows.corners[r, i, e1]
+                py[touching] = rows.corners[r, i, e2]
                 touching += 1
+            sunk |= rows.corner_gap[r, i] < -touch_tol
+        m = bodies.mass[b]
+        omega = angular_velocity(bodies.rot[b], bodies.inv_inertia[b], body_ang[b])
+        speed = math.sqrt(body_lin[b, 0] ** 2 + body_lin[b, 1] ** 2 + body_lin[b, 2] ** 2) / m
+        spin = math.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * bodies.radius[b]
         if touching > 0:
             supported_next[b] = True
         if touching == 0 or speed > 4.0 * sleep_speed or spin > 4.0 * sleep_speed:
             continue
-        decay = math.exp(-rest_damping * dt)
+        decay = math.exp(-params.rest_damping * dt)
         for a in range(3):
             body_lin[b, a] *= decay
             body_ang[b, a] *= decay
-        if touching >= 3 and speed < sleep_speed and spin < sleep_speed:
-            px = np.empty(touching)
-            py = np.empty(touching)
-            j = 0
-            for i in range(count):
-                if contacts_out[i, up_axis] - ground <= touch_tol:
-                    px[j] = contacts_out[i, e1]
-                    py[j] = contacts_out[i, e2]
-                    j += 1
-            tol = 1e-9 * max(1.0, body_radius[b])
-            if _hull_contains(px, py, touching, body_pos[b, e1], body_pos[b, e2], tol):
+        if touching >= 3 and speed < sleep_speed and spin < sleep_speed and not sunk:
+            tol = 1e-9 * max(1.0, bodies.radius[b])
+            if _hull_contains(px, py, touching, bodies.pos[b, e1], bodies.pos[b, e2], tol):
                 for a in range(3):
                     body_lin[b, a] = 0.0
                     body_ang[b, a] = 0.0
                 body_asleep[b] = True
-    return total
+
+
+def ground_rows(model, state, settings, dt: float, ground: float, start: int) -> int:
+    """Gather the ground's contact rows after row ``start`` of the contact memory (made if
+    need be), growing it if they do not fit; returns the row after the last and counts
+    them in the run's counters. ground: the plane's height along the model's up axis, m.
+    """
+    offsets, members = boundary_of(model, state)
+    memory = state.contacts.memory
+    if memory is None:
+        memory = new_memory(state, voxel_size(model.voxels.contact_radius), np.zeros((0, 3)),
+                            np.zeros(0))
+    params = _params(model, settings, dt, ground)
+    end = ground_contacts(model.voxels, offsets, members, state.bodies, state.contacts, params,
+                          memory, start)
+    if end > len(memory.rows.key):
+        memory = grow_rows(state, end, start)
+        ground_contacts(model.voxels, offsets, members, state.bodies, state.contacts, params,
+                        memory, start)
+    state.counters.ground_contacts += int(memory.rows.used[start:end].sum())
+    return end
+
+
+def settle_on_ground(model, state, settings, dt: float, start: int, end: int) -> None:
+    """:func:`ground_rest` for the ground's rows start:end, after the solve."""
+    ground_rest(state.contacts.memory.rows, start, end, state.bodies,
+                state.contacts.supported_next, _params(model, settings, dt, 0.0))
+
+
+def _params(model, settings, dt: float, ground: float) -> GroundParams:
+    s = settings
+    return GroundParams(dt, ground, model.up_axis, s.friction, s.rest_damping, s.sleep_speed)
 
 
 def ground_phase(model, state, settings, dt: float, ground: float) -> None:
     """Phase: ground-plane contacts of every moving body (see the module docstring).
 
-    Reads the bodies' poses and the boundary; writes momenta, asleep and
-    contacts.supported_next; counts contact points in the run's counters.
-    ground: the plane's height along the model's up axis, m.
+    Reads the bodies' poses and the boundary; writes momenta, poses (where bodies
+    sank into the plane), asleep and contacts.supported_next; counts contact points
+    in the run's counters. ground: the plane's height along the model's up axis, m.
+    With fragment collisions on, :func:`~blastvox.simulate.collide.collide_phase`
+    has solved the ground with them and this does nothing.
     """
-    s = settings
-    offsets, members = boundary_of(model, state)
-    params = GroundParams(dt, ground, model.up_axis, s.friction, s.rest_damping,
-                          s.sleep_speed)
-    state.counters.ground_contacts += int(ground_contacts(
-        model.voxels, offsets, members, state.bodies, state.contacts, params))
+    if settings.collisions:
+        return
+    end = ground_rows(model, state, settings, dt, ground, 0)
+    memory = state.contacts.memory
+    solve_contacts(state.bodies, memory, end, solver_params(memory, settings, dt))
+    settle_on_ground(model, state, settings, dt, 0, end)

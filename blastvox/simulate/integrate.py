@@ -23,6 +23,11 @@ fixed-point iteration, on sub-steps of at most :data:`SUBSTEP_RAD` of spin so
 the iteration contracts; a body spinning more than :data:`MAX_SPIN_PER_STEP`
 rad per step falls back to one explicit update (and
 :mod:`blastvox.simulate.limits` warns).
+
+Between the halves, the contact solver (:func:`blastvox.simulate.kernels.solve_contacts`)
+works on velocities; what it needs of a contact row (the velocity at its point, an
+impulse there) and its position pass (:func:`separate`, split impulses: bodies moved
+apart by pseudo-velocities that are then forgotten) are at the end of this module.
 """
 
 from __future__ import annotations
@@ -170,3 +175,159 @@ def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
             if change <= 1e-14 * (abs(wx) + abs(wy) + abs(wz)):
                 break
         quaternion_nb.integrate(q, wx, wy, wz, h)
+
+
+# --------------------------------------------------------------------------- contacts
+# The contact solver (:func:`blastvox.simulate.kernels.solve_contacts`) changes the
+# velocities between the two halves; its position pass moves bodies, as the second half
+# does, by pseudo-velocities it then forgets. What both need of a contact row is here.
+
+#: Sweeps of the position pass (split impulses), run only when something interpenetrates.
+POSITION_SWEEPS = 4
+#: Fraction of a penetration (beyond the slop) the position pass removes in a step.
+POSITION_RATE = 0.2
+
+# Work arrays of a solve. bw (n, 23), by moving body: velocity (m/s), angular velocity
+# (rad/s), then both as they were before the solve, 1 / mass (1/kg), world inverse
+# inertia R I^-1 R^T (1/(kg m^2), row by row), how many times its velocities changed.
+# rw (count, RW_WIDTH), by row: lever arms r_a, r_b of its centre (m, from each centre
+# of mass; 0 for a body that does not move); effective masses of friction along t1, t2
+# (kg) and of twist about n (kg m^2), and their inverses; the accumulated impulses
+# (the corners' normals (N s, four), friction along t1, t2 (N s), twist (N m s)); the
+# corners' normal targets (m/s); r_a x n and r_b x n of each corner (m); the corners'
+# coupling matrix K (1/kg, its upper triangle by rows); the change counts of a's and
+# b's velocities when the row was last solved (a sweep skips a row whose bodies have
+# not changed since: it would change nothing).
+RW_EFF, RW_K, RW_ACC, RW_TARGET, RW_CA, RW_CB, RW_KN, RW_SEEN, RW_WIDTH = (
+    6, 9, 12, 19, 23, 35, 47, 57, 59)
+
+
+@helper
+def relative_velocity(r, ea, eb, bw, rw):
+    """Velocity (m/s) of body b relative to body a at row r's centre (ea, eb: their solve
+    indices, -1 for one that does not move)."""
+    vx, vy, vz = 0.0, 0.0, 0.0
+    for side in range(2):
+        e = ea if side == 0 else eb
+        if e < 0:
+            continue
+        o = 3 * side
+        rx, ry, rz = rw[r, o], rw[r, o + 1], rw[r, o + 2]
+        ux = bw[e, 0] + bw[e, 4] * rz - bw[e, 5] * ry
+        uy = bw[e, 1] + bw[e, 5] * rx - bw[e, 3] * rz
+        uz = bw[e, 2] + bw[e, 3] * ry - bw[e, 4] * rx
+        if side == 0:
+            vx, vy, vz = vx - ux, vy - uy, vz - uz
+        else:
+            vx, vy, vz = vx + ux, vy + uy, vz + uz
+    return vx, vy, vz
+
+
+@helper
+def corner_speed(r, i, ends, frame, bw, rw) -> float:
+    """Normal velocity (m/s) of body b relative to body a at row r's corner i."""
+    s = 0.0
+    for side in range(2):
+        e = ends[r, side]
+        if e < 0:
+            continue
+        o = (RW_CA if side == 0 else RW_CB) + 3 * i
+        u = (frame[r, 0, 0] * bw[e, 0] + frame[r, 0, 1] * bw[e, 1] + frame[r, 0, 2] * bw[e, 2]
+             + rw[r, o] * bw[e, 3] + rw[r, o + 1] * bw[e, 4] + rw[r, o + 2] * bw[e, 5])
+        s += u if side == 1 else -u
+    return s
+
+
+@helper
+def push_corner(e, impulse, r, i, side, frame, bw, rw) -> None:
+    """Normal impulse (N s, along row r's n) at its corner i on the body of solve index e
+    (side 0: a, 1: b): its velocities in bw."""
+    o = (RW_CA if side == 0 else RW_CB) + 3 * i
+    turn_by(e, impulse * rw[r, o], impulse * rw[r, o + 1], impulse * rw[r, o + 2], bw)
+    for a in range(3):
+        bw[e, a] += impulse * bw[e, 12] * frame[r, 0, a]
+
+
+@helper
+def apply_at(e, sign, px, py, pz, r, side, bw, rw) -> None:
+    """Impulse sign (px, py, pz) (N s) at row r's centre on the body of solve index e
+    (its lever arm rw[r, 3 side:]): its velocities in bw."""
+    if e < 0:
+        return
+    px, py, pz = sign * px, sign * py, sign * pz
+    o = 3 * side
+    rx, ry, rz = rw[r, o], rw[r, o + 1], rw[r, o + 2]
+    turn_by(e, ry * pz - rz * py, rz * px - rx * pz, rx * py - ry * px, bw)
+    inv_mass = bw[e, 12]
+    bw[e, 0] += px * inv_mass
+    bw[e, 1] += py * inv_mass
+    bw[e, 2] += pz * inv_mass
+
+
+@helper
+def turn_by(e, mx, my, mz, bw) -> None:
+    """Angular impulse (mx, my, mz) (N m s) on the body of solve index e: its angular
+    velocity in bw."""
+    wx = bw[e, 13] * mx + bw[e, 14] * my + bw[e, 15] * mz
+    wy = bw[e, 16] * mx + bw[e, 17] * my + bw[e, 18] * mz
+    wz = bw[e, 19] * mx + bw[e, 20] * my + bw[e, 21] * mz
+    bw[e, 3] += wx
+    bw[e, 4] += wy
+    bw[e, 5] += wz
+    bw[e, 22] += 1.0
+
+
+@helper
+def separate(bodies, rows, count, ends, ids, bw, rw, params) -> None:
+    """The contact solver's position pass (split impulses): pseudo-velocities from
+    normal impulses at the rows' corners that close a part (POSITION_RATE, at most
+    params.push m) of each corner's penetration deeper than params.slop by the step's
+    end, every corner keeping its pseudo-impulse >= 0; they move and turn the bodies
+    (pos, quat, rot) and are then forgotten, so no momentum is added. A row with
+    nothing to push whose bodies no push has reached yet is skipped (it would do
+    nothing). rows: :class:`~blastvox.simulate.ground.ContactRows`; ends, ids, bw, rw:
+    the solve's (see :func:`~blastvox.simulate.kernels.solve_contacts`); params:
+    :class:`~blastvox.simulate.ground.SolverParams`."""
+    dt, frame = params.dt, rows.frame
+    pseudo = np.zeros((ids.shape[0], 23))
+    pseudo[:, 12:22] = bw[:, 12:22]
+    target = np.zeros((count, 4))
+    acc = np.zeros((count, 4))
+    for r in range(count):
+        for i in range(rows.used[r]):
+            depth = -(rows.corner_gap[r, i] + corner_speed(r, i, ends, frame, bw, rw) * dt) \
+                - params.slop
+            if depth > 0.0:
+                target[r, i] = min(POSITION_RATE * depth, params.push) / dt
+    for _ in range(POSITION_SWEEPS):
+        for r in range(count):
+            ea, eb = ends[r, 0], ends[r, 1]
+            if (ea < 0 or pseudo[ea, 22] == 0.0) and (eb < 0 or pseudo[eb, 22] == 0.0):
+                idle = True
+                for i in range(rows.used[r]):
+                    idle &= target[r, i] == 0.0 and acc[r, i] == 0.0
+                if idle:
+                    continue
+            for i in range(rows.used[r]):
+                k = rw[r, RW_KN + i * (7 - i) // 2 + i]
+                if k <= 0.0:
+                    continue
+                vn = corner_speed(r, i, ends, frame, pseudo, rw)
+                new = max(acc[r, i] + (target[r, i] - vn) / k, 0.0)
+                d = new - acc[r, i]
+                if d != 0.0:
+                    acc[r, i] = new
+                    if ea >= 0:
+                        push_corner(ea, -d, r, i, 0, frame, pseudo, rw)
+                    if eb >= 0:
+                        push_corner(eb, d, r, i, 1, frame, pseudo, rw)
+    for e in range(ids.shape[0]):
+        if pseudo[e, 22] == 0.0:
+            continue
+        b = ids[e]
+        for a in range(3):
+            bodies.pos[b, a] += pseudo[e, a] * dt
+        if pseudo[e, 3] != 0.0 or pseudo[e, 4] != 0.0 or pseudo[e, 5] != 0.0:
+            quaternion_nb.integrate(bodies.quat[b], pseudo[e, 3], pseudo[e, 4], pseudo[e, 5],
+                                    dt)
+            quaternion_nb.matrix_into(bodies.quat[b], bodies.rot[b])

@@ -21,7 +21,15 @@ step being short enough for what moves in it:
   (|L| tr(I^-1) / 3 dt, which is |omega| dt for a body of isotropic inertia);
   beyond that it falls back to one explicit update whose energy is only bounded.
 
-A run measures both at every output frame on the moving bodies (live, free,
+* **Penetration**: contacts hold bodies apart (speculative contacts, and a position
+  pass that pushes interpenetrating ones apart; :mod:`blastvox.simulate.kernels`),
+  but an impact faster than a contact looks ahead, or a load the solver cannot
+  carry within its sweeps, leaves bodies inside each other or the ground. The
+  contact solver records the deepest penetration of any step (m); deeper than
+  :data:`PENETRATION_LIMIT_VOXELS` voxels, the run warns (unless the motion limit,
+  whose advice is the same, has warned already).
+
+A run measures them at every output frame on the moving bodies (live, free,
 not dust, not asleep) and warns once per limit, at the end, with the worst
 value, the limit and the step that would honour it, as a
 :class:`~blastvox.errors.SimulationLimitWarning` (the CLI prints it as one
@@ -47,6 +55,8 @@ from blastvox.simulate.state import State
 MOTION_LIMIT_VOXELS = 0.5
 #: Spin (rad) per step up to which the rotation conserves energy.
 SPIN_LIMIT_RAD = MAX_SPIN_PER_STEP
+#: Voxels bodies may sink into each other or the ground before a run warns.
+PENETRATION_LIMIT_VOXELS = 0.5
 
 
 def voxel_size(contact_radius: np.ndarray) -> float:
@@ -106,6 +116,14 @@ def spin_message(dt: float, measured: float) -> str:
             f"(scene: [simulation] dt)")
 
 
+def penetration_message(dt: float, measured: float) -> str:
+    """The warning for bodies that sank ``measured`` voxels into each other or the ground."""
+    return (f"dt {dt:.3g} s lets fragments sink {measured:.2f} voxels into each other or the "
+            f"ground (limit {PENETRATION_LIMIT_VOXELS:g}), so contacts did not hold them "
+            f"apart; use --dt {suggested_dt(dt, measured, PENETRATION_LIMIT_VOXELS):.2g} or "
+            f"smaller (scene: [simulation] dt)")
+
+
 class LimitMonitor:
     """Measures a run against the limits at each output frame; warns once per limit at the end."""
 
@@ -115,10 +133,15 @@ class LimitMonitor:
         self.collisions = settings.collisions
         self.motion = 0.0  # worst voxels per step seen
         self.spin = 0.0  # worst rad per step seen
+        self.depth = 0.0  # deepest penetration seen, voxels
         self._rot = np.zeros((0, 3, 3))
 
     def check(self, state: State) -> None:
-        """Record the worst motion and spin per step of the moving bodies now."""
+        """Record the worst motion and spin per step of the moving bodies now, and the
+        deepest penetration the contacts have seen."""
+        memory = state.contacts.memory
+        if memory is not None and self.size > 0.0:
+            self.depth = max(self.depth, float(memory.deepest[0]) / self.size)
         n = state.n_bodies
         live = state.bodies.live[:n] & ~state.bodies.dust[:n]
         moving = np.flatnonzero(live & ~state.bodies.fixed[:n] & ~state.bodies.asleep[:n])
@@ -149,6 +172,8 @@ class LimitMonitor:
             out.append(motion_message(self.dt, self.motion))
         if self.spin > SPIN_LIMIT_RAD:
             out.append(spin_message(self.dt, self.spin))
+        if self.depth > PENETRATION_LIMIT_VOXELS and self.motion <= MOTION_LIMIT_VOXELS:
+            out.append(penetration_message(self.dt, self.depth))
         return out
 
     def finish(self) -> None:

@@ -116,7 +116,9 @@ class Contacts(NamedTuple):
     rest, last step and this one; hits (H, 4): this step's contact points (m)
     and approach speeds (m/s), for dust; points (K, 3): ground contact points
     of one body (grows with the largest body); vertex_stamp (V,): body that
-    last listed a corner (-1 none)."""
+    last listed a corner (-1 none); memory: the contact solver's rows and what they
+    carry from step to step (:class:`~blastvox.simulate.ground.ContactMemory`),
+    made by the first contact phase."""
 
     resting: np.ndarray
     supported: np.ndarray
@@ -124,6 +126,7 @@ class Contacts(NamedTuple):
     hits: np.ndarray
     points: np.ndarray
     vertex_stamp: np.ndarray
+    memory: tuple | None = None
 
 
 class Front(NamedTuple):
@@ -148,9 +151,9 @@ class Exposure(NamedTuple):
     :class:`~blastvox.simulate.shielding.Occupancy`; clearing (B, C, 2), each
     body's silhouette half-extents S, G from each charge, m; gas (C, 2), each
     charge's room gas pressure (Pa) and vent time (s), zeros if it is not confined
-    (:mod:`blastvox.simulate.confinement`); sight (N, C, 7) int8, each voxel face's
+    (:mod:`blastvox.simulate.confinement`); sight (N, C, CONFORM_FACES) int8, each voxel face's
     line of sight to each charge in the current wave: 0 not yet known, 1 clear,
-    2 shadowed (faces 0-5 and a conform surface 6)."""
+    2 shadowed (faces 0-5, and a conform voxel's surface by facing, 6-11)."""
 
     grid: Occupancy
     clearing: np.ndarray
