@@ -112,6 +112,24 @@ def test_plate_behind_a_plate_is_shielded(tmp_path):
     assert abs(back) <= front / 3.0, (front, back)
 
 
+def test_a_thin_cut_wall_does_not_shadow_its_own_face(tmp_path):
+    """A 0.3 m plate voxelized at 0.5 m is all cut (conform) voxels. The shielding grid
+    takes the lattice's edge, not the cut voxels' (0.42 m, out of step with the
+    lattice, so that the plate's cells covered the air before its face): face-on to a
+    charge at Z 2 it takes the reflected impulse, as a plate of whole voxels does."""
+    w, z = 100.0, 2.0
+    distance = z * w ** (1 / 3)
+    path = tmp_path / "plate.stl"
+    trimesh.creation.box(extents=(0.3, 4.0, 4.0)).apply_translation((0.1, 0.0, 0.0)).export(path)
+    model = voxelize([ObjectRequest(mesh=path, voxel_size=(0.5,) * 3, material="solid",
+                                    shape="conform")],
+                     VoxelizeSettings(up_axis="Z", library=LIBRARY))
+    assert model.voxel_count and (model.arrays["voxel_volume"] < 0.5 ** 3 * 0.9).all()
+    cache = simulate(model, _free(charges=(ChargeSpec((-distance, 0.0, 0.0), w, burst="air"),)))
+    i_r, _ = _reflected_impulse(z, w, AIR)
+    assert 0.5 <= _momentum(cache, model)[0] / (16.0 * i_r) <= 1.15
+
+
 def test_slab_momentum_does_not_grow_with_its_layers(tmp_path):
     """Loading does not depend on how many voxel layers a slab has: a 0.4 m slab of
     1, 2 and 4 layers whose layers are free to part (no links between objects)."""

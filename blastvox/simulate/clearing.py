@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from blastvox.jit import kernel
+from blastvox.simulate.model import CONFORM_FACES
 from blastvox.simulate.state import Exposure
 
 
@@ -134,6 +135,7 @@ def exposure_of(model, state, charge_pos: np.ndarray, active: np.ndarray,
     caches = state.caches
     n_charges = len(charge_pos)
     if caches.sight is None or caches.sight.shape[1] != n_charges:
-        caches.sight = np.zeros((state.shielding.member.shape[0], n_charges, 7), dtype=np.int8)
+        caches.sight = np.zeros((state.shielding.member.shape[0], n_charges, CONFORM_FACES),
+                                dtype=np.int8)
     return Exposure(state.shielding, clearing_of(model, state, charge_pos, active),
                     np.zeros((n_charges, 2)) if gas is None else gas, caches.sight)

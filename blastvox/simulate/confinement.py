@@ -29,6 +29,7 @@ from blastvox.geometry.voxel_faces import FACE_CORNERS
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.forces import face_area_into
+from blastvox.simulate.model import CONFORM_FACES
 
 
 @kernel
@@ -234,7 +235,7 @@ def gas_impulses(grid, label, integral, boundary, geometry, voxels, bodies, load
         exposed = (~voxels.link_mask[v]) & 0x3F
         slot = conform_slot[v]
         rot, pos, com = bodies.rot[b], bodies.pos[b], bodies.com[b]
-        for f in range(7):
+        for f in range(CONFORM_FACES):
             if f < 6 and not (exposed >> f) & 1:
                 continue
             if slot >= 0:

@@ -76,6 +76,7 @@ from blastvox.simulate.shielding import (
     build_occupancy,
     inside_solid,
     refresh_occupancy,
+    solid_boxes,
     typical_edge,
 )
 from blastvox.simulate.state import (
@@ -157,8 +158,12 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
                           hits=np.zeros((4096, 4)), points=np.zeros((64, 3)),
                           vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int64)),
         scratch=Scratch.for_model(sm),
-        shielding=build_occupancy(sm.voxels.vertices, sm.voxels.corners, sm.voxels.centroid,
-                                  typical_edge(a["voxel_volume"], sm.voxels.conform_slot >= 0)))
+        shielding=build_occupancy(*solid_boxes(sm.voxels.vertices, sm.voxels.corners,
+                                               a["conform_voxels"], a["conform_offsets"],
+                                               a["conform_triangles"]),
+                                  sm.voxels.centroid,
+                                  typical_edge(a["voxel_volume"], sm.voxels.conform_slot >= 0,
+                                               sm.voxels.vertices, sm.voxels.corners)))
     return state
 
 
@@ -275,11 +280,21 @@ def step(run: Run, n: int, frame_next: int) -> None:
             split(run, n, t1, frame_next)
     if run.ground is not None:
         ground_phase(model, state, s, dt, run.ground)
-    if before is not None and impact_phase(model, state, run.stress, before):
+    if before is not None and impact_phase(model, state, run.stress, before,
+                                           _sustained_speed(run, dt)):
         split(run, n, t1, frame_next)
     if s.collisions or run.ground is not None:
         settle(state.bodies, s.sleep_speed, run.still_steps)
     integrate_positions(dt, state.bodies)
+
+
+def _sustained_speed(run: Run, dt: float) -> float:
+    """Velocity change (m/s) below which contacts only held a body up: the step's
+    gravity with its Coulomb friction, sqrt(1 + mu^2) |g| dt, plus the contacts' own
+    line between resting and striking (sleep_speed + 2 |g| dt, the rest_speed of
+    :mod:`blastvox.simulate.collide` and :mod:`blastvox.simulate.ground`)."""
+    g, s = float(np.linalg.norm(run.gravity)), run.settings
+    return g * dt * float(np.hypot(1.0, s.friction)) + s.sleep_speed + 2.0 * g * dt
 
 
 def _front(charges: Charges, t0: float, t1: float) -> Front:

@@ -30,6 +30,7 @@ from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
+from blastvox.simulate.model import CONFORM_FACES
 from blastvox.simulate.shielding import ray_blocked
 from blastvox.simulate.state import Front
 
@@ -89,7 +90,7 @@ def _sight(grid, point, area, charge_pos, c) -> bool:
 
 @helper
 def _cached_sight(sight, v, c, f, grid, point, area, charge_pos) -> bool:
-    """:func:`_sight` of face f of voxel v, cast once per wave (sight (N, C, 7))."""
+    """:func:`_sight` of face f of voxel v, cast once per wave (sight (N, C, CONFORM_FACES))."""
     known = sight[v, c, f]
     if known == 0:
         known = 1 if _sight(grid, point, area, charge_pos, c) else 2
@@ -201,7 +202,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                 continue
             s_clear, g_clear = clearing[b, c, 0], clearing[b, c, 1]
             if slot >= 0:
-                for f in range(7):
+                for f in range(CONFORM_FACES):
                     if f < 6 and not (exposed >> f) & 1:
                         continue
                     rotate_into(rot, conform_area[slot, f], area)

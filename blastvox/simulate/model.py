@@ -19,7 +19,11 @@ from blastvox.jit import kernel
 from blastvox.model import VoxelModel
 from blastvox.simulate.shell import dense_grid
 
-CONFORM_FACES = SURFACE_TAG + 1  # cell faces 0..5 plus the original surface
+#: A conform voxel's loaded faces: its cell faces 0..5, then its part of the original
+#: surface split by the direction its triangles face most (-x, +x, -y, +y, -z, +z):
+#: 6..11. One surface face would sum to nothing where a thin wall passes through a
+#: voxel, its two sides facing opposite ways.
+CONFORM_FACES = SURFACE_TAG + 6
 
 
 class VoxelGeometry(NamedTuple):
@@ -231,7 +235,8 @@ def corner_radius(vertices, voxel_vertices, voxel_centroid):
 
 
 def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray):
-    """Per conform voxel and face (0..5 cell faces, 6 surface): vector area and centroid."""
+    """Per conform voxel and face (:data:`CONFORM_FACES`: 0..5 cell faces, 6..11 the
+    surface by facing): vector area (C, 12, 3) m^2 and area centroid (C, 12, 3) m."""
     c = len(offsets) - 1
     area = np.zeros((c, CONFORM_FACES, 3))
     moment = np.zeros((c, CONFORM_FACES, 3))
@@ -241,8 +246,12 @@ def _conform_faces(triangles: np.ndarray, tags: np.ndarray, offsets: np.ndarray)
     owner = np.repeat(np.arange(c), np.diff(offsets))
     vec = 0.5 * np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     mag = np.linalg.norm(vec, axis=1)
-    np.add.at(area, (owner, tags.astype(np.int64)), vec)
-    np.add.at(moment, (owner, tags.astype(np.int64)), mag[:, None] * triangles.mean(axis=1))
-    np.add.at(weight, (owner, tags.astype(np.int64)), mag)
+    face = tags.astype(np.int64)
+    axis = np.abs(vec).argmax(axis=1)
+    facing = 2 * axis + (vec[np.arange(len(vec)), axis] > 0.0)
+    face = np.where(face == SURFACE_TAG, SURFACE_TAG + facing, face)
+    np.add.at(area, (owner, face), vec)
+    np.add.at(moment, (owner, face), mag[:, None] * triangles.mean(axis=1))
+    np.add.at(weight, (owner, face), mag)
     centroid = moment / np.where(weight > 0, weight, 1.0)[..., None]
     return area, centroid

@@ -42,42 +42,82 @@ _HUGE = 1.0e300
 class Occupancy(NamedTuple):
     """The shielding grid. origin (3,) m: corner of cell (0, 0, 0); cell (1,) m: edge;
     dims (3,) int64 cells per axis; count (X*Y*Z,) int16: voxels covering each cell;
-    member (N,) bool: the voxel still counts in the grid."""
+    member (N,) bool: the voxel still counts in the grid; lo, hi (N, 3) m: each
+    voxel's solid box at rest (:func:`solid_boxes`)."""
 
     origin: np.ndarray
     cell: np.ndarray
     dims: np.ndarray
     count: np.ndarray
     member: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
 
 
-def build_occupancy(vertices: np.ndarray, corners: np.ndarray, centroid: np.ndarray,
+def solid_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.ndarray,
+                conform_offsets: np.ndarray, conform_triangles: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Each voxel's solid bounding box at rest, (lo, hi) (N, 3) m: its corners' box
+    (vertices (V, 3) m, corners (N, 8)), or for a conform voxel (conform_voxels (C,),
+    conform_offsets (C+1,), conform_triangles (T, 3, 3) m: the model's) the box of
+    its exact geometry. A cut voxel's lattice cell spans air: a 0.3 m plate cut from
+    0.5 m cells would cover the air before its own face and shadow it."""
+    box = vertices[corners]
+    lo, hi = box.min(axis=1), box.max(axis=1)
+    if len(conform_voxels):
+        tri_lo, tri_hi = conform_triangles.min(axis=1), conform_triangles.max(axis=1)
+        starts = np.asarray(conform_offsets[:-1], dtype=np.int64)
+        has = np.asarray(conform_offsets[1:], dtype=np.int64) > starts
+        voxels = np.asarray(conform_voxels, dtype=np.int64)[has]
+        lo[voxels] = np.minimum.reduceat(tri_lo, starts[has], axis=0)
+        hi[voxels] = np.maximum.reduceat(tri_hi, starts[has], axis=0)
+    return lo, hi
+
+
+def build_occupancy(lo: np.ndarray, hi: np.ndarray, centroid: np.ndarray,
                     cell: float) -> Occupancy:
-    """The grid of every voxel at rest. vertices (V, 3) m, corners (N, 8) rows of
-    vertices, centroid (N, 3) m; cell: the wanted edge, m (coarsened to MAX_CELLS)."""
-    n = len(corners)
+    """The grid of every voxel at rest. lo, hi (N, 3) m: the voxels' solid boxes
+    (:func:`solid_boxes`), centroid (N, 3) m; cell: the wanted edge, m (coarsened to
+    MAX_CELLS)."""
+    n = len(lo)
     if n == 0:
         return Occupancy(np.zeros(3), np.ones(1), np.ones(3, dtype=np.int64),
-                         np.zeros(1, dtype=np.int16), np.zeros(0, dtype=bool))
-    box = vertices[corners]
-    lo, hi = box.min(axis=(0, 1)), box.max(axis=(0, 1))
-    extent = np.maximum(hi - lo, 0.0)
+                         np.zeros(1, dtype=np.int16), np.zeros(0, dtype=bool),
+                         np.zeros((0, 3)), np.zeros((0, 3)))
+    low, high = lo.min(axis=0), hi.max(axis=0)
+    extent = np.maximum(high - low, 0.0)
     cell = float(cell) if cell > 0.0 and math.isfinite(cell) else float(extent.max() or 1.0)
     while np.prod(np.floor(extent / cell) + 1.0) > MAX_CELLS:
         cell *= 1.25
     dims = (np.floor(extent / cell) + 1).astype(np.int64)
-    grid = Occupancy(lo.astype(np.float64), np.array([cell]), dims,
-                     np.zeros(int(np.prod(dims)), dtype=np.int16), np.ones(n, dtype=bool))
-    _fill(grid, box.min(axis=1), box.max(axis=1), centroid)
+    grid = Occupancy(low.astype(np.float64), np.array([cell]), dims,
+                     np.zeros(int(np.prod(dims)), dtype=np.int16), np.ones(n, dtype=bool),
+                     np.ascontiguousarray(lo, dtype=np.float64),
+                     np.ascontiguousarray(hi, dtype=np.float64))
+    _fill(grid, grid.lo, grid.hi, centroid)
     return grid
 
 
-def typical_edge(volume: np.ndarray, conform: np.ndarray) -> float:
-    """A voxel edge (m) for the grid: the smallest median edge of the whole voxels
-    (not cut by a surface) of any object; volume (N,) m^3, conform (N,) bool."""
-    whole = volume[~conform] if (~conform).any() else volume
+def typical_edge(volume: np.ndarray, conform: np.ndarray, vertices: np.ndarray,
+                 corners: np.ndarray) -> float:
+    """A voxel edge (m) for the grid: the lattice's. The median edge of the whole
+    voxels (not cut by a surface), cube roots of their volumes (N,) m^3; where every
+    voxel is cut (conform (N,) bool; a thin wall's voxels all are), the median
+    smallest edge of their corners' boxes (vertices (V, 3) m, corners (N, 8)): the
+    lattice cells they were cut from. A cut voxel's own volume would give a cell
+    smaller than the lattice's, out of step with it, so that the cells of a wall
+    overlap the air beside it and the wall shadows its own inner face."""
+    whole = volume[~conform]
     whole = whole[whole > 0.0]
-    return float(np.median(np.cbrt(whole))) if whole.size else 1.0
+    if whole.size:
+        return float(np.median(np.cbrt(whole)))
+    if len(corners):
+        box = vertices[corners]
+        edge = (box.max(axis=1) - box.min(axis=1)).min(axis=1)
+        edge = edge[edge > 0.0]
+        if edge.size:
+            return float(np.median(edge))
+    return 1.0
 
 
 @helper
@@ -134,19 +174,7 @@ def remove_voxel(grid, geometry, v) -> None:
     """Take voxel v out of the grid (if it is in)."""
     if not grid.member[v]:
         return
-    vertices, corners, centroid = geometry.vertices, geometry.corners, geometry.centroid
-    lo = np.empty((1, 3))
-    hi = np.empty((1, 3))
-    one = np.empty((1, 3))
-    for a in range(3):
-        lo[0, a] = _HUGE
-        hi[0, a] = -_HUGE
-        for c in range(8):
-            x = vertices[corners[v, c], a]
-            lo[0, a] = min(lo[0, a], x)
-            hi[0, a] = max(hi[0, a], x)
-        one[0, a] = centroid[v, a]
-    _cover(grid, lo, hi, one, 0, -1)
+    _cover(grid, grid.lo, grid.hi, geometry.centroid, v, -1)
     grid.member[v] = False
 
 
