@@ -34,6 +34,7 @@ from blastvox.simulate.ground import (
     grow_rows,
     new_memory,
     pick_four,
+    rest_speed,
     settle_on_ground,
     solver_params,
 )
@@ -560,7 +561,7 @@ def collide_phase(model, state, settings, dt: float) -> int:
                             *voxel_boxes(v.vertices, v.corners, v.contact_radius))
     reach = model.max_contact_radius  # half the largest voxel: the motion limit
     params = CollideParams(dt=dt, wake_speed=s.sleep_speed,
-                           rest_speed=s.sleep_speed + 2.0 * abs(s.gravity) * dt,
+                           rest_speed=rest_speed(s, dt),
                            weakening=s.weakening,
                            cell=2.0 * float(memory.radius.max(initial=0.0)) + reach,
                            reach=reach, slop=SLOP * memory.size)

@@ -51,7 +51,7 @@ from blastvox.simulate.effects import Effects
 from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
 from blastvox.simulate.forces import blast_phase
 from blastvox.simulate.fracture import fracture_phase
-from blastvox.simulate.ground import ground_phase
+from blastvox.simulate.ground import ground_phase, rest_speed
 from blastvox.simulate.integrate import integrate_positions, integrate_velocities
 from blastvox.simulate.kernels import (
     any_moving,
@@ -294,7 +294,7 @@ def _sustained_speed(run: Run, dt: float) -> float:
     line between resting and striking (sleep_speed + 2 |g| dt, the rest_speed of
     :mod:`blastvox.simulate.collide` and :mod:`blastvox.simulate.ground`)."""
     g, s = float(np.linalg.norm(run.gravity)), run.settings
-    return g * dt * float(np.hypot(1.0, s.friction)) + s.sleep_speed + 2.0 * g * dt
+    return g * dt * float(np.hypot(1.0, s.friction)) + rest_speed(s, dt)
 
 
 def _front(charges: Charges, t0: float, t1: float) -> Front:

@@ -159,12 +159,18 @@ def grow_rows(state, need: int, keep: int) -> ContactMemory:
     return memory
 
 
+def rest_speed(settings, dt: float) -> float:
+    """Approach (m/s) below which a contact rests rather than strikes, for a run's
+    SimSettings and step dt (s): the sleep speed plus two steps of gravity."""
+    return settings.sleep_speed + 2.0 * abs(settings.gravity) * dt
+
+
 def solver_params(memory: ContactMemory, settings, dt: float) -> SolverParams:
     """The contact solver's parameters for a run's SimSettings and step dt (s): slop and
     push (:data:`SLOP`, :data:`PUSH`) of the typical voxel (memory.size, m)."""
     size = memory.size
     return SolverParams(dt=dt, friction=settings.friction,
-                        rest_speed=settings.sleep_speed + 2.0 * abs(settings.gravity) * dt,
+                        rest_speed=rest_speed(settings, dt),
                         slop=SLOP * size, push=PUSH * size)
 
 

@@ -297,6 +297,19 @@ def _quadratic(bw, e, ux, uy, uz, vx, vy, vz) -> float:
 
 
 @helper
+def _body_locals(bw, e):
+    """A moving body's solve row (bw, see :func:`solve_contacts`) as 16 scalars: velocity
+    (m/s), angular velocity (rad/s), 1 / mass (1/kg), world inverse inertia (row by
+    row); all zero for e < 0 (a body that does not move)."""
+    if e < 0:
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                0.0)
+    return (bw[e, 0], bw[e, 1], bw[e, 2], bw[e, 3], bw[e, 4], bw[e, 5], bw[e, 12],
+            bw[e, 13], bw[e, 14], bw[e, 15], bw[e, 16], bw[e, 17], bw[e, 18], bw[e, 19],
+            bw[e, 20], bw[e, 21])
+
+
+@helper
 def _sweep_row(r, rows, ends, bw, rw, friction, b) -> float:
     """One Gauss-Seidel update of row r: friction at its centre (both tangents at once,
     kept within the circle of radius mu times the normal impulse) and twisting friction
@@ -307,22 +320,10 @@ def _sweep_row(r, rows, ends, bw, rw, friction, b) -> float:
     full, with both bodies' velocities in locals: the solver's hot loop."""
     frame = rows.frame
     ea, eb = ends[r, 0], ends[r, 1]
-    avx = avy = avz = awx = awy = awz = ima = 0.0
-    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = 0.0
-    if ea >= 0:
-        avx, avy, avz, awx, awy, awz = (bw[ea, 0], bw[ea, 1], bw[ea, 2], bw[ea, 3], bw[ea, 4],
-                                        bw[ea, 5])
-        ima, a0, a1, a2, a3, a4, a5, a6, a7, a8 = (
-            bw[ea, 12], bw[ea, 13], bw[ea, 14], bw[ea, 15], bw[ea, 16], bw[ea, 17],
-            bw[ea, 18], bw[ea, 19], bw[ea, 20], bw[ea, 21])
-    bvx = bvy = bvz = bwx = bwy = bwz = imb = 0.0
-    b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = b8 = 0.0
-    if eb >= 0:
-        bvx, bvy, bvz, bwx, bwy, bwz = (bw[eb, 0], bw[eb, 1], bw[eb, 2], bw[eb, 3], bw[eb, 4],
-                                        bw[eb, 5])
-        imb, b0, b1, b2, b3, b4, b5, b6, b7, b8 = (
-            bw[eb, 12], bw[eb, 13], bw[eb, 14], bw[eb, 15], bw[eb, 16], bw[eb, 17],
-            bw[eb, 18], bw[eb, 19], bw[eb, 20], bw[eb, 21])
+    (avx, avy, avz, awx, awy, awz, ima,
+     a0, a1, a2, a3, a4, a5, a6, a7, a8) = _body_locals(bw, ea)
+    (bvx, bvy, bvz, bwx, bwy, bwz, imb,
+     b0, b1, b2, b3, b4, b5, b6, b7, b8) = _body_locals(bw, eb)
     nx, ny, nz = frame[r, 0, 0], frame[r, 0, 1], frame[r, 0, 2]
     used = rows.used[r]
     normal = 0.0
