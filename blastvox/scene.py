@@ -501,6 +501,9 @@ class Output(_Model):
         "Up axis of the exported files."))
     layout: Literal["xforms", "instancer"] = Field("xforms", description=(
         "USD layout: an Xform and a Mesh per piece, or one PointInstancer."))
+    shock: bool = Field(False, description=(
+        "Also export each charge's shock front as a growing sphere (a viewport aid: a "
+        "guide prim in USD, skipped by renderers; a translucent sphere in glTF)."))
 
 
 class Scene(_Model):

@@ -8,7 +8,7 @@ import struct
 import numpy as np
 import pytest
 import trimesh
-from pxr import Usd, UsdGeom
+from pxr import Gf, Usd, UsdGeom
 
 from blastvox.export.api import ExportOptions, export
 from blastvox.export.pieces import frame_change
@@ -35,7 +35,15 @@ def test_usd_camera_translation_carries_the_shake(cache, tmp_path):
     export(cache, path, ExportOptions(up_axis="Y"))
     stage = Usd.Stage.Open(str(path))
     cam = UsdGeom.Camera(stage.GetPrimAtPath("/Shot/Camera"))
-    assert cam and cam.GetFocalLengthAttr().Get() == pytest.approx(50.0)
+    # UsdGeomCamera's lens and filmback are in tenths of a scene unit: on this metre
+    # stage a 50 mm lens is 0.5 and a 36 x 24 mm filmback 0.36 x 0.24 (Blender read
+    # 50 as a 5000 mm lens); the field of view is the one of 50 mm on 36 mm film
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert cam and cam.GetFocalLengthAttr().Get() == pytest.approx(0.5)
+    assert cam.GetHorizontalApertureAttr().Get() == pytest.approx(0.36)
+    assert cam.GetVerticalApertureAttr().Get() == pytest.approx(0.24)
+    fov = cam.GetCamera(0).GetFieldOfView(Gf.Camera.FOVHorizontal)
+    assert fov == pytest.approx(np.degrees(2 * np.arctan(18.0 / 50.0)), rel=1e-5)
     change = frame_change("Z", "Y")
     for f in (0, cache.frame_count - 1, int(np.argmax(np.abs(cache.camera_offset).sum(1)))):
         m = UsdGeom.Xformable(cam).ComputeLocalToWorldTransform(f)

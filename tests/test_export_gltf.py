@@ -58,7 +58,7 @@ def shot(tmp_path_factory: pytest.TempPathFactory) -> tuple[SimCache, Path]:
 def glb(shot: tuple[SimCache, Path], tmp_path_factory: pytest.TempPathFactory
         ) -> tuple[Path, Doc, bytes]:
     path = tmp_path_factory.mktemp("glb") / "shot.glb"
-    write_gltf(shot[0], path, ExportOptions())
+    write_gltf(shot[0], path, ExportOptions(shock=True))
     doc, blob = read_glb(path.read_bytes())
     return path, doc, blob
 
@@ -67,7 +67,7 @@ def glb(shot: tuple[SimCache, Path], tmp_path_factory: pytest.TempPathFactory
 def gltf(shot: tuple[SimCache, Path], tmp_path_factory: pytest.TempPathFactory
          ) -> tuple[Path, Doc, bytes]:
     path = tmp_path_factory.mktemp("gltf") / "shot.gltf"
-    write_gltf(shot[0], path, ExportOptions())
+    write_gltf(shot[0], path, ExportOptions(shock=True))
     doc = json.loads(path.read_text())
     return path, doc, (path.parent / doc["buffers"][0]["uri"]).read_bytes()
 
@@ -303,6 +303,14 @@ def test_vanished_pieces_step_to_zero_scale(shot: tuple[SimCache, Path],
         assert acc["min"] == [float(key_t.min())] and acc["max"] == [float(key_t.max())]
 
 
+def test_no_shock_spheres_unless_asked(shot: tuple[SimCache, Path], tmp_path: Path) -> None:
+    """A renderer draws them, and they grow past the camera."""
+    write_gltf(shot[0], tmp_path / "shot.glb", ExportOptions())
+    doc, _ = read_glb((tmp_path / "shot.glb").read_bytes())
+    assert not any(n["name"].startswith("shock") for n in doc["nodes"])
+    assert len(doc["nodes"]) == shot[0].piece_count + 1
+
+
 def test_shock_spheres(shot: tuple[SimCache, Path], glb: tuple[Path, Doc, bytes]) -> None:
     cache, _ = shot
     _, doc, blob = glb
@@ -381,15 +389,12 @@ def test_cli_export_glb(tmp_path: Path, shot: tuple[SimCache, Path],
     out = tmp_path / "out.glb"
     from blastvox.cli.app import app
 
-    names = {c.name for c in app.registered_commands}
-    if "export" in names:
-        proc = subprocess.run([sys.executable, "-m", "blastvox", "export", str(sim), "-o",
-                               str(out), "-q"], capture_output=True, text=True, timeout=300,
-                              check=False)
-        assert proc.returncode == 0, proc.stderr
-    else:  # the `export` command is not registered yet: the same path through the API
-        export(SimCache.load(sim), out)
-    assert out.read_bytes() == glb[0].read_bytes()
+    assert "export" in {c.name for c in app.registered_commands}
+    proc = subprocess.run([sys.executable, "-m", "blastvox", "export", str(sim), "-o",
+                           str(out), "--shock", "-q"], capture_output=True, text=True,
+                          timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert out.read_bytes() == glb[0].read_bytes()  # the fixture's glb asked for shock too
 
 
 # --- Khronos glTF Validator -------------------------------------------------------------------
@@ -463,7 +468,7 @@ def test_edge_cases_valid(tmp_path: Path, small: SimCache,
     for name, cache in cases.items():
         for suffix in (".glb", ".gltf"):
             out = tmp_path / f"{name}{suffix}"
-            write_gltf(cache, out)
+            write_gltf(cache, out, ExportOptions(shock=True))
             if suffix == ".glb":
                 doc, blob = read_glb(out.read_bytes())
                 assert len(doc["nodes"]) == cache.piece_count + len(cache.charge_tnt_kg) + 1

@@ -125,8 +125,9 @@ def wall(tmp_path_factory) -> tuple[SimCache, Path]:
     return SimCache.load(path), path
 
 
-def _write(cache: SimCache, path: Path, up: str = "Y", layout: str = "xforms") -> Usd.Stage:
-    export(cache, path, ExportOptions(up_axis=up, layout=layout))
+def _write(cache: SimCache, path: Path, up: str = "Y", layout: str = "xforms",
+           shock: bool = False) -> Usd.Stage:
+    export(cache, path, ExportOptions(up_axis=up, layout=layout, shock=shock))
     stage = Usd.Stage.Open(str(path))
     assert stage is not None
     return stage
@@ -310,24 +311,29 @@ def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
     from blastvox.particles import positions_at
 
     stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
-    points = UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
+    points = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
     assert points
     c = frame_change("Z", up)
     g = c @ np.array([0.0, 0.0, -GRAVITY])
     q = len(synthetic.particle_birth)
     for f in range(F):
-        got = np.asarray(points.GetPointsAttr().Get(f))
+        got = np.asarray(points.GetPositionsAttr().Get(f))
         ids = np.asarray(points.GetIdsAttr().Get(f))
-        if f < VANISH_FRAME:
-            assert len(got) == 0
+        if f < VANISH_FRAME:  # no particle yet: one instance of scale 0, invisible (an
+            assert len(got) == 1  # empty point cloud crashed Blender's Cycles)
+            assert np.asarray(points.GetScalesAttr().Get(f)).tolist() == [[0.0] * 3]
+            assert points.ComputeVisibility(f) == "invisible"
             continue
+        assert points.ComputeVisibility(f) == "inherited"
         assert np.array_equal(ids, np.arange(q))
         alive, want = positions_at(synthetic.particle_birth, synthetic.particle_position @ c.T,
                                    synthetic.particle_velocity @ c.T, synthetic.particle_system,
                                    float(synthetic.frame_time[f]), g)
         assert np.array_equal(alive, np.arange(q))
         assert np.allclose(got, want, atol=1e-5)
-        assert len(points.GetWidthsAttr().Get(f)) == q
+        scales = np.asarray(points.GetScalesAttr().Get(f))
+        assert np.allclose(scales, synthetic.particle_size[:, None])  # sphere of diameter 1
+        assert np.asarray(points.GetProtoIndicesAttr().Get(f)).tolist() == [0] * q
 
 
 def test_dust_is_dropped_after_its_lifetime(synthetic, tmp_path):
@@ -338,9 +344,10 @@ def test_dust_is_dropped_after_its_lifetime(synthetic, tmp_path):
     arrays["particle_birth"] = np.full(len(arrays["particle_birth"]), 0.05 - life)
     cache = SimCache(arrays=arrays, model=synthetic.model, meta=synthetic.meta)
     stage = _write(cache, tmp_path / "shot.usda")
-    points = UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
-    assert len(points.GetPointsAttr().Get(0)) == len(cache.particle_birth)  # just alive
-    assert len(points.GetPointsAttr().Get(F - 1)) == 0                      # expired
+    points = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
+    assert len(points.GetPositionsAttr().Get(0)) == len(cache.particle_birth)  # just alive
+    assert np.asarray(points.GetScalesAttr().Get(F - 1)).tolist() == [[0.0] * 3]  # expired
+    assert points.ComputeVisibility(F - 1) == "invisible"
 
 
 def test_no_dust_no_points_prim(synthetic, tmp_path):
@@ -354,10 +361,34 @@ def test_no_dust_no_points_prim(synthetic, tmp_path):
     assert validate_usd(tmp_path / "shot.usda") == []
 
 
+def test_particles_have_their_materials(synthetic, tmp_path):
+    from pxr import UsdShade
+
+    stage = _write(synthetic, tmp_path / "shot.usda")
+    instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
+    (sprite,) = instancer.GetPrototypesRel().GetTargets()
+    ball = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath(sprite)).GetPointsAttr().Get())
+    assert np.allclose(np.linalg.norm(ball, axis=1), 0.5)  # diameter 1: scale = width
+    material, _ = UsdShade.MaterialBindingAPI(
+        stage.GetPrimAtPath(sprite)).ComputeBoundMaterial()
+    assert material.GetPath() == "/Shot/Materials/particle_dust"
+    shader = material.ComputeSurfaceSource()[0]
+    assert shader.GetIdAttr().Get() == "UsdPreviewSurface"
+    assert 0 < shader.GetInput("opacity").Get() < 1  # dust is translucent
+    assert validate_usd(tmp_path / "shot.usda") == []
+
+
+def test_no_shock_sphere_unless_asked(synthetic, tmp_path):
+    """It grows to hundreds of metres, past the camera: a render saw only its inside."""
+    stage = _write(synthetic, tmp_path / "shot.usda")
+    assert not stage.GetPrimAtPath("/Shot/Effects")
+
+
 def test_shock_sphere(synthetic, tmp_path):
-    stage = _write(synthetic, tmp_path / "shot.usdc", up="Y")
+    stage = _write(synthetic, tmp_path / "shot.usdc", up="Y", shock=True)
     sphere = UsdGeom.Sphere(stage.GetPrimAtPath("/Shot/Effects/shock_0"))
     assert sphere
+    assert sphere.ComputePurpose() == UsdGeom.Tokens.guide  # renders skip it
     centre = UsdGeom.XformCache(Usd.TimeCode(0)).GetLocalToWorldTransform(
         sphere.GetPrim()).ExtractTranslation()
     assert np.allclose(np.array(centre), frame_change("Z", "Y") @ synthetic.charge_position[0])
@@ -518,7 +549,7 @@ def test_real_simulation(wall, tmp_path):
         if end > 0:
             assert prim.ComputeVisibility(Usd.TimeCode(end - 1)) == "inherited"
     if len(cache.dust_voxel):
-        assert UsdGeom.Points(stage.GetPrimAtPath("/Shot/Particles/dust"))
+        assert UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
 
 
 def _cli(*args, cwd: Path) -> subprocess.CompletedProcess[str]:

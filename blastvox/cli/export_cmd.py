@@ -24,6 +24,9 @@ def export(
     up_axis: UpAxis = typer.Option(UpAxis.Y, "--up-axis", help="Up axis of the written file."),
     layout: Layout = typer.Option(Layout.xforms, "--layout", help="xforms: an Xform and Mesh "
                                   "per piece; instancer: a USD PointInstancer (many pieces)."),
+    shock: bool = typer.Option(False, "--shock/--no-shock", help="Also write each charge's "
+                               "shock front as a growing sphere (viewport aid; USD: a guide "
+                               "prim that renders skip)."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),
 ) -> None:
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
@@ -40,7 +43,8 @@ def export(
         check_distinct([("-o", output), ("its .bin", output.with_name(output.stem + ".bin"))])
     started = time.perf_counter()
     cache = SimCache.load(cache_path)
-    run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value))
+    run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value,
+                                       shock=shock))
     if not quiet:
         err_console().print(f"{output}: {cache.piece_count:,} pieces, {cache.frame_count} "
                             f"frames, {output.stat().st_size / 1e6:.2f} MB "

@@ -3,8 +3,8 @@
 Layout (written straight from numpy: one JSON document and one binary buffer):
 
 * the scene holds one root node ``blastvox`` whose children are the piece
-  nodes ``piece_00000``... (node index = piece index) and one node per charge,
-  ``shock_00``...;
+  nodes ``piece_00000``... (node index = piece index) and, with
+  ``ExportOptions.shock``, one node per charge, ``shock_00``...;
 * piece p's mesh has one primitive per (material, surface) and per (material,
   damage) present, indexed triangles with POSITION (min/max) and NORMAL (flat
   face normals; vertices shared only where position and normal agree);
@@ -63,13 +63,14 @@ _GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None = None) -> None:
     """Write ``cache`` as glTF 2.0: binary .glb, or .gltf JSON plus a sibling ``<stem>.bin``.
 
-    ``options`` (:class:`blastvox.export.options.ExportOptions`) is accepted for the
-    common writer signature; glTF is always Y-up, so its ``up_axis`` is ignored.
+    ``options`` (:class:`blastvox.export.options.ExportOptions`): its ``shock`` adds
+    the shock spheres; glTF is always Y-up, so its ``up_axis`` is ignored.
     """
     path = Path(path)
     bin_name = path.stem + ".bin"
+    shock = bool(options and options.shock)
     doc, blob = build_gltf(cache, buffer_uri=None if path.suffix.lower() == ".glb"
-                           else quote(bin_name))
+                           else quote(bin_name), shock=shock)
     if path.suffix.lower() == ".glb":
         with atomic_path(path) as tmp:
             tmp.write_bytes(glb_bytes(doc, blob))
@@ -149,10 +150,12 @@ def _f32(a: np.ndarray) -> bytes:
     return np.ascontiguousarray(a, dtype="<f4").tobytes()
 
 
-def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str, Any], bytes]:
+def build_gltf(cache: SimCache, buffer_uri: str | None = None,
+               shock: bool = False) -> tuple[dict[str, Any], bytes]:
     """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
 
     ``buffer_uri``: the buffer's uri (.gltf), or None for a GLB's embedded buffer.
+    ``shock``: also one translucent sphere node per charge, scaled to its shock radius.
     """
     b = _Builder()
     mats, mat_index = _materials(cache)
@@ -202,7 +205,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None) -> tuple[dict[str
                 channel(p, "scale", step_in, step_out, "STEP")
 
     # shock fronts: one shared unit UV sphere, one node per charge, scaled to the radius
-    n_charges = len(cache.charge_tnt_kg)
+    n_charges = len(cache.charge_tnt_kg) if shock else 0
     if n_charges:
         mats.append({"name": "shock_front", "pbrMetallicRoughness": {
             "baseColorFactor": list(SHOCK_COLOR), "metallicFactor": 0.0,

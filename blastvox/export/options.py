@@ -13,7 +13,11 @@ from dataclasses import dataclass
 class ExportOptions:
     """up_axis: "Y" (default, glTF's and Blender-USD's convention) or "Z".
     layout: "xforms" (one Xform + Mesh per piece) or "instancer" (USD
-    PointInstancer for shots with many thousands of pieces; USD only)."""
+    PointInstancer for shots with many thousands of pieces; USD only).
+    shock: also write each charge's shock front as a growing sphere, a viewport aid
+    (USD: a guide-purpose prim, which renderers and Blender's importer skip; glTF: a
+    translucent sphere, which a renderer does draw: it grows past the camera)."""
 
     up_axis: str = "Y"
     layout: str = "xforms"
+    shock: bool = False

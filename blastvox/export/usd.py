@@ -13,9 +13,18 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
         Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
                                                   (quath) and orientationsf (quatf, which
                                                   readers prefer), extent and invisibleIds
-      Particles/<system> (Points)                 dust, fire, smoke, fireball particles
-      Camera                                      the scene camera, shake baked in
-      Effects/shock_<c> (Sphere)                  shock front of charge c
+      Particles/<system> (PointInstancer)         dust, fire, smoke, fireball particles: a
+        Prototypes/sprite (Mesh)                  sphere of diameter 1 bound to
+                                                  Materials/particle_<system>, scaled to
+                                                  each particle's width
+      Camera                                      the scene camera, shake baked in; lens and
+                                                  filmback in tenths of a metre (UsdGeomCamera)
+      Effects/shock_<c> (Sphere)                  shock front of charge c, a guide prim
+                                                  (renders skip it); only with options.shock
+
+Every prim renders: a particle system never has an empty ``positions`` sample (an
+empty point cloud crashed Blender 5.0's Cycles at frame 0): a frame without particles
+holds a single instance of scale 0, and the instancer is invisible at those frames.
 
 Speed: every call into the USD Python bindings costs microseconds, and creating
 a spec costs more than setting a value, so the scene's structure (all prims,
@@ -52,7 +61,17 @@ ROOT = "/Shot"
 ROUGHNESS = 0.8
 SHOCK_COLOR = (0.9, 0.9, 0.95)
 PARTICLE_COLORS = {"dust": (0.55, 0.50, 0.45), "fire": (1.0, 0.45, 0.05),
-                   "smoke": (0.25, 0.25, 0.25), "fireball": (1.0, 0.75, 0.2)}
+                   "smoke": (0.25, 0.25, 0.25), "fireball": (1.0, 0.55, 0.1)}
+#: UsdPreviewSurface inputs of each particle system's material: dust and smoke are
+#: matte and translucent, fire and the fireball emit their colour.
+PARTICLE_LOOKS = {"dust": {"opacity": 0.35, "emissive": 0.0},
+                  "fire": {"opacity": 0.8, "emissive": 1.0},
+                  "smoke": {"opacity": 0.3, "emissive": 0.0},
+                  "fireball": {"opacity": 0.9, "emissive": 1.0}}
+#: UsdGeomCamera measures lens and filmback in tenths of a scene unit; the stage is in
+#: metres (metersPerUnit 1), so 1 mm is 1 / MM_PER_TENTH_METRE of that unit.
+MM_PER_TENTH_METRE = 100.0
+FILMBACK_MM = (36.0, 24.0)
 NANO_LIMIT = 9.0e9  # m: |translation| * 1e9 must fit an int64
 _T = Sdf.ValueTypeNames
 
@@ -64,8 +83,9 @@ def _prim(parent: Sdf.PrimSpec, name: str, type_name: str = "") -> Sdf.PrimSpec:
 
 
 def _attr(prim: Sdf.PrimSpec, name: str, type_name, value=None,
-          interpolation: str | None = None) -> Sdf.AttributeSpec:
-    spec = Sdf.AttributeSpec(prim, name, type_name)
+          interpolation: str | None = None, uniform: bool = False) -> Sdf.AttributeSpec:
+    spec = Sdf.AttributeSpec(prim, name, type_name,
+                             Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying)
     if value is not None:
         spec.default = value
     if interpolation is not None:
@@ -521,9 +541,14 @@ class _Writer:
 
     # -- particles
     def _dust(self, shot: Sdf.PrimSpec) -> None:
-        """One UsdGeomPoints per particle system (dust, fire, smoke, fireball) with
-        time-sampled points, velocities, widths and ids, from the cache's particle
-        births evaluated in closed form (blastvox.particles)."""
+        """One UsdGeomPointInstancer per particle system (dust, fire, smoke, fireball)
+        whose one prototype, a sphere of diameter 1 bound to the system's material, is
+        instanced at each live particle and scaled to its width. Time-sampled positions,
+        scales, velocities and ids come from the cache's particle births evaluated in
+        closed form (blastvox.particles). An instancer, not UsdGeomPoints: Blender 5.0
+        imports Points without their material (white balls), and an empty points array
+        crashed its Cycles. A frame without particles holds one instance of scale 0 and
+        makes the instancer invisible."""
         from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
 
         c = self.cache
@@ -536,40 +561,110 @@ class _Writer:
         v0 = c.particle_velocity.astype(np.float64) @ self.change.T
         birth = c.particle_birth.astype(np.float64)
         size = c.particle_size.astype(np.float32)
-        layer = self.layer
+        times = c.frame_time.astype(np.float64).tolist()
         for index, name in enumerate(SYSTEM_NAMES):
             mine = np.flatnonzero(system == index)
             if not mine.size:
                 continue
-            points = _prim(scope, name, "Points")
-            _attr(points, "primvars:displayColor", _T.Color3fArray,
-                  Vt.Vec3fArray([Gf.Vec3f(*PARTICLE_COLORS[name])]), interpolation="constant")
-            specs = {key: _attr(points, key, kind) for key, kind in
-                     (("points", _T.Point3fArray), ("velocities", _T.Vector3fArray),
-                      ("widths", _T.FloatArray), ("ids", _T.Int64Array),
-                      ("extent", _T.Float3Array))}
-            spec = SYSTEMS[name]
-            sys_index = np.full(len(mine), index, dtype=np.uint8)
-            previous_empty = False
-            for f, t in enumerate(c.frame_time.astype(np.float64).tolist()):
-                alive, x = positions_at(birth[mine], x0[mine], v0[mine], sys_index, t, g)
-                if not alive.size and previous_empty:
-                    continue  # an empty frame after an empty frame adds nothing
-                previous_empty = not alive.size
+            instancer = self._particle_instancer(scope, name)
+            frames = [(t, *positions_at(birth[mine], x0[mine], v0[mine],
+                                        np.full(len(mine), index, dtype=np.uint8), t, g))
+                      for t in times]
+            self._instance_samples(instancer, mine, frames, SYSTEMS[name], birth, v0, size, g)
+
+    def _particle_instancer(self, scope: Sdf.PrimSpec, name: str) -> Sdf.PrimSpec:
+        """Particles/<name> (PointInstancer) with Prototypes/sprite, a sphere of diameter 1
+        (an icosphere: 80 faces, smooth normals) bound to Materials/particle_<name>."""
+        import trimesh
+
+        instancer = _prim(scope, name, "PointInstancer")
+        prototypes = _prim(instancer, "Prototypes", "Scope")
+        sprite = _prim(prototypes, "sprite", "Mesh")
+        ball = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+        vertices = np.asarray(ball.vertices, dtype=np.float32)
+        _attr(sprite, "points", _T.Point3fArray, _vec3f(vertices))
+        _attr(sprite, "normals", _T.Normal3fArray, _vec3f(vertices * 2), interpolation="vertex")
+        _attr(sprite, "extent", _T.Float3Array, _extent(vertices))
+        _attr(sprite, "faceVertexCounts", _T.IntArray, Vt.IntArray(len(ball.faces), 3))
+        _attr(sprite, "faceVertexIndices", _T.IntArray, Vt.IntArray.FromNumpy(
+            np.ascontiguousarray(ball.faces.ravel(), dtype=np.int32)))
+        _attr(sprite, "subdivisionScheme", _T.Token, "none", uniform=True)
+        _attr(sprite, "primvars:displayColor", _T.Color3fArray,
+              Vt.Vec3fArray([Gf.Vec3f(*PARTICLE_COLORS[name])]), interpolation="constant")
+        self._bind(sprite, self._particle_material(name))
+        targets = Sdf.RelationshipSpec(instancer, "prototypes")
+        targets.targetPathList.explicitItems = [sprite.path]
+        return instancer
+
+    def _instance_samples(self, instancer: Sdf.PrimSpec, mine: np.ndarray, frames: list,
+                          spec, birth: np.ndarray, v0: np.ndarray, size: np.ndarray,
+                          g: np.ndarray) -> None:
+        """Time samples of one system's instancer: ``frames[f]`` is (time s, alive
+        indices into ``mine``, (n, 3) positions m) at frame f. Runs of empty frames keep
+        one sample; an empty frame holds one instance of scale 0 where the first
+        particle shows."""
+        layer = self.layer
+        specs = {key: _attr(instancer, key, kind) for key, kind in
+                 (("positions", _T.Point3fArray), ("scales", _T.Float3Array),
+                  ("velocities", _T.Vector3fArray), ("ids", _T.Int64Array),
+                  ("protoIndices", _T.IntArray), ("extent", _T.Float3Array))}
+        visibility = _attr(instancer, "visibility", _T.Token)
+        first = next((x[:1] for _, alive, x in frames if alive.size), np.zeros((1, 3)))
+        previous_empty = None
+        for f, (t, alive, x) in enumerate(frames):
+            empty = not alive.size
+            if empty and previous_empty:
+                continue  # an empty frame after an empty frame adds nothing
+            if empty != previous_empty:
+                layer.SetTimeSample(visibility.path, float(f),
+                                    "invisible" if empty else "inherited")
+            previous_empty = empty
+            if empty:
+                x, vel, w = first, np.zeros((1, 3)), np.zeros(1, dtype=np.float32)
+                ids = np.array([-1], dtype=np.int64)
+            else:
                 age = t - birth[mine][alive]
                 decay = np.exp(-spec.drag * age)[:, None]
                 vel = v0[mine][alive] * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
                 w = size[mine][alive]
-                box = (np.stack([(x - w[:, None] / 2).min(axis=0),
-                                 (x + w[:, None] / 2).max(axis=0)])
-                       if len(x) else np.zeros((2, 3)))
-                layer.SetTimeSample(specs["points"].path, float(f), _vec3f(x))
-                layer.SetTimeSample(specs["velocities"].path, float(f), _vec3f(vel))
-                layer.SetTimeSample(specs["widths"].path, float(f), Vt.FloatArray.FromNumpy(w))
-                layer.SetTimeSample(specs["ids"].path, float(f),
-                                    Vt.Int64Array.FromNumpy(np.ascontiguousarray(
-                                        mine[alive].astype(np.int64))))
-                layer.SetTimeSample(specs["extent"].path, float(f), _vec3f(box))
+                ids = mine[alive].astype(np.int64)
+            box = np.stack([(x - w[:, None] / 2).min(axis=0), (x + w[:, None] / 2).max(axis=0)])
+            sample = float(f)
+            layer.SetTimeSample(specs["positions"].path, sample, _vec3f(x))
+            layer.SetTimeSample(specs["scales"].path, sample, _vec3f(np.repeat(
+                w[:, None], 3, axis=1)))
+            layer.SetTimeSample(specs["velocities"].path, sample, _vec3f(vel))
+            layer.SetTimeSample(specs["ids"].path, sample,
+                                Vt.Int64Array.FromNumpy(np.ascontiguousarray(ids)))
+            layer.SetTimeSample(specs["protoIndices"].path, sample,
+                                Vt.IntArray(len(ids), 0))
+            layer.SetTimeSample(specs["extent"].path, sample, _vec3f(box))
+
+    def _particle_material(self, name: str) -> Sdf.Path:
+        """/Shot/Materials/particle_<name>: a UsdPreviewSurface that reads as the system
+        (PARTICLE_COLORS, PARTICLE_LOOKS)."""
+        color = Gf.Vec3f(*PARTICLE_COLORS[name])
+        look = PARTICLE_LOOKS[name]
+        materials = self.layer.GetPrimAtPath(f"{ROOT}/Materials")
+        material = _prim(materials, f"particle_{name}", "Material")
+        shader = _prim(material, "PreviewSurface", "Shader")
+        _attr(shader, "info:id", _T.Token, "UsdPreviewSurface", uniform=True)
+        emissive = look["emissive"]
+        _attr(shader, "inputs:diffuseColor", _T.Color3f,
+              Gf.Vec3f(0.0) if emissive else color)
+        _attr(shader, "inputs:emissiveColor", _T.Color3f, color * emissive)
+        _attr(shader, "inputs:opacity", _T.Float, look["opacity"])
+        _attr(shader, "inputs:roughness", _T.Float, 1.0)
+        out = _attr(shader, "outputs:surface", _T.Token)
+        surface = _attr(material, "outputs:surface", _T.Token)
+        surface.connectionPathList.explicitItems = [out.path]
+        return material.path
+
+    @staticmethod
+    def _bind(prim: Sdf.PrimSpec, material: Sdf.Path) -> None:
+        prim.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
+        binding = Sdf.RelationshipSpec(prim, "material:binding")
+        binding.targetPathList.explicitItems = [material]
 
     # -- camera
     def _camera(self, shot: Sdf.PrimSpec) -> None:
@@ -594,9 +689,11 @@ class _Writer:
         rotation = Gf.Matrix3d(*np.stack([right, true_up, back]).ravel().tolist())
         quat = rotation.ExtractRotation().GetQuat()
         cam = _prim(shot, "Camera", "Camera")
-        _attr(cam, "focalLength", _T.Float, float(camera.get("focal_length_mm", 35.0)))
-        _attr(cam, "horizontalAperture", _T.Float, 36.0)
-        _attr(cam, "verticalAperture", _T.Float, 24.0)
+        tenths = MM_PER_TENTH_METRE  # lens and filmback in tenths of a metre
+        _attr(cam, "focalLength", _T.Float,
+              float(camera.get("focal_length_mm", 35.0)) / tenths)
+        _attr(cam, "horizontalAperture", _T.Float, FILMBACK_MM[0] / tenths)
+        _attr(cam, "verticalAperture", _T.Float, FILMBACK_MM[1] / tenths)
         _attr(cam, "clippingRange", _T.Float2, Gf.Vec2f(0.1, 10000.0))
         translate = _attr(cam, "xformOp:translate", _T.Double3)
         _attr(cam, "xformOp:orient", _T.Quatd, Gf.Quatd(quat))
@@ -608,12 +705,14 @@ class _Writer:
 
     # -- shock fronts
     def _shock(self, shot: Sdf.PrimSpec) -> None:
-        """A sphere per charge: time-sampled radius and extent, displayOpacity from the
-        cache's ``shock_opacity`` (else 1 - r / r_max), invisible while the radius or the
-        opacity is 0 (before detonation, or switched off)."""
+        """With ``options.shock``, a guide sphere per charge: time-sampled radius and
+        extent, displayOpacity from the cache's ``shock_opacity`` (else 1 - r / r_max),
+        invisible while the radius or the opacity is 0 (before detonation, or switched
+        off). Guide purpose: viewports may show it, renders and Blender's importer skip
+        it (it grows past the camera and would hide the shot)."""
         c = self.cache
         radius_all = np.asarray(c.shock_radius, dtype=np.float64).reshape(self.frames, -1)
-        if radius_all.shape[1] == 0 or self.frames == 0:
+        if not self.options.shock or radius_all.shape[1] == 0 or self.frames == 0:
             return
         opacity_all = c.arrays.get("shock_opacity")
         scope = _prim(shot, "Effects", "Xform")
@@ -629,6 +728,7 @@ class _Writer:
                 opacity = 1.0 - radius / r_max if r_max > 0 else np.zeros_like(radius)
             opacity = np.clip(opacity, 0.0, 1.0)
             sphere = _prim(scope, f"shock_{k}", "Sphere")
+            _attr(sphere, "purpose", _T.Token, "guide", uniform=True)
             _attr(sphere, "xformOp:translate", _T.Double3, Gf.Vec3d(*map(float, centres[k])))
             _xform_order(sphere, ["xformOp:translate"])
             _attr(sphere, "primvars:displayColor", _T.Color3fArray,

@@ -1,0 +1,168 @@
+"""Import a blastvox export into Blender, render frames with Cycles and report them, as JSON.
+
+Run by the Blender venv's python (``.venv-blender``: ``make blender-venv``), not by
+the project's::
+
+    .venv-blender/bin/python tools/blender/render_check.py FILE OUT_DIR FRAME [FRAME ...]
+        [--size WxH] [--samples N]
+
+What an artist does with a cache, in a script: FILE (.usd/.usda/.usdc or
+.gltf/.glb) is imported into an empty scene with the importer's defaults (as
+``import_check.py`` does); the scene's camera is the file's when it has one
+(made the active camera, as the importers leave it inactive).
+A file without a camera gets one, as the artist would add it: a 35 mm lens
+looking at the centre of the imported meshes' box at frame 0 from the front
+right, above, far enough away to frame the box. A sun and a grey sky light
+the scene (the exports carry no lights). Each FRAME is rendered with Cycles on
+the CPU (few samples, a tiny image, film transparent so that the alpha
+channel says what is covered) to ``OUT_DIR/frame_NNNN.png``.
+
+Prints one JSON object, alone, on stdout (Blender's log goes to stderr)::
+
+    {"blender": "5.0.1", "camera": {"from_file": bool, "lens_mm": 35.0,
+                                   "sensor_width_mm": 36.0},
+     "frames": {"FRAME": {"png": path,
+                          "coverage": c,      # fraction of pixels with alpha > 0.5
+                          "luminance": l,     # mean Rec. 709 luminance of covered pixels
+                          "rgb": [r, g, b]}}} # mean colour of covered pixels
+
+A crash in Blender (as an empty point cloud crashed Cycles at frame 0) ends
+the process without the JSON: the caller sees a non-zero exit code.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+LENS_MM = 35.0
+SENSOR_MM = 36.0
+
+
+def _import(path: Path) -> None:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if path.suffix.lower() in USD_SUFFIXES:
+        result = bpy.ops.wm.usd_import(filepath=str(path), set_frame_range=True)
+    else:
+        result = bpy.ops.import_scene.gltf(filepath=str(path))
+    if "FINISHED" not in result:
+        raise SystemExit(f"{path}: Blender's importer returned {result}")
+
+
+def _mesh_box(scene: bpy.types.Scene) -> tuple[Vector, Vector]:
+    """World box of the evaluated vertices of every shown mesh at the current frame."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for obj in scene.objects:
+        if obj.type != "MESH" or obj.hide_render:
+            continue
+        evaluated = obj.evaluated_get(depsgraph)
+        mesh = evaluated.to_mesh()
+        if len(mesh.vertices):
+            co = np.empty(len(mesh.vertices) * 3)
+            mesh.vertices.foreach_get("co", co)
+            m = np.array(evaluated.matrix_world)
+            world = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+            lo, hi = np.minimum(lo, world.min(axis=0)), np.maximum(hi, world.max(axis=0))
+        evaluated.to_mesh_clear()
+    if not np.isfinite(lo).all():
+        lo = hi = np.zeros(3)
+    return Vector(lo.tolist()), Vector(hi.tolist())
+
+
+def _add_camera(scene: bpy.types.Scene) -> None:
+    """A 35 mm camera that frames the meshes' box at the current frame."""
+    lo, hi = _mesh_box(scene)
+    centre, radius = (lo + hi) / 2, max((hi - lo).length / 2, 0.5)
+    fov = 2 * math.atan(SENSOR_MM / 2 / LENS_MM)
+    distance = radius / math.sin(fov / 2) * 1.1
+    direction = Vector((0.55, -0.75, 0.38)).normalized()
+    data = bpy.data.cameras.new("render_check")
+    data.lens, data.sensor_width = LENS_MM, SENSOR_MM
+    data.clip_end = max(1000.0, 4 * distance)
+    camera = bpy.data.objects.new("render_check", data)
+    scene.collection.objects.link(camera)
+    camera.location = centre + direction * distance
+    camera.rotation_euler = (centre - camera.location).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = camera
+
+
+def _light(scene: bpy.types.Scene) -> None:
+    sun = bpy.data.objects.new("render_check_sun", bpy.data.lights.new("sun", "SUN"))
+    sun.data.energy = 3.0
+    sun.rotation_euler = (math.radians(50), 0.0, math.radians(30))
+    scene.collection.objects.link(sun)
+    world = bpy.data.worlds.new("render_check")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.4, 0.4, 0.45, 1)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.6
+    scene.world = world
+
+
+def _render(scene: bpy.types.Scene, frame: int, out: Path) -> dict:
+    scene.frame_set(frame)
+    scene.render.filepath = str(out)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(out))
+    pixels = np.array(image.pixels[:], dtype=np.float64).reshape(-1, 4)
+    bpy.data.images.remove(image)
+    covered = pixels[:, 3] > 0.5
+    rgb = pixels[covered, :3].mean(axis=0) if covered.any() else np.zeros(3)
+    return {"png": str(out), "coverage": float(covered.mean()),
+            "luminance": float(rgb @ LUMA), "rgb": rgb.tolist()}
+
+
+def main(argv: list[str]) -> None:
+    args, size, samples = [], (96, 54), 4
+    it = iter(argv)
+    for arg in it:
+        if arg == "--size":
+            size = tuple(int(v) for v in next(it).lower().split("x"))
+        elif arg == "--samples":
+            samples = int(next(it))
+        else:
+            args.append(arg)
+    path, out_dir, frames = Path(args[0]), Path(args[1]), [int(f) for f in args[2:]]
+    out_dir.mkdir(parents=True, exist_ok=True)
+    real_stdout = os.dup(1)
+    os.dup2(2, 1)  # Blender's own log lines go to stderr: stdout carries only the JSON
+    _import(path)
+    scene = bpy.context.scene
+    if scene.camera is None:  # the importers add the file's camera but leave it inactive
+        scene.camera = next((o for o in scene.objects if o.type == "CAMERA"), None)
+    from_file = scene.camera is not None
+    if not from_file:
+        scene.frame_set(frames[0] if frames else 0)
+        _add_camera(scene)
+    _light(scene)
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.render.film_transparent = True
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode = "RGBA"
+    report = {"blender": bpy.app.version_string,
+              "camera": {"from_file": from_file, "lens_mm": scene.camera.data.lens,
+                         "sensor_width_mm": scene.camera.data.sensor_width},
+              "frames": {str(f): _render(scene, f, out_dir / f"frame_{f:04d}.png")
+                         for f in frames}}
+    sys.stdout.flush()
+    os.dup2(real_stdout, 1)
+    print(json.dumps(report))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
