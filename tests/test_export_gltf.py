@@ -142,7 +142,7 @@ def test_nodes_meshes_and_scene(shot: tuple[SimCache, Path], glb: tuple[Path, Do
     assert len(meshes) == n_pieces  # a mesh of its own per piece
     for node in nodes[:n_pieces]:
         assert "matrix" not in node
-        assert set(node) <= {"name", "mesh", "translation", "rotation", "scale"}
+        assert set(node) <= {"name", "mesh", "translation", "rotation", "scale", "extras"}
         for prim in doc["meshes"][node["mesh"]]["primitives"]:
             assert prim["mode"] == 4 and set(prim["attributes"]) == {"POSITION", "NORMAL"}
             pos = doc["accessors"][prim["attributes"]["POSITION"]]
@@ -301,6 +301,16 @@ def test_vanished_pieces_step_to_zero_scale(shot: tuple[SimCache, Path],
             assert key_s.tolist() == [[1.0] * 3, [0.0] * 3]
         acc = doc["accessors"][s["input"]]
         assert acc["min"] == [float(key_t.min())] and acc["max"] == [float(key_t.max())]
+
+
+def test_piece_nodes_carry_index_mass_and_object(shot: tuple[SimCache, Path],
+                                                  glb: tuple[Path, Doc, bytes]) -> None:
+    cache, _ = shot
+    _, doc, _ = glb
+    for p in range(cache.piece_count):
+        extras = doc["nodes"][p]["extras"]
+        assert extras["piece"] == p and extras["mass_kg"] == float(cache.piece_mass[p])
+        assert extras["object"] == cache.model.meta["objects"][0]["name"]
 
 
 def test_no_shock_spheres_unless_asked(shot: tuple[SimCache, Path], tmp_path: Path) -> None:

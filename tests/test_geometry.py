@@ -65,6 +65,31 @@ def test_closed_forms():
     np.testing.assert_array_equal(quaternion.normalize([0.0, 0.0, 3.0, 4.0]), [0, 0, 0.6, 0.8])
 
 
+def test_rotation_vector_closed_forms():
+    half = math.sqrt(0.5)
+    np.testing.assert_allclose(quaternion.rotation_vector(np.array([half, 0.0, 0.0, half])),
+                               [0.0, 0.0, math.pi / 2], atol=1e-15)  # +90 degrees about z
+    # -q is the same rotation; a half-turn is pi about its axis either way
+    np.testing.assert_allclose(quaternion.rotation_vector(np.array([-half, 0.0, -half, 0.0])),
+                               [0.0, math.pi / 2, 0.0], atol=1e-15)
+    np.testing.assert_allclose(np.abs(quaternion.rotation_vector(np.array([0.0, 1, 0, 0]))),
+                               [math.pi, 0, 0], atol=1e-15)
+    np.testing.assert_array_equal(quaternion.rotation_vector(np.array([1.0, 0, 0, 0])), 0.0)
+    tiny = np.array([1.0, 1e-14, 0.0, 0.0])  # angle 2e-14: no division by ~0
+    np.testing.assert_allclose(quaternion.rotation_vector(tiny), [2e-14, 0, 0], rtol=1e-12)
+
+
+@given(QUATS)
+def test_rotation_vector_round_trip(q):
+    q = quaternion.normalize(q)
+    v = quaternion.rotation_vector(q)
+    angle = np.linalg.norm(v)
+    assert angle <= math.pi + 1e-12
+    back = np.concatenate([[math.cos(angle / 2)],
+                           (v / angle * math.sin(angle / 2)) if angle > 0 else np.zeros(3)])
+    np.testing.assert_allclose(np.abs(back @ q), 1.0, atol=1e-9)  # the same rotation
+
+
 @given(QUATS)
 def test_matrix_quaternion_round_trip(q):
     back = quaternion.from_matrix(quaternion.to_matrix(q))

@@ -45,7 +45,7 @@ from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
 from blastvox.export.options import ExportOptions
-from blastvox.export.pieces import animation, piece_meshes
+from blastvox.export.pieces import animation, piece_meshes, piece_objects
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change, up_vector
 from blastvox.io.atomic import atomic_path
@@ -178,8 +178,12 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None,
     end = np.asarray(anim.end_frame, dtype=np.int64)
     first_t = _floats(position[0]) if n_frames else []
     first_r = _floats(rotation[0]) if n_frames else []
+    objects = piece_objects(cache)
+    masses = np.asarray(cache.piece_mass, dtype=np.float64).tolist()
     for p in range(n_pieces):
-        node: dict[str, Any] = {"name": f"piece_{p:05d}"}
+        node: dict[str, Any] = {"name": f"piece_{p:05d}",
+                                "extras": {"piece": p, "object": objects[p],
+                                           "mass_kg": masses[p]}}
         if piece_mesh[p] >= 0:
             node["mesh"] = int(piece_mesh[p])
         if n_frames:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from blastvox.cache import SimCache
+from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change
 from blastvox.geometry.transforms import change_frame
 from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG, face_triangles
@@ -67,6 +68,41 @@ def animation(cache: SimCache, export_up: str) -> Animation:
     pos, ori = change_frame(cache.piece_position, cache.piece_orientation, c)
     return Animation(position=pos, orientation=ori, end_frame=cache.piece_end_frame.copy(),
                      times=cache.frame_time.copy())
+
+
+def velocities(anim: Animation) -> tuple[np.ndarray, np.ndarray]:
+    """Each piece's linear velocity (F, P, 3) m/s and angular velocity (F, P, 3) rad/s
+    (world axes, export frame) at the frame times, from its transforms: central
+    differences inside the shot (exact for uniformly accelerated motion and for a
+    steady spin), one-sided at the first and last frame; zero for a single frame."""
+    pos = anim.position.astype(np.float64)
+    ori = quaternion.normalize(anim.orientation.astype(np.float64))
+    f_count = len(pos)
+    if f_count < 2:
+        return np.zeros_like(pos), np.zeros_like(pos)
+    t = anim.times.astype(np.float64)
+    ahead = np.minimum(np.arange(f_count) + 1, f_count - 1)
+    behind = np.maximum(np.arange(f_count) - 1, 0)
+    span = (t[ahead] - t[behind])[:, None, None]
+    span = np.where(span > 0, span, np.inf)
+    linear = (pos[ahead] - pos[behind]) / span
+    turn = quaternion.multiply(ori[ahead], quaternion.conjugate(ori[behind]))
+    angular = quaternion.rotation_vector(turn) / span
+    return linear, angular
+
+
+def piece_objects(cache: SimCache) -> list[str]:
+    """The name of the object each piece was cut from (P,) (its first voxel's object)."""
+    names = [o.get("name", f"object_{i}")
+             for i, o in enumerate(cache.model.meta.get("objects", []))]
+    voxel_object = np.asarray(cache.model.arrays["voxel_object"], dtype=np.int64)
+    piece = np.asarray(cache.voxel_piece, dtype=np.int64)
+    first = np.full(cache.piece_count, -1, dtype=np.int64)
+    present, first_voxel = np.unique(piece, return_index=True)
+    inside = (present >= 0) & (present < cache.piece_count)
+    first[present[inside]] = first_voxel[inside]
+    return [names[voxel_object[v]] if 0 <= v and voxel_object[v] < len(names) else ""
+            for v in first.tolist()]
 
 
 def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:

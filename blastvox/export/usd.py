@@ -51,7 +51,7 @@ from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import OutputError
 from blastvox.export.options import ExportOptions
-from blastvox.export.pieces import animation, piece_meshes
+from blastvox.export.pieces import animation, piece_meshes, piece_objects, velocities
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change, gravity_vector, up_vector
 from blastvox.geometry.transforms import rest_to_world
@@ -96,6 +96,11 @@ def _attr(prim: Sdf.PrimSpec, name: str, type_name, value=None,
 def _xform_order(prim: Sdf.PrimSpec, ops: list[str]) -> None:
     spec = Sdf.AttributeSpec(prim, "xformOpOrder", _T.TokenArray, Sdf.VariabilityUniform)
     spec.default = Vt.TokenArray(ops)
+
+
+def _usda_string(text: str) -> str:
+    """``text`` as a double-quoted usda string literal."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
 
 
 def _vec3f(a: np.ndarray) -> Vt.Vec3fArray:
@@ -207,6 +212,7 @@ class _Writer:
         self.instancer = options.layout == "instancer"
         self.meshes = piece_meshes(cache, options.up_axis)
         self.anim = animation(cache, options.up_axis)
+        self.objects = piece_objects(cache)
         self.change = frame_change(cache.model.meta.get("up_axis", "Y"), options.up_axis)
         self.material_names = _material_names(cache)
         self.colors, self.damage_colors = _material_colors(cache, len(self.material_names))
@@ -380,6 +386,7 @@ class _Writer:
         out = ['    def Xform "Pieces"\n    {\n']
         for p in range(self.pieces):
             out.append(f'        def Xform "piece_{p:05d}"\n        {{\n')
+            out.append(self._piece_primvars_text(p, "            "))
             end = int(self.end[p])
             if end < f_count:
                 first = '                0: "inherited",\n' if end > 0 else ""
@@ -408,11 +415,23 @@ class _Writer:
         out.append("    }\n")
         return "".join(out)
 
+    def _piece_primvars_text(self, p: int, indent: str) -> str:
+        """Constant primvars of piece p for lighters and scripts: its index (stable for
+        the same inputs and seed), mass (kg) and the object it was cut from."""
+        return (f"{indent}int primvars:blastvox:piece = {p}\n"
+                f"{indent}double primvars:blastvox:mass = {float(self.cache.piece_mass[p])!r}\n"
+                f"{indent}string primvars:blastvox:object = {_usda_string(self.objects[p])}\n")
+
     def _instancer_text(self) -> str:
         targets = ",\n".join(f"            <{ROOT}/Pieces/Prototypes/piece_{p:05d}>"
                              for p in range(self.pieces))
         out = ['    def PointInstancer "Pieces"\n    {\n',
-               "        float3[] extent\n        int64[] invisibleIds\n"
+               "        float3[] extent\n        int64[] invisibleIds\n        int64[] ids\n"
+               "        vector3f[] velocities\n        vector3f[] angularVelocities\n"
+               "        double[] primvars:blastvox:mass (\n"
+               '            interpolation = "vertex"\n        )\n'
+               "        string[] primvars:blastvox:object (\n"
+               '            interpolation = "vertex"\n        )\n'
                "        quath[] orientations\n        quatf[] orientationsf\n"
                "        point3f[] positions\n"
                "        int[] protoIndices\n",
@@ -520,9 +539,19 @@ class _Writer:
                                              "extent", "invisibleIds"))
         set_sample = self.layer.SetTimeSample
         ids = np.arange(p_count, dtype=np.int64)
+        get = self.layer.GetAttributeAtPath
+        get(inst.AppendProperty("ids")).default = Vt.Int64Array.FromNumpy(ids)
+        get(inst.AppendProperty("primvars:blastvox:mass")).default = Vt.DoubleArray.FromNumpy(
+            np.ascontiguousarray(self.cache.piece_mass, dtype=np.float64))
+        get(inst.AppendProperty("primvars:blastvox:object")).default = Vt.StringArray(
+            self.objects)
+        linear, angular = velocities(self.anim)
+        angular = np.degrees(angular)  # UsdGeomPointInstancer: degrees per second
         gone_count = -1
         for f in range(self.frames):
             set_sample(positions, float(f), _vec3f(pos[f]))
+            set_sample(inst.AppendProperty("velocities"), float(f), _vec3f(linear[f]))
+            set_sample(inst.AppendProperty("angularVelocities"), float(f), _vec3f(angular[f]))
             quat = np.ascontiguousarray(ori[f][:, [1, 2, 3, 0]], dtype=np.float32)
             set_sample(orientationsf, float(f), Vt.QuatfArray.FromNumpy(quat))
             set_sample(orientations, float(f), Vt.QuathArray.FromNumpy(quat.astype(np.float16)))

@@ -90,6 +90,17 @@ def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
 
 
+def rotation_vector(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3), axis times angle in rad (angle in [0, pi]), of unit
+    quaternions q (..., 4) (w, x, y, z); q and -q give the same vector."""
+    q = np.where(q[..., :1] < 0, -q, q)
+    sine = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(sine, q[..., :1])
+    # angle / sine -> 2 as the rotation vanishes (and stays finite at sine == 0)
+    scale = np.where(sine > 1e-12, angle / np.maximum(sine, 1e-300), 2.0)
+    return q[..., 1:] * scale
+
+
 def conjugate(q: np.ndarray) -> np.ndarray:
     """Conjugates (w, -x, -y, -z) (..., 4): the inverse rotations of unit quaternions."""
     return q * _CONJUGATE
