@@ -41,6 +41,11 @@ conform_voxels            (C,) i4         voxels with exact cell-and-mesh geomet
 conform_offsets           (C+1,) i8       triangle ranges per conform voxel
 conform_triangles         (T, 3, 3) f8    m, outward triangles of cell and mesh
 conform_tag               (T,) u1         0..5: on cell face f; 6: on the original surface
+surface_triangles         (S, 3, 3) f8    optional, the source look (all five or none; see
+surface_uv                (S, 3, 2) f4    :mod:`blastvox.voxelize.look`): textured inputs'
+surface_texture           (S,) i4         triangles, their corners' UVs, texture or -1,
+texture_data              (B,) u1         the textures' PNG bytes and their ranges;
+texture_offsets           (K+1,) i8       ``meta["textures"]`` names the K textures
 material_*                (M, ...)        material table (see materials.material_table)
 ========================  ==============  ==========================================
 """
@@ -112,6 +117,13 @@ _REQUIRED: dict[str, Spec] = {
 
 #: Per-voxel arrays a file may lack (older models): name -> (dtype, shape).
 OPTIONAL_ARRAYS: dict[str, Spec] = {"voxel_chunk": (_I4, ("N",))}
+#: The source look (blastvox.voxelize.look): all present or all absent. S surface
+#: triangles, B texture bytes, K1 = textures + 1.
+SURFACE_ARRAYS: dict[str, Spec] = {
+    "surface_triangles": (_F8, ("S", 3, 3)), "surface_uv": (np.float32, ("S", 3, 2)),
+    "surface_texture": (_I4, ("S",)), "texture_data": (_U1, ("B",)),
+    "texture_offsets": (_I8, ("K1",)),
+}
 
 #: The material table (blastvox.materials.material_table), one row per name in
 #: meta["materials"] (M): name -> (dtype, shape).
@@ -137,10 +149,12 @@ OPTIONAL_MATERIAL_ARRAYS = ("material_link_impulse", "material_voxel_impulse",
                             "material_chunk_size", "material_chunk_weibull",
                             "material_chunk_bond_scale")
 #: Every member a VoxelModel file may hold besides ``meta``; others are never read.
-ARRAY_NAMES = frozenset(_REQUIRED) | frozenset(OPTIONAL_ARRAYS) | frozenset(MATERIAL_ARRAYS)
+ARRAY_NAMES = (frozenset(_REQUIRED) | frozenset(OPTIONAL_ARRAYS) | frozenset(MATERIAL_ARRAYS)
+               | frozenset(SURFACE_ARRAYS))
 
 _MEANING = {"N": "one per voxel", "L": "one per link", "V": "one per vertex",
             "C": "one per conform voxel", "C1": "one more than the conform voxels",
+            "S": "one per surface triangle", "K1": "one more than meta textures",
             "T": "one per conform triangle", "M": "one per name in meta materials"}
 
 
@@ -174,6 +188,16 @@ class VoxelModel:
     def up_index(self) -> int:
         """0, 1 or 2: the index of the up axis."""
         return up_index(self.meta["up_axis"])
+
+    @property
+    def textures(self) -> list[dict]:
+        """``meta["textures"]``: one dict (name, mime_type) per texture of the look."""
+        return list(self.meta.get("textures", []))
+
+    def texture_file(self, k: int) -> bytes:
+        """The encoded image (PNG) of texture ``k`` of the source look."""
+        offsets = self.arrays["texture_offsets"]
+        return self.arrays["texture_data"][int(offsets[k]):int(offsets[k + 1])].tobytes()
 
     def hexahedra(self) -> np.ndarray:
         """Voxel corners (N, 8, 3) in metres."""
@@ -267,6 +291,7 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     check_shapes(path, a, _REQUIRED, dims, prefix, _MEANING)
     check_shapes(path, a, MATERIAL_ARRAYS, dims, prefix, _MEANING)
     check_shapes(path, a, OPTIONAL_ARRAYS, dims, prefix, _MEANING)
+    _check_look(path, a, meta, prefix)
     if n == 0:
         fail(path, f"array '{prefix}voxel_mass' is empty: the VoxelModel holds no voxels")
 
@@ -315,6 +340,33 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
         fail(path, f"array '{name('voxel_foundation_yield')}' holds "
                    f"{float(a['voxel_foundation_yield'][i])!r} at [{i}], a voxel that is not a "
                    f"foundation ('{name('voxel_foundation')}'); expected 0")
+
+
+def _check_look(path: str | os.PathLike, a: Mapping[str, np.ndarray], meta: Mapping[str, Any],
+                prefix: str) -> None:
+    """The source look: all five arrays or none, sized by meta textures, indices and
+    byte ranges inside their tables, coordinates finite."""
+    present = [k for k in SURFACE_ARRAYS if k in a]
+    if not present:
+        if meta.get("textures"):
+            fail(path, f"meta {prefix}textures names textures but the file has no "
+                       f"'{prefix}texture_data'")
+        return
+    check_layout(path, a, SURFACE_ARRAYS, prefix, "VoxelModel with a source look")
+    textures = meta.get("textures")
+    if not isinstance(textures, list) or not all(
+            isinstance(t, dict) and isinstance(t.get("name"), str) for t in textures):
+        fail(path, f"meta {prefix}textures is {textures!r}; expected a list of "
+                   "{'name': ..., 'mime_type': ...}")
+    dims = {"S": len(a["surface_triangles"]), "B": len(a["texture_data"]),
+            "K1": len(textures) + 1}
+    check_shapes(path, a, SURFACE_ARRAYS, dims, prefix, _MEANING)
+    check_bound(path, prefix + "surface_triangles", a["surface_triangles"], COORD_LIMIT_M)
+    check_finite(path, prefix + "surface_uv", a["surface_uv"])
+    check_index(path, prefix + "surface_texture", a["surface_texture"], len(textures),
+                "texture", none=-1)
+    check_offsets(path, prefix + "texture_offsets", a["texture_offsets"], dims["B"],
+                  "texture bytes")
 
 
 def _check_meta(path: str | os.PathLike, meta: Mapping[str, Any], prefix: str) -> list[str]:

@@ -28,13 +28,10 @@ one line: ``<file>: <key.path>: <what is wrong>``.
 
 from __future__ import annotations
 
-import difflib
-import json
 import math
 import os
-import re
 from pathlib import Path
-from typing import Annotated, Any, Literal, get_args, get_origin
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import (
@@ -54,21 +51,9 @@ from blastvox import bounds as limits
 from blastvox.bounds import Bound, printable
 from blastvox.errors import BlastvoxError, MaterialError, SceneError
 from blastvox.materials import MaterialLibrary, read_toml
+from blastvox.scene_errors import At, format_validation_error, shown, toml_key
 
 _UNKNOWN_SOURCE = "<scene>"
-
-
-class _At(ValueError):
-    """A validation error about a key below the one being validated."""
-
-    def __init__(self, path: tuple[str | int, ...], message: str) -> None:
-        super().__init__(message)
-        self.path = path
-
-
-def _got(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _is_number(value: Any) -> bool:
@@ -81,7 +66,7 @@ def _in_bound(bound: Bound, vec: Any, value: Any) -> tuple[float, float, float]:
     except ValueError as exc:
         problem = str(exc).split(" (got ")[0]
         each = "" if _is_number(value) else "each component "
-        raise ValueError(f"{each}{problem} (got {_got(value)})") from None
+        raise ValueError(f"{each}{problem} (got {shown(value)})") from None
     return (checked[0], checked[1], checked[2])
 
 
@@ -91,7 +76,7 @@ def _vector(bound: Bound) -> BeforeValidator:
     def _vec3(value: Any) -> tuple[float, float, float]:
         if (not isinstance(value, list | tuple) or len(value) != 3
                 or not all(_is_number(v) and math.isfinite(v) for v in value)):
-            raise ValueError(f"must be a list of 3 finite numbers (got {_got(value)})")
+            raise ValueError(f"must be a list of 3 finite numbers (got {shown(value)})")
         return _in_bound(bound, value, value)
 
     _vec3.bound = bound  # type: ignore[attr-defined]  # for tools/scene_reference.py
@@ -105,9 +90,9 @@ def _sizes(bound: Bound) -> BeforeValidator:
         vec3 = [value] * 3 if _is_number(value) else value
         if (not isinstance(vec3, list | tuple) or len(vec3) != 3
                 or not all(_is_number(v) for v in vec3)):
-            raise ValueError(f"must be a number or a list of 3 numbers (got {_got(value)})")
+            raise ValueError(f"must be a number or a list of 3 numbers (got {shown(value)})")
         if not all(math.isfinite(v) for v in vec3):
-            raise ValueError(f"must be finite (got {_got(value)})")
+            raise ValueError(f"must be finite (got {shown(value)})")
         return _in_bound(bound, vec3, value)
 
     _size3.bound = bound  # type: ignore[attr-defined]
@@ -116,7 +101,7 @@ def _sizes(bound: Bound) -> BeforeValidator:
 
 def _path(value: Any, info: ValidationInfo) -> Path:
     if not isinstance(value, str | Path) or not str(value).strip():
-        raise ValueError(f"must be a non-empty path string (got {_got(value)})")
+        raise ValueError(f"must be a non-empty path string (got {shown(value)})")
     path = Path(value).expanduser()
     base = (info.context or {}).get("base_dir")
     if base is not None and not path.is_absolute():
@@ -141,7 +126,7 @@ def _ground(value: Any) -> Any:
         return value.strip().lower()
     if _is_number(value) and math.isfinite(value):
         return limits.COORDINATE.check(value)
-    raise ValueError(f"must be 'auto', 'none' or a finite height in metres (got {_got(value)})")
+    raise ValueError(f"must be 'auto', 'none' or a finite height in metres (got {shown(value)})")
 
 
 _ground.bound = limits.COORDINATE  # type: ignore[attr-defined]
@@ -204,7 +189,7 @@ class Box(_Model):
     @model_validator(mode="after")
     def _ordered(self) -> Box:
         if any(lo > hi for lo, hi in zip(self.min, self.max, strict=True)):
-            raise _At(("max",), f"must be >= min on every axis (min {list(self.min)})")
+            raise At(("max",), f"must be >= min on every axis (min {list(self.min)})")
         return self
 
     def contains(self, points: np.ndarray) -> np.ndarray:
@@ -344,7 +329,7 @@ class SceneObject(_Model):
     @model_validator(mode="after")
     def _has_size(self) -> SceneObject:
         if self.voxel_size is None and self.resolution is None:
-            raise _At(("resolution",), "give voxel_size or resolution")
+            raise At(("resolution",), "give voxel_size or resolution")
         return self
 
 
@@ -481,7 +466,7 @@ class Camera(_Model):
     @model_validator(mode="after")
     def _distinct(self) -> Camera:
         if self.position == self.look_at:
-            raise _At(("look_at",), "must differ from position")
+            raise At(("look_at",), "must differ from position")
         return self
 
 
@@ -550,7 +535,7 @@ class Scene(_Model):
         seen: dict[str, int] = {}
         for i, obj in enumerate(objects):
             if obj.name in seen:
-                raise _At((i, "name"), f"duplicate object name {obj.name!r} "
+                raise At((i, "name"), f"duplicate object name {obj.name!r} "
                                        f"(also objects[{seen[obj.name]}])")
             seen[obj.name] = i
         return objects
@@ -571,7 +556,7 @@ class Scene(_Model):
         refs = []
         for i, obj in enumerate(self.objects):
             refs.append((f"objects[{i}].material", obj.material))
-            refs += [(f"objects[{i}].material_map{_key(k)}", v)
+            refs += [(f"objects[{i}].material_map{toml_key(k)}", v)
                      for k, v in obj.material_map.items()]
             refs += [(f"objects[{i}].rules[{j}].material", r.material)
                      for j, r in enumerate(obj.rules) if r.material is not None]
@@ -619,85 +604,4 @@ def scene_from_dict(data: dict[str, Any], source: str, base_dir: Path) -> Scene:
     try:
         return Scene.model_validate(data, context=context)
     except ValidationError as exc:
-        raise SceneError(format_validation_error(exc, source)) from None
-
-
-def format_validation_error(exc: ValidationError, source: str) -> str:
-    """One line ``<source>: <key.path>: <problem> [(+N more)]`` for a pydantic error."""
-    errors = exc.errors()
-    first = errors[0]
-    loc = tuple(first["loc"])
-    cause = (first.get("ctx") or {}).get("error")
-    if isinstance(cause, _At):
-        loc += cause.path
-    where = "".join(f"[{p}]" if isinstance(p, int) else _key(p) for p in loc).lstrip(".")
-    text = f"{source}: {where + ': ' if where else ''}{_describe(first, loc)}"
-    return text + (f" (+{len(errors) - 1} more)" if len(errors) > 1 else "")
-
-
-def _key(part: str) -> str:
-    return f".{part}" if re.fullmatch(r"[A-Za-z0-9_-]+", part) else f".{json.dumps(part)}"
-
-
-def _describe(error: Any, loc: tuple[str | int, ...]) -> str:
-    kind, ctx, got = error["type"], error.get("ctx") or {}, _got(error.get("input"))
-    bounds = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="),
-              "less_than": ("lt", "<"), "less_than_equal": ("le", "<=")}
-    if kind in ("value_error", "assertion_error"):
-        return str(ctx["error"])
-    if kind in bounds:
-        name, op = bounds[kind]
-        limit = ctx[name]
-        text = (f"{limit:,}" if abs(limit) >= 10_000 else str(limit)) if isinstance(limit, int) \
-            else f"{limit:g}"
-        return f"must be {op} {text} (got {got})"
-    simple = {
-        "missing": "required key is missing",
-        "finite_number": "must be finite",
-        "float_type": f"must be a number (got {got})",
-        "int_type": f"must be an integer (got {got})",
-        "int_from_float": f"must be an integer (got {got})",
-        "bool_type": f"must be true or false (got {got})",
-        "string_type": f"must be a string (got {got})",
-        "string_too_short": "must not be empty",
-        "dict_type": f"must be a table (got {got})",
-        "model_type": f"must be a table (got {got})",
-        "model_attributes_type": f"must be a table (got {got})",
-        "list_type": f"must be a list (got {got})",
-    }
-    if kind in simple:
-        return simple[kind]
-    if kind == "literal_error":
-        return f"must be one of {ctx['expected'].replace(' or ', ', ')} (got {got})"
-    if kind == "too_short":
-        return f"must have at least {ctx['min_length']} entry (got {ctx.get('actual_length')})"
-    if kind == "extra_forbidden":
-        allowed = _fields_at(loc[:-1])
-        close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
-        if close:
-            return f"unknown key (did you mean '{close[0]}'?)"
-        return f"unknown key (allowed: {', '.join(allowed)})" if allowed else "unknown key"
-    message = error["msg"]
-    return message[:1].lower() + message[1:]
-
-
-def _fields_at(loc: tuple[str | int, ...]) -> list[str]:
-    """Keys allowed in the table at ``loc`` of a scene (empty if not a model)."""
-    model: type[BaseModel] | None = Scene
-    for part in loc:
-        if isinstance(part, int):
-            continue
-        field = model.model_fields.get(part) if model else None
-        model = _find_model(field.annotation) if field else None
-    return list(model.model_fields) if model else []
-
-
-def _find_model(annotation: Any) -> type[BaseModel] | None:
-    if (get_origin(annotation) is None and isinstance(annotation, type)
-            and issubclass(annotation, BaseModel)):
-        return annotation
-    for arg in get_args(annotation):
-        found = _find_model(arg)
-        if found is not None:
-            return found
-    return None
+        raise SceneError(format_validation_error(exc, source, Scene)) from None

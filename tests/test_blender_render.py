@@ -7,7 +7,10 @@ blast), and later frames rendered black (the shock sphere grew to about 1 km aro
 the camera). So these tests render, and check what the picture shows: something
 covers the frame (the asset is in view), it is lit (not black), and its colour is
 the asset's (the house's brick and plaster, not a white sphere). The scene camera
-arrives with the lens the scene asked for.
+arrives with the lens the scene asked for. Textured assets (the Khronos Duck and
+Cesium Milk Truck, voxelized here) keep their look: their render differs from the
+render of the same shot with the look stripped (the physics material's flat
+colour), and the duck is yellow.
 
 The shots are the goldens' caches (examples/golden), exported here; tiny images
 and few samples keep each render to a few seconds.
@@ -21,14 +24,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from blastvox.cache import SimCache
 from blastvox.export.api import ExportOptions, export
+from blastvox.model import SURFACE_ARRAYS, VoxelModel
 
 ROOT = Path(__file__).resolve().parents[1]
 BLENDER_PYTHON = ROOT / ".venv-blender" / "bin" / "python"
 RENDER_CHECK = ROOT / "tools" / "blender" / "render_check.py"
 GOLDEN = ROOT / "examples" / "golden"
+DATA = ROOT / "tests" / "data"
 TIMEOUT = 600  # s per Blender run (about 10 s here)
 SIZE = "96x54"
 
@@ -107,3 +113,49 @@ def test_scene_camera_arrives_with_its_lens(tmp_path: Path, suffix: str) -> None
     if suffix == ".usdc":
         assert lens == pytest.approx(50.0, rel=1e-4) and sensor == pytest.approx(36.0)
     assert report["frames"]["0"]["coverage"] > 0.02
+
+
+def without_look(cache: SimCache) -> SimCache:
+    """The same shot with the model's source look removed (flat material colours)."""
+    arrays = {k: v for k, v in cache.model.arrays.items() if k not in SURFACE_ARRAYS}
+    meta = {k: v for k, v in cache.model.meta.items() if k != "textures"}
+    return SimCache(arrays=cache.arrays, model=VoxelModel(arrays=arrays, meta=meta),
+                    meta=cache.meta)
+
+
+@pytest.fixture(scope="module")
+def textured(tmp_path_factory: pytest.TempPathFactory) -> dict[str, SimCache]:
+    from blastvox.simulate.engine import simulate
+    from blastvox.simulate.settings import SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    shots = {}
+    for name, size in (("Duck", 0.2), ("CesiumMilkTruck", 0.15)):
+        model = voxelize([ObjectRequest(mesh=DATA / f"{name}.glb", voxel_size=(size,) * 3,
+                                        material="concrete")],
+                         VoxelizeSettings(up_axis="Y"), warn=lambda message: None)
+        assert model.textures, name
+        shots[name] = simulate(model, SimSettings(duration=0.05, fps=20.0, charges=()))
+    return shots
+
+
+@pytest.mark.parametrize(("asset", "suffix"), [("Duck", ".usdc"), ("Duck", ".glb"),
+                                               ("CesiumMilkTruck", ".usdc")])
+def test_a_textured_asset_keeps_its_look(textured: dict[str, SimCache], tmp_path: Path,
+                                         asset: str, suffix: str) -> None:
+    colours, images = [], []
+    for look, cache in (("textured", textured[asset]), ("flat", without_look(textured[asset]))):
+        path = tmp_path / look / f"{asset}{suffix}"
+        path.parent.mkdir()
+        export(cache, path, ExportOptions())
+        got = render(path, tmp_path / look / "frames", [0])["frames"]["0"]
+        assert got["coverage"] > 0.03 and got["luminance"] > 0.05, got
+        colours.append(np.array(got["rgb"]))
+        images.append(np.asarray(Image.open(got["png"]).convert("RGBA"), dtype=float) / 255)
+    # the texture shows: pixel by pixel, the textured render is not the flat one
+    both = (images[0][..., 3] > 0.5) & (images[1][..., 3] > 0.5)
+    difference = np.abs(images[0][..., :3] - images[1][..., :3])[both].mean()
+    assert difference > 0.04, difference
+    if asset == "Duck":
+        r, g, b = colours[0]
+        assert r > 1.5 * b and g > 1.3 * b, colours[0]  # a yellow duck, not grey concrete

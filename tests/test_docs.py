@@ -144,7 +144,7 @@ def test_voxelmodel_arrays_in_file_formats_exist():
     from blastvox import model
     from blastvox.materials import MaterialLibrary, material_table
 
-    known = (set(model._REQUIRED) | set(model.OPTIONAL_ARRAYS)
+    known = (set(model._REQUIRED) | set(model.OPTIONAL_ARRAYS) | set(model.SURFACE_ARRAYS)
              | set(material_table(MaterialLibrary.builtin(), ["brick"])))
     documented = _table_names("VoxelModel arrays")
     assert documented - known == set(), "documented VoxelModel arrays the code does not write"

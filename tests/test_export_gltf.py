@@ -144,7 +144,8 @@ def test_nodes_meshes_and_scene(shot: tuple[SimCache, Path], glb: tuple[Path, Do
         assert "matrix" not in node
         assert set(node) <= {"name", "mesh", "translation", "rotation", "scale", "extras"}
         for prim in doc["meshes"][node["mesh"]]["primitives"]:
-            assert prim["mode"] == 4 and set(prim["attributes"]) == {"POSITION", "NORMAL"}
+            assert prim["mode"] == 4 and set(prim["attributes"]) == {"POSITION", "NORMAL",
+                                                                  "TEXCOORD_0"}
             pos = doc["accessors"][prim["attributes"]["POSITION"]]
             assert len(pos["min"]) == 3 and len(pos["max"]) == 3
 

@@ -528,7 +528,7 @@ def test_failed_write_leaves_nothing(synthetic, tmp_path, monkeypatch):
             Path(name).write_bytes(b"half")
             return False
 
-    monkeypatch.setattr(usd, "build_layer", lambda cache, options: Broken())
+    monkeypatch.setattr(usd, "build_layer", lambda cache, options, texture_dir=None: Broken())
     out = tmp_path / "shot.usdc"
     with pytest.raises(OutputError, match="shot.usdc: USD could not write"):
         write_usd(synthetic, out, ExportOptions())

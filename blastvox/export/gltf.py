@@ -46,12 +46,15 @@ from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import animation, piece_meshes, piece_objects
+from blastvox.export.uv import face_uvs, texture_names
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change, up_vector
 from blastvox.io.atomic import atomic_path
 
 FLOAT, UINT16, UINT32 = 5126, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
+#: glTF sampler constants (OpenGL enums): LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT
+LINEAR_FILTER, LINEAR_MIPMAP_LINEAR, REPEAT = 9729, 9987, 10497
 TRIANGLES = 4
 ROUGHNESS = 0.8
 SHOCK_COLOR = (1.0, 0.55, 0.15, 0.15)
@@ -159,7 +162,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None,
     """
     b = _Builder()
     mats, mat_index = _materials(cache)
-    meshes, piece_mesh = _piece_meshes(cache, b, mat_index)
+    look = _texture_materials(cache, b, mats)
+    meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"])
     anim = animation(cache, "Y")
     n_pieces, n_frames = cache.piece_count, cache.frame_count
 
@@ -248,11 +252,15 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None,
         doc["meshes"] = meshes
     if mats:
         doc["materials"] = mats
+    for key in ("images", "samplers", "textures"):
+        if look[key]:
+            doc[key] = look[key]
     if channels:
         doc["animations"] = [{"name": "blastvox", "channels": channels, "samplers": samplers}]
     blob = b.blob()
-    if b.accessors:
-        doc["accessors"] = b.accessors
+    if b.views:
+        if b.accessors:
+            doc["accessors"] = b.accessors
         doc["bufferViews"] = b.views
         buffer: dict[str, Any] = {"byteLength": len(blob)}
         if buffer_uri is not None:
@@ -344,38 +352,73 @@ def _materials(cache: SimCache) -> tuple[list[dict[str, Any]], dict[tuple[int, b
     return mats, index
 
 
-def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool], int]
-                  ) -> tuple[list[dict[str, Any]], np.ndarray]:
+def _texture_materials(cache: SimCache, b: _Builder, mats: list[dict[str, Any]]
+                       ) -> dict[str, list]:
+    """The source look's textures, embedded (one bufferView each, PNG), and one material
+    per texture appended to ``mats``: {"images", "samplers", "textures", "material"}
+    where "material"[k] is texture k's material index."""
+    names = texture_names(cache)
+    look: dict[str, list] = {"images": [], "samplers": [], "textures": [], "material": []}
+    if not names:
+        return look
+    look["samplers"].append({"magFilter": LINEAR_FILTER, "minFilter": LINEAR_MIPMAP_LINEAR,
+                             "wrapS": REPEAT, "wrapT": REPEAT})
+    for k, name in enumerate(names):
+        look["images"].append({"name": name, "mimeType": "image/png",
+                               "bufferView": b.view(cache.model.texture_file(k))})
+        look["textures"].append({"sampler": 0, "source": k})
+        look["material"].append(len(mats))
+        mats.append({"name": f"texture_{name}", "pbrMetallicRoughness": {
+            "baseColorTexture": {"index": k}, "metallicFactor": 0.0,
+            "roughnessFactor": ROUGHNESS}})
+    return look
+
+
+def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool], int],
+                  texture_material: list[int]) -> tuple[list[dict[str, Any]], np.ndarray]:
     """One mesh per piece with triangles (mesh dicts, mesh index per piece or -1).
 
-    Primitives are groups of (piece, material, damage); within a group, corners
-    with the same float32 position and normal share a vertex (first-use order).
-    Zero-area triangles (no normal) are left out.
+    Primitives are groups of (piece, glTF material): the model material and damage,
+    or the source look's texture; within a group, corners with the same float32
+    position, normal and UV share a vertex (first-use order). Zero-area triangles
+    (no normal) are left out. TEXCOORD_0 holds the UVs of :mod:`blastvox.export.uv`
+    with v flipped (glTF's origin is the image's top left).
     """
     pm = piece_meshes(cache, "Y")
+    uvs = face_uvs(cache, pm)
     n_pieces = cache.piece_count
     piece_mesh = np.full(n_pieces, -1, dtype=np.int64)
     tri_piece = np.repeat(np.arange(n_pieces), np.diff(pm.offsets))
     damage = np.asarray(pm.damage, dtype=bool)
     material = np.asarray(pm.material, dtype=np.int64)
+    lookup = np.zeros((int(material.max(initial=0)) + 1, 2), dtype=np.int64)
+    for (m, d), i in mat_index.items():
+        if m < len(lookup):
+            lookup[m, int(d)] = i
+    textured = np.asarray(texture_material + [0], dtype=np.int64)[uvs.texture]
+    gmat = np.where(uvs.texture >= 0, textured, lookup[material, damage.astype(np.int64)])
     # zero-area triangles have no normal (a zero NORMAL is invalid glTF) and draw nothing
     solid = np.flatnonzero(np.any(pm.normals != 0, axis=1))
     n_tri = len(solid)
     if n_tri == 0:
         return [], piece_mesh
-    order = solid[np.lexsort((solid, damage[solid], material[solid], tri_piece[solid]))]
-    tri_piece, damage, material = tri_piece[order], damage[order], material[order]
-    key = np.stack([tri_piece, material, damage.astype(np.int64)], axis=1)
+    order = solid[np.lexsort((solid, gmat[solid], tri_piece[solid]))]
+    tri_piece, gmat = tri_piece[order], gmat[order]
+    key = np.stack([tri_piece, gmat], axis=1)
     change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
     starts = np.flatnonzero(change)  # first triangle of each primitive
     group = np.cumsum(change) - 1  # primitive of each triangle
 
     corners = np.ascontiguousarray(pm.vertices[order], dtype=np.float32).reshape(-1, 3)
     normals = np.repeat(np.asarray(pm.normals[order], dtype=np.float32), 3, axis=0)
+    texcoords = np.ascontiguousarray(uvs.uv[order].reshape(-1, 2), dtype=np.float32)
+    texcoords[:, 1] = np.float32(1.0) - texcoords[:, 1]
+    texcoords += np.float32(0.0)  # no -0
     corner_group = np.repeat(group, 3)
-    # shared vertices: equal (group, position bits, normal bits); stable sort keeps first use
+    # shared vertices: equal (group, position, normal and UV bits); stable sort keeps
+    # first use
     cols = np.concatenate([corner_group[:, None].astype(np.int32), corners.view(np.int32),
-                           normals.view(np.int32)], axis=1)
+                           normals.view(np.int32), texcoords.view(np.int32)], axis=1)
     srt = np.lexsort(cols.T[::-1])
     s = cols[srt]
     new = np.r_[True, np.any(s[1:] != s[:-1], axis=1)]
@@ -386,7 +429,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     inverse = np.empty(len(cols), dtype=np.int64)
     inverse[srt] = rank[uid]
     keep = np.sort(first)
-    vpos, vnrm, vgroup = corners[keep], normals[keep], corner_group[keep]
+    vpos, vnrm, vuv, vgroup = corners[keep], normals[keep], texcoords[keep], corner_group[keep]
 
     n_groups = len(starts)
     vstart = np.searchsorted(vgroup, np.arange(n_groups + 1))
@@ -396,6 +439,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
 
     pos_view = b.view(_f32(vpos), ARRAY_BUFFER, 12)
     nrm_view = b.view(_f32(vnrm), ARRAY_BUFFER, 12)
+    uv_view = b.view(_f32(vuv), ARRAY_BUFFER, 8)
 
     # indices: u16 where the primitive has few enough vertices, else u32; each primitive's
     # run starts on a 4-byte boundary
@@ -415,8 +459,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
 
     meshes: list[dict[str, Any]] = []
     g_piece = tri_piece[starts].tolist()
-    g_mat = [mat_index[(m, d)] for m, d in zip(material[starts].tolist(),
-                                                damage[starts].tolist(), strict=True)]
+    g_mat = gmat[starts].tolist()
     lo_l, hi_l = _floats(lo), _floats(hi)
     vstart_l, counts_l, wide_l = vstart.tolist(), counts.tolist(), wide.tolist()
     n_idx, idx_off = np.diff(cstart).tolist(), idx_offsets.tolist()
@@ -431,6 +474,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
                 "POSITION": b.accessor(pos_view, vstart_l[g] * 12, FLOAT, n_v, "VEC3",
                                        lo_l[g], hi_l[g]),
                 "NORMAL": b.accessor(nrm_view, vstart_l[g] * 12, FLOAT, n_v, "VEC3"),
+                "TEXCOORD_0": b.accessor(uv_view, vstart_l[g] * 8, FLOAT, n_v, "VEC2"),
             },
             "indices": b.accessor(idx_view, idx_off[g], UINT32 if wide_l[g] else UINT16,
                                   n_idx[g], "SCALAR"),

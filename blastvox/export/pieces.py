@@ -37,6 +37,7 @@ class PieceMeshes:
     normals (T, 3): unit face normals, export frame.
     voxel (T,): voxel each triangle belongs to; damage (T,): inside face.
     material (T,): material index (cache.model.meta["materials"]).
+    rest (T, 3, 3): the same triangles where they sit in the intact model, model frame (m).
     """
 
     offsets: np.ndarray
@@ -45,6 +46,7 @@ class PieceMeshes:
     voxel: np.ndarray
     damage: np.ndarray
     material: np.ndarray
+    rest: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -156,4 +158,5 @@ def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:
     offsets = np.searchsorted(tri_piece, np.arange(cache.piece_count + 1))
     return PieceMeshes(offsets=offsets.astype(np.int64), vertices=local, normals=normal,
                        voxel=all_voxel, damage=all_damage,
-                       material=a["voxel_material"][all_voxel].astype(np.int64))
+                       material=a["voxel_material"][all_voxel].astype(np.int64),
+                       rest=all_tris)

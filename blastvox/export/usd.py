@@ -4,11 +4,16 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
 
     /Shot
       Materials/<material>, <material>_damage     UsdPreviewSurface per used material
+      Materials/texture_<name>                    the source look: UsdPreviewSurface whose
+                                                  diffuse colour is a UsdUVTexture of
+                                                  ``<stem>_textures/<name>.png`` beside the file
       Pieces/piece_00000 (Xform)                  layout "xforms": time-sampled translate
         piece_NNNNN (Mesh)                             (double3) and orient (quatf), visibility
-          surface_<material>, damage_<material>   for pieces that vanish; a static mesh with
-                                                  GeomSubsets (materialBind, partition) and a
+          surface_<material>, damage_<material>,  for pieces that vanish; a static mesh with
+          textured_<name>                         GeomSubsets (materialBind, partition), a
                                                   time-sampled per-face ``primvars:damage``
+                                                  and faceVarying ``primvars:st`` (UVs in
+                                                  rest space: blastvox.export.uv)
       Pieces (PointInstancer)                     layout "instancer": one prototype Mesh per
         Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
                                                   (quath) and orientationsf (quatf, which
@@ -45,109 +50,30 @@ import os
 from pathlib import Path
 
 import numpy as np
-from pxr import Gf, Sdf, Tf, Vt
+from pxr import Sdf, Tf, Vt
 
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import OutputError
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import animation, piece_meshes, piece_objects, velocities
+from blastvox.export.usd_effects import write_camera, write_particles, write_shock
+from blastvox.export.usd_specs import (
+    ROOT,
+    points_extent,
+    run_ends_pf,
+    usda_string,
+    vec3f,
+)
+from blastvox.export.uv import face_uvs, texture_names
 from blastvox.geometry import quaternion
-from blastvox.geometry.frames import frame_change, gravity_vector, up_vector
+from blastvox.geometry.frames import frame_change
 from blastvox.geometry.transforms import rest_to_world
 from blastvox.io.atomic import atomic_path
 
-ROOT = "/Shot"
 ROUGHNESS = 0.8
-SHOCK_COLOR = (0.9, 0.9, 0.95)
-PARTICLE_COLORS = {"dust": (0.55, 0.50, 0.45), "fire": (1.0, 0.45, 0.05),
-                   "smoke": (0.25, 0.25, 0.25), "fireball": (1.0, 0.55, 0.1)}
-#: UsdPreviewSurface inputs of each particle system's material: dust and smoke are
-#: matte and translucent, fire and the fireball emit their colour.
-PARTICLE_LOOKS = {"dust": {"opacity": 0.35, "emissive": 0.0},
-                  "fire": {"opacity": 0.8, "emissive": 1.0},
-                  "smoke": {"opacity": 0.3, "emissive": 0.0},
-                  "fireball": {"opacity": 0.9, "emissive": 1.0}}
-#: UsdGeomCamera measures lens and filmback in tenths of a scene unit; the stage is in
-#: metres (metersPerUnit 1), so 1 mm is 1 / MM_PER_TENTH_METRE of that unit.
-MM_PER_TENTH_METRE = 100.0
-FILMBACK_MM = (36.0, 24.0)
 NANO_LIMIT = 9.0e9  # m: |translation| * 1e9 must fit an int64
 _T = Sdf.ValueTypeNames
-
-
-# ----------------------------------------------------------------------------- helpers
-
-def _prim(parent: Sdf.PrimSpec, name: str, type_name: str = "") -> Sdf.PrimSpec:
-    return Sdf.PrimSpec(parent, name, Sdf.SpecifierDef, type_name)
-
-
-def _attr(prim: Sdf.PrimSpec, name: str, type_name, value=None,
-          interpolation: str | None = None, uniform: bool = False) -> Sdf.AttributeSpec:
-    spec = Sdf.AttributeSpec(prim, name, type_name,
-                             Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying)
-    if value is not None:
-        spec.default = value
-    if interpolation is not None:
-        spec.SetInfo("interpolation", interpolation)
-    return spec
-
-
-def _xform_order(prim: Sdf.PrimSpec, ops: list[str]) -> None:
-    spec = Sdf.AttributeSpec(prim, "xformOpOrder", _T.TokenArray, Sdf.VariabilityUniform)
-    spec.default = Vt.TokenArray(ops)
-
-
-def _usda_string(text: str) -> str:
-    """``text`` as a double-quoted usda string literal."""
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
-
-
-def _vec3f(a: np.ndarray) -> Vt.Vec3fArray:
-    return Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(a, dtype=np.float32).reshape(-1, 3))
-
-
-def _extent(points: np.ndarray) -> Vt.Vec3fArray:
-    if len(points) == 0:
-        return _vec3f(np.zeros((2, 3)))
-    return _vec3f(np.stack([points.min(axis=0), points.max(axis=0)]))
-
-
-def _run_ends(values: np.ndarray) -> np.ndarray:
-    """(F,) bool: frames that start or end a run of equal values along axis 0 of (F, ...)."""
-    f = len(values)
-    keep = np.zeros(f, dtype=bool)
-    if f == 0:
-        return keep
-    keep[0] = True
-    if f > 1:
-        diff = (values[1:] != values[:-1]).reshape(f - 1, -1).any(axis=1)
-        keep[1:] |= diff     # first frame of a new value
-        keep[:-1] |= diff    # last frame of the old one (so interpolation holds it)
-    return keep
-
-
-def _run_ends_pf(values: np.ndarray, live: np.ndarray) -> np.ndarray:
-    """(P, F) bool: per piece, :func:`_run_ends` of ``values`` (P, F, k) over its live
-    frames (``live`` (P, F), a prefix of the frames for each piece)."""
-    p, f = live.shape
-    keep = np.zeros((p, f), dtype=bool)
-    if f == 0:
-        return keep
-    keep[:, 0] = True
-    if f > 1:
-        diff = (values[:, 1:] != values[:, :-1]).any(axis=-1) & live[:, 1:]
-        keep[:, 1:] |= diff
-        keep[:, :-1] |= diff
-    return keep & live
-
-
-def _gravity(cache: SimCache) -> np.ndarray:
-    """Model-frame gravity (m/s^2): meta["gravity_vector"], else -settings.gravity * up."""
-    if cache.meta.get("gravity_vector") is not None:
-        return np.asarray(cache.meta["gravity_vector"], dtype=np.float64).reshape(3)
-    return gravity_vector(cache.model.meta.get("up_axis", "Y"),
-                          cache.meta.get("settings", {}).get("gravity", 9.81))
 
 
 def _fps(cache: SimCache) -> float:
@@ -204,7 +130,8 @@ def _usda_float(x: float) -> str:
 # ----------------------------------------------------------------------------- writer
 
 class _Writer:
-    def __init__(self, cache: SimCache, options: ExportOptions) -> None:
+    def __init__(self, cache: SimCache, options: ExportOptions,
+                 texture_dir: str | None = None) -> None:
         self.cache = cache
         self.options = options
         self.frames = cache.frame_count
@@ -217,6 +144,9 @@ class _Writer:
         self.material_names = _material_names(cache)
         self.colors, self.damage_colors = _material_colors(cache, len(self.material_names))
         self.end = np.minimum(self.anim.end_frame.astype(np.int64), self.frames)
+        self.look = face_uvs(cache, self.meshes)
+        self.texture_names = texture_names(cache)
+        self.texture_dir = texture_dir or ""
         self._prepare_meshes()
         self.layer = Sdf.Layer.CreateAnonymous("blastvox.usda")
 
@@ -244,9 +174,9 @@ class _Writer:
             if self.instancer:
                 self._instancer_samples()
             shot = layer.GetPrimAtPath(ROOT)
-            self._dust(shot)
-            self._shock(shot)
-            self._camera(shot)
+            write_particles(self, shot)
+            write_shock(self, shot)
+            write_camera(self, shot)
         return layer
 
     # -- numpy preparation
@@ -273,8 +203,11 @@ class _Writer:
                                     self.colors[m.material]) if t else
                            np.zeros((0, 3))).astype(np.float32)
         self.local_face = (np.arange(t) - m.offsets[tri_piece]).astype(np.int32)
-        # materialBind subsets: runs of (piece, material, damage) after a stable sort
-        key = m.material.astype(np.int64) * 2 + m.damage.astype(np.int64)
+        # materialBind subsets: runs of (piece, key) after a stable sort; key is
+        # material * 2 + damage, or 2 M + k for the source look's texture k
+        self.texture_key = 2 * len(self.material_names)
+        key = np.where(self.look.texture >= 0, self.texture_key + self.look.texture,
+                       m.material.astype(np.int64) * 2 + m.damage.astype(np.int64))
         self.subset_order = np.lexsort((np.arange(t), key, tri_piece))
         sk, spc = key[self.subset_order], tri_piece[self.subset_order]
         run = np.ones(t, dtype=bool)
@@ -301,6 +234,8 @@ class _Writer:
         for m in self.used_materials:
             for damage, color in ((False, self.colors[m]), (True, self.damage_colors[m])):
                 out.append(self._material_text(self._material_path(m, damage), color))
+        for k in np.unique(self.look.texture[self.look.texture >= 0]).tolist():
+            out.append(self._texture_material_text(k))
         out.append("    }\n\n")
         out.append(self._instancer_text() if self.instancer else self._xforms_text())
         out.append("}\n")
@@ -320,6 +255,35 @@ class _Writer:
                 f"                float inputs:roughness = {ROUGHNESS}\n"
                 f"                token outputs:surface\n            }}\n        }}\n")
 
+    def _texture_material_text(self, k: int) -> str:
+        """UsdPreviewSurface whose diffuse colour is texture k (a UsdUVTexture of the file
+        beside the cache) read at the mesh's ``st``."""
+        path = self._texture_material_path(k)
+        name = path.rsplit("/", 1)[1]
+        asset = f"./{self.texture_dir}/{self.texture_names[k]}.png"
+        return (f'        def Material "{name}"\n        {{\n'
+                f"            token outputs:surface.connect = "
+                f"<{path}/PreviewSurface.outputs:surface>\n\n"
+                f'            def Shader "PreviewSurface"\n            {{\n'
+                f'                uniform token info:id = "UsdPreviewSurface"\n'
+                f"                color3f inputs:diffuseColor.connect = "
+                f"<{path}/Texture.outputs:rgb>\n"
+                f"                float inputs:metallic = 0\n"
+                f"                float inputs:roughness = {ROUGHNESS}\n"
+                f"                token outputs:surface\n            }}\n\n"
+                f'            def Shader "Texture"\n            {{\n'
+                f'                uniform token info:id = "UsdUVTexture"\n'
+                f"                asset inputs:file = @{asset}@\n"
+                f'                token inputs:sourceColorSpace = "sRGB"\n'
+                f"                float2 inputs:st.connect = <{path}/UV.outputs:result>\n"
+                f'                token inputs:wrapS = "repeat"\n'
+                f'                token inputs:wrapT = "repeat"\n'
+                f"                float3 outputs:rgb\n            }}\n\n"
+                f'            def Shader "UV"\n            {{\n'
+                f'                uniform token info:id = "UsdPrimvarReader_float2"\n'
+                f'                string inputs:varname = "st"\n'
+                f"                float2 outputs:result\n            }}\n        }}\n")
+
     def _mesh_text(self, name: str, p: int, indent: str) -> str:
         """A piece's Mesh: declarations only (values are set through the Sdf API)."""
         t0, t1 = int(self.meshes.offsets[p]), int(self.meshes.offsets[p + 1])
@@ -336,6 +300,8 @@ class _Writer:
             f'{i}    float[] primvars:damage (\n{i}        interpolation = "uniform"\n{i}    )\n'
             f'{i}    color3f[] primvars:displayColor (\n{i}        interpolation = "uniform"\n'
             f"{i}    )\n"
+            f'{i}    texCoord2f[] primvars:st (\n{i}        interpolation = "faceVarying"\n'
+            f"{i}    )\n"
             f'{i}    uniform token subdivisionScheme = "none"')
         if t1 > t0:
             lines.append(f"{i}    rel material:binding = "
@@ -344,21 +310,31 @@ class _Writer:
                          f'"partition"')
             for g in range(int(self.subset_piece_offsets[p]),
                            int(self.subset_piece_offsets[p + 1])):
-                material, damage = divmod(int(self.subset_key[g]), 2)
-                lines.append(self._subset_text(material, bool(damage), i + "    "))
+                name, target = self._subset(int(self.subset_key[g]))
+                lines.append(self._subset_text(name, target, i + "    "))
         lines.append(f"{i}}}\n")
         return "\n".join(lines)
 
-    def _subset_name(self, material: int, damage: bool) -> str:
-        return ("damage_" if damage else "surface_") + self.material_names[material]
+    def _subset(self, key: int) -> tuple[str, str]:
+        """(subset name, material path) of a subset key (see _prepare_meshes)."""
+        if key >= self.texture_key:
+            name = self.texture_names[key - self.texture_key]
+            return f"textured_{name}", self._texture_material_path(key - self.texture_key)
+        material, damage = divmod(key, 2)
+        return (("damage_" if damage else "surface_") + self.material_names[material],
+                self._material_path(material, bool(damage)))
 
-    def _subset_text(self, material: int, damage: bool, i: str) -> str:
-        return (f'\n{i}def GeomSubset "{self._subset_name(material, damage)}" (\n'
+    def _texture_material_path(self, k: int) -> str:
+        return f"{ROOT}/Materials/texture_{self.texture_names[k]}"
+
+    @staticmethod
+    def _subset_text(name: str, material_path: str, i: str) -> str:
+        return (f'\n{i}def GeomSubset "{name}" (\n'
                 f'{i}    prepend apiSchemas = ["MaterialBindingAPI"]\n{i})\n{i}{{\n'
                 f'{i}    uniform token elementType = "face"\n'
                 f'{i}    uniform token familyName = "materialBind"\n'
                 f"{i}    int[] indices\n"
-                f"{i}    rel material:binding = <{self._material_path(material, damage)}>\n"
+                f"{i}    rel material:binding = <{material_path}>\n"
                 f"{i}}}")
 
     def _xforms_text(self) -> str:
@@ -379,8 +355,8 @@ class _Writer:
         translate = np.concatenate([frame, pos_n], axis=-1).transpose(1, 0, 2)      # (P, F, 4)
         orient = np.concatenate([frame, ori_n], axis=-1).transpose(1, 0, 2)         # (P, F, 5)
         live = np.arange(f_count)[None, :] < np.maximum(self.end, 1)[:, None]       # (P, F)
-        keep_t = _run_ends_pf(translate[..., 1:], live)
-        keep_o = _run_ends_pf(orient[..., 1:], live)
+        keep_t = run_ends_pf(translate[..., 1:], live)
+        keep_o = run_ends_pf(orient[..., 1:], live)
         row_t = "                %d: (%de-9, %de-9, %de-9),\n"
         row_o = "                %d: (%de-9, %de-9, %de-9, %de-9),\n"
         out = ['    def Xform "Pieces"\n    {\n']
@@ -420,7 +396,7 @@ class _Writer:
         the same inputs and seed), mass (kg) and the object it was cut from."""
         return (f"{indent}int primvars:blastvox:piece = {p}\n"
                 f"{indent}double primvars:blastvox:mass = {float(self.cache.piece_mass[p])!r}\n"
-                f"{indent}string primvars:blastvox:object = {_usda_string(self.objects[p])}\n")
+                f"{indent}string primvars:blastvox:object = {usda_string(self.objects[p])}\n")
 
     def _instancer_text(self) -> str:
         targets = ",\n".join(f"            <{ROOT}/Pieces/Prototypes/piece_{p:05d}>"
@@ -459,21 +435,22 @@ class _Writer:
             t0, t1 = int(m.offsets[p]), int(m.offsets[p + 1])
             v0, v1 = int(self.point_offsets[p]), int(self.point_offsets[p + 1])
             points = self.points[v0:v1]
-            get(prop("points")).default = _vec3f(points)
-            get(prop("extent")).default = _extent(points)
+            get(prop("points")).default = vec3f(points)
+            get(prop("extent")).default = points_extent(points)
             get(prop("faceVertexCounts")).default = Vt.IntArray(t1 - t0, 3)
             get(prop("faceVertexIndices")).default = Vt.IntArray.FromNumpy(
                 self.indices[3 * t0:3 * t1])
-            get(prop("normals")).default = _vec3f(self.normals[3 * t0:3 * t1])
-            get(prop("primvars:displayColor")).default = _vec3f(self.face_color[t0:t1])
+            get(prop("normals")).default = vec3f(self.normals[3 * t0:3 * t1])
+            get(prop("primvars:displayColor")).default = vec3f(self.face_color[t0:t1])
+            get(prop("primvars:st")).default = Vt.Vec2fArray.FromNumpy(
+                np.ascontiguousarray(self.look.uv[t0:t1].reshape(-1, 2)))
             damage = prop("primvars:damage")
             get(damage).default = Vt.FloatArray(t1 - t0, 0.0)
             self.damage_paths.append(damage)
             for g in range(int(self.subset_piece_offsets[p]),
                            int(self.subset_piece_offsets[p + 1])):
-                material, is_damage = divmod(int(self.subset_key[g]), 2)
                 faces = self.subset_order[self.subset_start[g]:self.subset_start[g + 1]]
-                subset = path.AppendChild(self._subset_name(material, bool(is_damage)))
+                subset = path.AppendChild(self._subset(int(self.subset_key[g]))[0])
                 get(subset.AppendProperty("indices")).default = Vt.IntArray.FromNumpy(
                     self.local_face[faces])
 
@@ -549,9 +526,9 @@ class _Writer:
         angular = np.degrees(angular)  # UsdGeomPointInstancer: degrees per second
         gone_count = -1
         for f in range(self.frames):
-            set_sample(positions, float(f), _vec3f(pos[f]))
-            set_sample(inst.AppendProperty("velocities"), float(f), _vec3f(linear[f]))
-            set_sample(inst.AppendProperty("angularVelocities"), float(f), _vec3f(angular[f]))
+            set_sample(positions, float(f), vec3f(pos[f]))
+            set_sample(inst.AppendProperty("velocities"), float(f), vec3f(linear[f]))
+            set_sample(inst.AppendProperty("angularVelocities"), float(f), vec3f(angular[f]))
             quat = np.ascontiguousarray(ori[f][:, [1, 2, 3, 0]], dtype=np.float32)
             set_sample(orientationsf, float(f), Vt.QuatfArray.FromNumpy(quat))
             set_sample(orientations, float(f), Vt.QuathArray.FromNumpy(quat.astype(np.float16)))
@@ -562,234 +539,51 @@ class _Writer:
                 box = np.stack([world.min(axis=(0, 1)), world.max(axis=(0, 1))]) + 0.0
             else:
                 box = np.zeros((2, 3))
-            set_sample(extent, float(f), _vec3f(box))
+            set_sample(extent, float(f), vec3f(box))
             gone = ids[~shown]
             if len(gone) != gone_count:  # pieces never come back: the set only grows
                 set_sample(invisible, float(f), Vt.Int64Array.FromNumpy(gone))
                 gone_count = len(gone)
 
-    # -- particles
-    def _dust(self, shot: Sdf.PrimSpec) -> None:
-        """One UsdGeomPointInstancer per particle system (dust, fire, smoke, fireball)
-        whose one prototype, a sphere of diameter 1 bound to the system's material, is
-        instanced at each live particle and scaled to its width. Time-sampled positions,
-        scales, velocities and ids come from the cache's particle births evaluated in
-        closed form (blastvox.particles). An instancer, not UsdGeomPoints: Blender 5.0
-        imports Points without their material (white balls), and an empty points array
-        crashed its Cycles. A frame without particles holds one instance of scale 0 and
-        makes the instancer invisible."""
-        from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
-
-        c = self.cache
-        system = c.arrays.get("particle_system")
-        if system is None or len(system) == 0 or self.frames == 0:
-            return
-        scope = _prim(shot, "Particles", "Xform")
-        g = self.change @ _gravity(c)
-        x0 = c.particle_position.astype(np.float64) @ self.change.T
-        v0 = c.particle_velocity.astype(np.float64) @ self.change.T
-        birth = c.particle_birth.astype(np.float64)
-        size = c.particle_size.astype(np.float32)
-        times = c.frame_time.astype(np.float64).tolist()
-        for index, name in enumerate(SYSTEM_NAMES):
-            mine = np.flatnonzero(system == index)
-            if not mine.size:
-                continue
-            instancer = self._particle_instancer(scope, name)
-            frames = [(t, *positions_at(birth[mine], x0[mine], v0[mine],
-                                        np.full(len(mine), index, dtype=np.uint8), t, g))
-                      for t in times]
-            self._instance_samples(instancer, mine, frames, SYSTEMS[name], birth, v0, size, g)
-
-    def _particle_instancer(self, scope: Sdf.PrimSpec, name: str) -> Sdf.PrimSpec:
-        """Particles/<name> (PointInstancer) with Prototypes/sprite, a sphere of diameter 1
-        (an icosphere: 80 faces, smooth normals) bound to Materials/particle_<name>."""
-        import trimesh
-
-        instancer = _prim(scope, name, "PointInstancer")
-        prototypes = _prim(instancer, "Prototypes", "Scope")
-        sprite = _prim(prototypes, "sprite", "Mesh")
-        ball = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
-        vertices = np.asarray(ball.vertices, dtype=np.float32)
-        _attr(sprite, "points", _T.Point3fArray, _vec3f(vertices))
-        _attr(sprite, "normals", _T.Normal3fArray, _vec3f(vertices * 2), interpolation="vertex")
-        _attr(sprite, "extent", _T.Float3Array, _extent(vertices))
-        _attr(sprite, "faceVertexCounts", _T.IntArray, Vt.IntArray(len(ball.faces), 3))
-        _attr(sprite, "faceVertexIndices", _T.IntArray, Vt.IntArray.FromNumpy(
-            np.ascontiguousarray(ball.faces.ravel(), dtype=np.int32)))
-        _attr(sprite, "subdivisionScheme", _T.Token, "none", uniform=True)
-        _attr(sprite, "primvars:displayColor", _T.Color3fArray,
-              Vt.Vec3fArray([Gf.Vec3f(*PARTICLE_COLORS[name])]), interpolation="constant")
-        self._bind(sprite, self._particle_material(name))
-        targets = Sdf.RelationshipSpec(instancer, "prototypes")
-        targets.targetPathList.explicitItems = [sprite.path]
-        return instancer
-
-    def _instance_samples(self, instancer: Sdf.PrimSpec, mine: np.ndarray, frames: list,
-                          spec, birth: np.ndarray, v0: np.ndarray, size: np.ndarray,
-                          g: np.ndarray) -> None:
-        """Time samples of one system's instancer: ``frames[f]`` is (time s, alive
-        indices into ``mine``, (n, 3) positions m) at frame f. Runs of empty frames keep
-        one sample; an empty frame holds one instance of scale 0 where the first
-        particle shows."""
-        layer = self.layer
-        specs = {key: _attr(instancer, key, kind) for key, kind in
-                 (("positions", _T.Point3fArray), ("scales", _T.Float3Array),
-                  ("velocities", _T.Vector3fArray), ("ids", _T.Int64Array),
-                  ("protoIndices", _T.IntArray), ("extent", _T.Float3Array))}
-        visibility = _attr(instancer, "visibility", _T.Token)
-        first = next((x[:1] for _, alive, x in frames if alive.size), np.zeros((1, 3)))
-        previous_empty = None
-        for f, (t, alive, x) in enumerate(frames):
-            empty = not alive.size
-            if empty and previous_empty:
-                continue  # an empty frame after an empty frame adds nothing
-            if empty != previous_empty:
-                layer.SetTimeSample(visibility.path, float(f),
-                                    "invisible" if empty else "inherited")
-            previous_empty = empty
-            if empty:
-                x, vel, w = first, np.zeros((1, 3)), np.zeros(1, dtype=np.float32)
-                ids = np.array([-1], dtype=np.int64)
-            else:
-                age = t - birth[mine][alive]
-                decay = np.exp(-spec.drag * age)[:, None]
-                vel = v0[mine][alive] * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
-                w = size[mine][alive]
-                ids = mine[alive].astype(np.int64)
-            box = np.stack([(x - w[:, None] / 2).min(axis=0), (x + w[:, None] / 2).max(axis=0)])
-            sample = float(f)
-            layer.SetTimeSample(specs["positions"].path, sample, _vec3f(x))
-            layer.SetTimeSample(specs["scales"].path, sample, _vec3f(np.repeat(
-                w[:, None], 3, axis=1)))
-            layer.SetTimeSample(specs["velocities"].path, sample, _vec3f(vel))
-            layer.SetTimeSample(specs["ids"].path, sample,
-                                Vt.Int64Array.FromNumpy(np.ascontiguousarray(ids)))
-            layer.SetTimeSample(specs["protoIndices"].path, sample,
-                                Vt.IntArray(len(ids), 0))
-            layer.SetTimeSample(specs["extent"].path, sample, _vec3f(box))
-
-    def _particle_material(self, name: str) -> Sdf.Path:
-        """/Shot/Materials/particle_<name>: a UsdPreviewSurface that reads as the system
-        (PARTICLE_COLORS, PARTICLE_LOOKS)."""
-        color = Gf.Vec3f(*PARTICLE_COLORS[name])
-        look = PARTICLE_LOOKS[name]
-        materials = self.layer.GetPrimAtPath(f"{ROOT}/Materials")
-        material = _prim(materials, f"particle_{name}", "Material")
-        shader = _prim(material, "PreviewSurface", "Shader")
-        _attr(shader, "info:id", _T.Token, "UsdPreviewSurface", uniform=True)
-        emissive = look["emissive"]
-        _attr(shader, "inputs:diffuseColor", _T.Color3f,
-              Gf.Vec3f(0.0) if emissive else color)
-        _attr(shader, "inputs:emissiveColor", _T.Color3f, color * emissive)
-        _attr(shader, "inputs:opacity", _T.Float, look["opacity"])
-        _attr(shader, "inputs:roughness", _T.Float, 1.0)
-        out = _attr(shader, "outputs:surface", _T.Token)
-        surface = _attr(material, "outputs:surface", _T.Token)
-        surface.connectionPathList.explicitItems = [out.path]
-        return material.path
-
-    @staticmethod
-    def _bind(prim: Sdf.PrimSpec, material: Sdf.Path) -> None:
-        prim.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
-        binding = Sdf.RelationshipSpec(prim, "material:binding")
-        binding.targetPathList.explicitItems = [material]
-
-    # -- camera
-    def _camera(self, shot: Sdf.PrimSpec) -> None:
-        """The scene's camera with the blast's shake baked into its translation."""
-        camera = self.cache.meta.get("camera")
-        if not camera:
-            return
-        position = np.asarray(camera["position"], dtype=np.float64) @ self.change.T
-        target = np.asarray(camera["look_at"], dtype=np.float64) @ self.change.T
-        offset = np.asarray(self.cache.arrays.get("camera_offset", np.zeros((self.frames, 3))),
-                            dtype=np.float64) @ self.change.T
-        up = up_vector(self.options.up_axis)
-        back = position - target
-        back /= np.linalg.norm(back)
-        right = np.cross(up, back)
-        if np.linalg.norm(right) < 1e-9:  # looking straight along up
-            right = np.cross(np.roll(up, 1), back)
-        right /= np.linalg.norm(right)
-        true_up = np.cross(back, right)
-        # USD cameras look down -Z with +Y up; in USD's row-vector convention the
-        # rows of the local-to-world matrix are the camera's axes in the world
-        rotation = Gf.Matrix3d(*np.stack([right, true_up, back]).ravel().tolist())
-        quat = rotation.ExtractRotation().GetQuat()
-        cam = _prim(shot, "Camera", "Camera")
-        tenths = MM_PER_TENTH_METRE  # lens and filmback in tenths of a metre
-        _attr(cam, "focalLength", _T.Float,
-              float(camera.get("focal_length_mm", 35.0)) / tenths)
-        _attr(cam, "horizontalAperture", _T.Float, FILMBACK_MM[0] / tenths)
-        _attr(cam, "verticalAperture", _T.Float, FILMBACK_MM[1] / tenths)
-        _attr(cam, "clippingRange", _T.Float2, Gf.Vec2f(0.1, 10000.0))
-        translate = _attr(cam, "xformOp:translate", _T.Double3)
-        _attr(cam, "xformOp:orient", _T.Quatd, Gf.Quatd(quat))
-        _xform_order(cam, ["xformOp:translate", "xformOp:orient"])
-        keep = _run_ends(offset)
-        for f in np.flatnonzero(keep).tolist():
-            self.layer.SetTimeSample(translate.path, float(f),
-                                     Gf.Vec3d(*map(float, position + offset[f])))
-
-    # -- shock fronts
-    def _shock(self, shot: Sdf.PrimSpec) -> None:
-        """With ``options.shock``, a guide sphere per charge: time-sampled radius and
-        extent, displayOpacity from the cache's ``shock_opacity`` (else 1 - r / r_max),
-        invisible while the radius or the opacity is 0 (before detonation, or switched
-        off). Guide purpose: viewports may show it, renders and Blender's importer skip
-        it (it grows past the camera and would hide the shot)."""
-        c = self.cache
-        radius_all = np.asarray(c.shock_radius, dtype=np.float64).reshape(self.frames, -1)
-        if not self.options.shock or radius_all.shape[1] == 0 or self.frames == 0:
-            return
-        opacity_all = c.arrays.get("shock_opacity")
-        scope = _prim(shot, "Effects", "Xform")
-        centres = c.charge_position.astype(np.float64) @ self.change.T
-        set_sample = self.layer.SetTimeSample
-        for k in range(radius_all.shape[1]):
-            radius = np.nan_to_num(radius_all[:, k], nan=0.0, posinf=0.0, neginf=0.0)
-            radius = np.maximum(radius, 0.0)
-            if opacity_all is not None and np.shape(opacity_all) == radius_all.shape:
-                opacity = np.nan_to_num(np.asarray(opacity_all, dtype=np.float64)[:, k])
-            else:
-                r_max = float(radius.max())
-                opacity = 1.0 - radius / r_max if r_max > 0 else np.zeros_like(radius)
-            opacity = np.clip(opacity, 0.0, 1.0)
-            sphere = _prim(scope, f"shock_{k}", "Sphere")
-            _attr(sphere, "purpose", _T.Token, "guide", uniform=True)
-            _attr(sphere, "xformOp:translate", _T.Double3, Gf.Vec3d(*map(float, centres[k])))
-            _xform_order(sphere, ["xformOp:translate"])
-            _attr(sphere, "primvars:displayColor", _T.Color3fArray,
-                  Vt.Vec3fArray([Gf.Vec3f(*SHOCK_COLOR)]), interpolation="constant")
-            r_path = _attr(sphere, "radius", _T.Double).path
-            e_path = _attr(sphere, "extent", _T.Float3Array).path
-            o_path = _attr(sphere, "primvars:displayOpacity", _T.FloatArray,
-                           interpolation="constant").path
-            keep = _run_ends(np.stack([radius, opacity], axis=1))
-            for f in np.flatnonzero(keep).tolist():
-                r = float(radius[f])
-                set_sample(r_path, float(f), r)
-                set_sample(e_path, float(f), _vec3f(np.array([[-r] * 3, [r] * 3]) + 0.0))
-                set_sample(o_path, float(f), Vt.FloatArray([float(opacity[f])]))
-            shown = (radius > 0) & (opacity > 0)
-            vis = _attr(sphere, "visibility", _T.Token)
-            changes = np.flatnonzero(np.diff(shown.astype(np.int8))) + 1
-            if len(changes) == 0:
-                vis.default = "inherited" if shown[0] else "invisible"
-            for f in [0, *changes.tolist()] if len(changes) else []:
-                set_sample(vis.path, float(f), "inherited" if shown[f] else "invisible")
-
-
-def build_layer(cache: SimCache, options: ExportOptions) -> Sdf.Layer:
-    """The export as an anonymous in-memory layer (for tests and other writers)."""
-    return _Writer(cache, options).build()
+def build_layer(cache: SimCache, options: ExportOptions,
+                texture_dir: str | None = None) -> Sdf.Layer:
+    """The export as an anonymous in-memory layer (for tests and other writers);
+    textured materials read their files from ``./<texture_dir>/``."""
+    return _Writer(cache, options, texture_dir).build()
 
 
 def write_usd(cache: SimCache, path: Path, options: ExportOptions) -> None:
-    """Write ``cache`` to ``path`` (.usda, .usdc or .usd: crate), atomically."""
+    """Write ``cache`` to ``path`` (.usda, .usdc or .usd: crate), atomically. A model
+    with a source look also gets its textures as PNG files in ``<stem>_textures/``
+    beside it (removed again if the USD file cannot be written)."""
     path = Path(path)
-    layer = build_layer(cache, options)
+    texture_dir = f"{path.stem}_textures"
+    layer = build_layer(cache, options, texture_dir)
+    written = _write_textures(cache, path.parent / texture_dir)
+    try:
+        _export_layer(layer, path)
+    except BaseException:
+        for file in written:
+            with contextlib.suppress(OSError):
+                file.unlink()
+        raise
+
+
+def _write_textures(cache: SimCache, directory: Path) -> list[Path]:
+    """The model's textures as ``directory/<name>.png`` (each written atomically)."""
+    names = texture_names(cache)
+    written: list[Path] = []
+    if names:
+        directory.mkdir(exist_ok=True)
+    for k, name in enumerate(names):
+        target = directory / f"{name}.png"
+        with atomic_path(target) as tmp:
+            tmp.write_bytes(cache.model.texture_file(k))
+        written.append(target)
+    return written
+
+
+def _export_layer(layer: Sdf.Layer, path: Path) -> None:
     with atomic_path(path) as tmp:
         # USD picks the file format from the suffix, so export beside the .partial file
         # under a name that ends in the real suffix, then move it onto the .partial.

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +41,10 @@ class Part:
     name: str
     material: str | None
     source: Path
+    #: (n_vertices, 2) texture coordinates (OpenGL convention: v up), or None
+    uv: np.ndarray | None = None
+    #: the base colour texture as PNG bytes, or None
+    texture: bytes | None = None
 
 
 def load_parts(path: Path) -> list[Part]:
@@ -61,6 +66,50 @@ def load_parts(path: Path) -> list[Part]:
         if not np.all(np.isfinite(part.mesh.vertices)):
             raise MeshError(f"{shown}: part '{part.name}' has NaN or infinite vertex coordinates")
     return parts
+
+
+def missing_textures(path: Path) -> list[str]:
+    """One line per texture that ``path`` names but that is not there (an OBJ's
+    ``map_Kd`` in its .mtl files, a .gltf's image ``uri``): the loader drops those
+    silently and the part keeps its base colour, so the caller warns."""
+    shown = printable(path)
+    suffix = path.suffix.lower()
+    missing: list[str] = []
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return missing
+    if suffix == ".obj":
+        for line in text.splitlines():
+            words = line.split(maxsplit=1)
+            if len(words) == 2 and words[0] == "mtllib":
+                missing += _missing_mtl_maps(path.parent / words[1].strip(), shown)
+    elif suffix == ".gltf":
+        with contextlib.suppress(ValueError, TypeError, AttributeError):
+            doc = json.loads(text)
+            for image in doc.get("images", []):
+                uri = image.get("uri", "")
+                if uri and not uri.startswith("data:") and not (path.parent / uri).is_file():
+                    missing.append(f"{shown}: texture '{uri}' of image "
+                                   f"'{image.get('name', '')}' not found; the base colour "
+                                   "is used")
+    return missing
+
+
+def _missing_mtl_maps(mtl: Path, shown: str) -> list[str]:
+    if not mtl.is_file():
+        return [f"{shown}: material library '{mtl.name}' not found; the base colour is used"]
+    missing, material = [], ""
+    for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+        words = line.split()
+        if len(words) >= 2 and words[0] == "newmtl":
+            material = words[1]
+        elif len(words) >= 2 and words[0].lower() == "map_kd":
+            name = words[-1]  # options such as -s come before the file name
+            if not (mtl.parent / name).is_file():
+                missing.append(f"{shown}: texture '{name}' of material '{material}' not "
+                               "found; the base colour is used")
+    return missing
 
 
 def check_readable(path: Path) -> None:
@@ -128,9 +177,33 @@ def _load_surface(path: Path, data: bytes) -> list[Part]:
         mesh.apply_transform(transform)
         material = getattr(getattr(geom.visual, "material", None), "name", None)
         name = node if node != path.name else path.stem
+        uv, texture = _texture(geom)
         parts.append(Part(mesh=mesh, name=printable(str(name)), material=material,
-                          source=path))
+                          source=path, uv=uv, texture=texture))
     return parts
+
+
+def _texture(geom: trimesh.Trimesh) -> tuple[np.ndarray | None, bytes | None]:
+    """The mesh's per-vertex UVs and its base colour image as PNG bytes (glTF PBR
+    ``baseColorTexture``, OBJ/MTL ``map_Kd``), or (None, None) when it has no textured
+    look. PNG from Pillow is byte-deterministic, so the same input gives the same model."""
+    visual = geom.visual
+    uv = getattr(visual, "uv", None)
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None)
+    if image is None:
+        image = getattr(material, "image", None)
+    if uv is None or image is None or len(uv) != len(geom.vertices):
+        return None, None
+    uv = np.asarray(uv, dtype=np.float64)
+    if uv.ndim != 2 or uv.shape[1] != 2 or not np.isfinite(uv).all():
+        return None, None
+    out = io.BytesIO()
+    try:
+        image.convert("RGBA" if "A" in image.getbands() else "RGB").save(out, format="PNG")
+    except Exception:  # an image Pillow cannot decode: the part keeps its material colour
+        return None, None
+    return uv, out.getvalue()
 
 
 def _load_volume(path: Path) -> list[Part]:

@@ -28,8 +28,9 @@ from blastvox.voxelize.components import component_labels
 from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
 from blastvox.voxelize.hashing import uniform_by_key
 from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
+from blastvox.voxelize.look import LookBuilder
 from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
-from blastvox.voxelize.mesh_io import check_readable, load_parts
+from blastvox.voxelize.mesh_io import check_readable, load_parts, missing_textures
 from blastvox.voxelize.regions import RegionRule
 from blastvox.voxelize.slivers import MIN_CONFORM_FRACTION, Cells, merge_slivers
 from blastvox.voxelize.topology import (
@@ -134,6 +135,7 @@ class _Lattice:
     link_midpoint: np.ndarray
     link_area: np.ndarray
     boundary: np.ndarray
+    parts: list = field(default_factory=list)  # the input surfaces, for the look
 
 
 def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
@@ -188,6 +190,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     source = printable(request.mesh)
     progress.start(f"reading {Path(source).name}", 1)
     parts = load_parts(Path(request.mesh))
+    for message in missing_textures(Path(request.mesh)):
+        warn(message)
     if request.transform is not None:
         with np.errstate(all="ignore"):  # overflow is refused just below
             for part in parts:
@@ -244,7 +248,7 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                    centroid=centroid[keep], inertia=inertia[keep], conform_local=conform_local,
                    conform_offsets=conform_data[1], conform_triangles=conform_data[2],
                    conform_tags=conform_data[3], link_voxels=None, link_face=None,
-                   link_midpoint=None, link_area=None, boundary=None)
+                   link_midpoint=None, link_area=None, boundary=None, parts=parts)
     _link(lat)
     if conform:
         _merge_slivers(lat, cell_volume[keep], settings.min_conform_fraction, source, warn)
@@ -400,6 +404,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
         "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side")}
     voxel_base = vertex_base = tri_base = 0
+    look = LookBuilder()
 
     def material_index(name: str) -> int:
         key = library[name].name
@@ -419,6 +424,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
                             "jitter": lat.request.jitter, "lattice_origin_m":
                             lat.grid.origin.tolist(), "voxel_count": int((labels == c).sum())})
         object_ids = len(objects) - count + labels
+        look.add_object(lat.name, lat.parts)
         names = _voxel_materials(lat)
         scale = np.ones(n)
         for rule in lat.request.rules:
@@ -485,6 +491,10 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "seed": settings.seed, "settings": settings.recorded, "objects": objects,
         "materials": material_names,
     }
+    surface, textures = look.arrays()
+    if textures:  # only a textured input adds the look (untextured models are unchanged)
+        arrays.update(surface)
+        meta["textures"] = textures
     _foundations(arrays, ground, up, cat["strength"], settings.seed)
     return VoxelModel(arrays=arrays, meta=meta)
 

@@ -1,0 +1,253 @@
+"""The USD export's effects: particle systems, the scene camera and the shock fronts.
+
+Functions of the writer ``w`` (:class:`blastvox.export.usd._Writer`: its ``layer``,
+``cache``, ``change`` of frame, ``frames`` and ``options``), called once each while
+the layer is built; see the stage layout in :mod:`blastvox.export.usd`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Gf, Sdf, Vt
+
+from blastvox.export.usd_specs import (
+    ROOT,
+    attr_spec,
+    model_gravity,
+    points_extent,
+    prim_spec,
+    run_ends,
+    vec3f,
+    xform_order,
+)
+from blastvox.geometry.frames import up_vector
+
+_T = Sdf.ValueTypeNames
+SHOCK_COLOR = (0.9, 0.9, 0.95)
+PARTICLE_COLORS = {"dust": (0.55, 0.50, 0.45), "fire": (1.0, 0.45, 0.05),
+                   "smoke": (0.25, 0.25, 0.25), "fireball": (1.0, 0.55, 0.1)}
+#: UsdPreviewSurface inputs of each particle system's material: dust and smoke are
+#: matte and translucent, fire and the fireball emit their colour.
+PARTICLE_LOOKS = {"dust": {"opacity": 0.35, "emissive": 0.0},
+                  "fire": {"opacity": 0.8, "emissive": 1.0},
+                  "smoke": {"opacity": 0.3, "emissive": 0.0},
+                  "fireball": {"opacity": 0.9, "emissive": 1.0}}
+#: UsdGeomCamera measures lens and filmback in tenths of a scene unit; the stage is in
+#: metres (metersPerUnit 1), so 1 mm is 1 / MM_PER_TENTH_METRE of that unit.
+MM_PER_TENTH_METRE = 100.0
+FILMBACK_MM = (36.0, 24.0)
+
+
+# ----------------------------------------------------------------------------- particles
+
+def write_particles(w, shot: Sdf.PrimSpec) -> None:
+    """One UsdGeomPointInstancer per particle system (dust, fire, smoke, fireball)
+    whose one prototype, a sphere of diameter 1 bound to the system's material, is
+    instanced at each live particle and scaled to its width. Time-sampled positions,
+    scales, velocities and ids come from the cache's particle births evaluated in
+    closed form (blastvox.particles). An instancer, not UsdGeomPoints: Blender 5.0
+    imports Points without their material (white balls), and an empty points array
+    crashed its Cycles. A frame without particles holds one instance of scale 0 and
+    makes the instancer invisible."""
+    from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
+
+    c = w.cache
+    system = c.arrays.get("particle_system")
+    if system is None or len(system) == 0 or w.frames == 0:
+        return
+    scope = prim_spec(shot, "Particles", "Xform")
+    g = w.change @ model_gravity(c)
+    x0 = c.particle_position.astype(np.float64) @ w.change.T
+    v0 = c.particle_velocity.astype(np.float64) @ w.change.T
+    birth = c.particle_birth.astype(np.float64)
+    size = c.particle_size.astype(np.float32)
+    times = c.frame_time.astype(np.float64).tolist()
+    for index, name in enumerate(SYSTEM_NAMES):
+        mine = np.flatnonzero(system == index)
+        if not mine.size:
+            continue
+        instancer = _particle_instancer(w, scope, name)
+        frames = [(t, *positions_at(birth[mine], x0[mine], v0[mine],
+                                    np.full(len(mine), index, dtype=np.uint8), t, g))
+                  for t in times]
+        _instance_samples(w, instancer, mine, frames, SYSTEMS[name], birth, v0, size, g)
+
+def _particle_instancer(w, scope: Sdf.PrimSpec, name: str) -> Sdf.PrimSpec:
+    """Particles/<name> (PointInstancer) with Prototypes/sprite, a sphere of diameter 1
+    (an icosphere: 80 faces, smooth normals) bound to Materials/particle_<name>."""
+    import trimesh
+
+    instancer = prim_spec(scope, name, "PointInstancer")
+    prototypes = prim_spec(instancer, "Prototypes", "Scope")
+    sprite = prim_spec(prototypes, "sprite", "Mesh")
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    vertices = np.asarray(ball.vertices, dtype=np.float32)
+    attr_spec(sprite, "points", _T.Point3fArray, vec3f(vertices))
+    attr_spec(sprite, "normals", _T.Normal3fArray, vec3f(vertices * 2), interpolation="vertex")
+    attr_spec(sprite, "extent", _T.Float3Array, points_extent(vertices))
+    attr_spec(sprite, "faceVertexCounts", _T.IntArray, Vt.IntArray(len(ball.faces), 3))
+    attr_spec(sprite, "faceVertexIndices", _T.IntArray, Vt.IntArray.FromNumpy(
+        np.ascontiguousarray(ball.faces.ravel(), dtype=np.int32)))
+    attr_spec(sprite, "subdivisionScheme", _T.Token, "none", uniform=True)
+    attr_spec(sprite, "primvars:displayColor", _T.Color3fArray,
+          Vt.Vec3fArray([Gf.Vec3f(*PARTICLE_COLORS[name])]), interpolation="constant")
+    _bind(sprite, _particle_material(w, name))
+    targets = Sdf.RelationshipSpec(instancer, "prototypes")
+    targets.targetPathList.explicitItems = [sprite.path]
+    return instancer
+
+def _instance_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, frames: list,
+                      spec, birth: np.ndarray, v0: np.ndarray, size: np.ndarray,
+                      g: np.ndarray) -> None:
+    """Time samples of one system's instancer: ``frames[f]`` is (time s, alive
+    indices into ``mine``, (n, 3) positions m) at frame f. Runs of empty frames keep
+    one sample; an empty frame holds one instance of scale 0 where the first
+    particle shows."""
+    layer = w.layer
+    specs = {key: attr_spec(instancer, key, kind) for key, kind in
+             (("positions", _T.Point3fArray), ("scales", _T.Float3Array),
+              ("velocities", _T.Vector3fArray), ("ids", _T.Int64Array),
+              ("protoIndices", _T.IntArray), ("extent", _T.Float3Array))}
+    visibility = attr_spec(instancer, "visibility", _T.Token)
+    first = next((x[:1] for _, alive, x in frames if alive.size), np.zeros((1, 3)))
+    previous_empty = None
+    for f, (t, alive, x) in enumerate(frames):
+        empty = not alive.size
+        if empty and previous_empty:
+            continue  # an empty frame after an empty frame adds nothing
+        if empty != previous_empty:
+            layer.SetTimeSample(visibility.path, float(f),
+                                "invisible" if empty else "inherited")
+        previous_empty = empty
+        if empty:
+            x, vel, w = first, np.zeros((1, 3)), np.zeros(1, dtype=np.float32)
+            ids = np.array([-1], dtype=np.int64)
+        else:
+            age = t - birth[mine][alive]
+            decay = np.exp(-spec.drag * age)[:, None]
+            vel = v0[mine][alive] * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
+            w = size[mine][alive]
+            ids = mine[alive].astype(np.int64)
+        box = np.stack([(x - w[:, None] / 2).min(axis=0), (x + w[:, None] / 2).max(axis=0)])
+        sample = float(f)
+        layer.SetTimeSample(specs["positions"].path, sample, vec3f(x))
+        layer.SetTimeSample(specs["scales"].path, sample, vec3f(np.repeat(
+            w[:, None], 3, axis=1)))
+        layer.SetTimeSample(specs["velocities"].path, sample, vec3f(vel))
+        layer.SetTimeSample(specs["ids"].path, sample,
+                            Vt.Int64Array.FromNumpy(np.ascontiguousarray(ids)))
+        layer.SetTimeSample(specs["protoIndices"].path, sample,
+                            Vt.IntArray(len(ids), 0))
+        layer.SetTimeSample(specs["extent"].path, sample, vec3f(box))
+
+def _particle_material(w, name: str) -> Sdf.Path:
+    """/Shot/Materials/particle_<name>: a UsdPreviewSurface that reads as the system
+    (PARTICLE_COLORS, PARTICLE_LOOKS)."""
+    color = Gf.Vec3f(*PARTICLE_COLORS[name])
+    look = PARTICLE_LOOKS[name]
+    materials = w.layer.GetPrimAtPath(f"{ROOT}/Materials")
+    material = prim_spec(materials, f"particle_{name}", "Material")
+    shader = prim_spec(material, "PreviewSurface", "Shader")
+    attr_spec(shader, "info:id", _T.Token, "UsdPreviewSurface", uniform=True)
+    emissive = look["emissive"]
+    attr_spec(shader, "inputs:diffuseColor", _T.Color3f,
+          Gf.Vec3f(0.0) if emissive else color)
+    attr_spec(shader, "inputs:emissiveColor", _T.Color3f, color * emissive)
+    attr_spec(shader, "inputs:opacity", _T.Float, look["opacity"])
+    attr_spec(shader, "inputs:roughness", _T.Float, 1.0)
+    out = attr_spec(shader, "outputs:surface", _T.Token)
+    surface = attr_spec(material, "outputs:surface", _T.Token)
+    surface.connectionPathList.explicitItems = [out.path]
+    return material.path
+
+def _bind(prim: Sdf.PrimSpec, material: Sdf.Path) -> None:
+    prim.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"]))
+    binding = Sdf.RelationshipSpec(prim, "material:binding")
+    binding.targetPathList.explicitItems = [material]
+
+# ----------------------------------------------------------------------------- camera
+
+def write_camera(w, shot: Sdf.PrimSpec) -> None:
+    """The scene's camera with the blast's shake baked into its translation."""
+    camera = w.cache.meta.get("camera")
+    if not camera:
+        return
+    position = np.asarray(camera["position"], dtype=np.float64) @ w.change.T
+    target = np.asarray(camera["look_at"], dtype=np.float64) @ w.change.T
+    offset = np.asarray(w.cache.arrays.get("camera_offset", np.zeros((w.frames, 3))),
+                        dtype=np.float64) @ w.change.T
+    up = up_vector(w.options.up_axis)
+    back = position - target
+    back /= np.linalg.norm(back)
+    right = np.cross(up, back)
+    if np.linalg.norm(right) < 1e-9:  # looking straight along up
+        right = np.cross(np.roll(up, 1), back)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(back, right)
+    # USD cameras look down -Z with +Y up; in USD's row-vector convention the
+    # rows of the local-to-world matrix are the camera's axes in the world
+    rotation = Gf.Matrix3d(*np.stack([right, true_up, back]).ravel().tolist())
+    quat = rotation.ExtractRotation().GetQuat()
+    cam = prim_spec(shot, "Camera", "Camera")
+    tenths = MM_PER_TENTH_METRE  # lens and filmback in tenths of a metre
+    attr_spec(cam, "focalLength", _T.Float,
+          float(camera.get("focal_length_mm", 35.0)) / tenths)
+    attr_spec(cam, "horizontalAperture", _T.Float, FILMBACK_MM[0] / tenths)
+    attr_spec(cam, "verticalAperture", _T.Float, FILMBACK_MM[1] / tenths)
+    attr_spec(cam, "clippingRange", _T.Float2, Gf.Vec2f(0.1, 10000.0))
+    translate = attr_spec(cam, "xformOp:translate", _T.Double3)
+    attr_spec(cam, "xformOp:orient", _T.Quatd, Gf.Quatd(quat))
+    xform_order(cam, ["xformOp:translate", "xformOp:orient"])
+    keep = run_ends(offset)
+    for f in np.flatnonzero(keep).tolist():
+        w.layer.SetTimeSample(translate.path, float(f),
+                                 Gf.Vec3d(*map(float, position + offset[f])))
+
+# ----------------------------------------------------------------------------- shock fronts
+
+def write_shock(w, shot: Sdf.PrimSpec) -> None:
+    """With ``options.shock``, a guide sphere per charge: time-sampled radius and
+    extent, displayOpacity from the cache's ``shock_opacity`` (else 1 - r / r_max),
+    invisible while the radius or the opacity is 0 (before detonation, or switched
+    off). Guide purpose: viewports may show it, renders and Blender's importer skip
+    it (it grows past the camera and would hide the shot)."""
+    c = w.cache
+    radius_all = np.asarray(c.shock_radius, dtype=np.float64).reshape(w.frames, -1)
+    if not w.options.shock or radius_all.shape[1] == 0 or w.frames == 0:
+        return
+    opacity_all = c.arrays.get("shock_opacity")
+    scope = prim_spec(shot, "Effects", "Xform")
+    centres = c.charge_position.astype(np.float64) @ w.change.T
+    set_sample = w.layer.SetTimeSample
+    for k in range(radius_all.shape[1]):
+        radius = np.nan_to_num(radius_all[:, k], nan=0.0, posinf=0.0, neginf=0.0)
+        radius = np.maximum(radius, 0.0)
+        if opacity_all is not None and np.shape(opacity_all) == radius_all.shape:
+            opacity = np.nan_to_num(np.asarray(opacity_all, dtype=np.float64)[:, k])
+        else:
+            r_max = float(radius.max())
+            opacity = 1.0 - radius / r_max if r_max > 0 else np.zeros_like(radius)
+        opacity = np.clip(opacity, 0.0, 1.0)
+        sphere = prim_spec(scope, f"shock_{k}", "Sphere")
+        attr_spec(sphere, "purpose", _T.Token, "guide", uniform=True)
+        attr_spec(sphere, "xformOp:translate", _T.Double3, Gf.Vec3d(*map(float, centres[k])))
+        xform_order(sphere, ["xformOp:translate"])
+        attr_spec(sphere, "primvars:displayColor", _T.Color3fArray,
+              Vt.Vec3fArray([Gf.Vec3f(*SHOCK_COLOR)]), interpolation="constant")
+        r_path = attr_spec(sphere, "radius", _T.Double).path
+        e_path = attr_spec(sphere, "extent", _T.Float3Array).path
+        o_path = attr_spec(sphere, "primvars:displayOpacity", _T.FloatArray,
+                       interpolation="constant").path
+        keep = run_ends(np.stack([radius, opacity], axis=1))
+        for f in np.flatnonzero(keep).tolist():
+            r = float(radius[f])
+            set_sample(r_path, float(f), r)
+            set_sample(e_path, float(f), vec3f(np.array([[-r] * 3, [r] * 3]) + 0.0))
+            set_sample(o_path, float(f), Vt.FloatArray([float(opacity[f])]))
+        shown = (radius > 0) & (opacity > 0)
+        vis = attr_spec(sphere, "visibility", _T.Token)
+        changes = np.flatnonzero(np.diff(shown.astype(np.int8))) + 1
+        if len(changes) == 0:
+            vis.default = "inherited" if shown[0] else "invisible"
+        for f in [0, *changes.tolist()] if len(changes) else []:
+            set_sample(vis.path, float(f), "inherited" if shown[f] else "invisible")

@@ -1,0 +1,90 @@
+"""Small helpers of the USD writer: Sdf specs, value conversion and sample thinning.
+
+Shared by :mod:`blastvox.export.usd` (pieces) and :mod:`blastvox.export.usd_effects`
+(particles, camera, shock fronts).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, Vt
+
+from blastvox.cache import SimCache
+from blastvox.geometry.frames import gravity_vector
+
+ROOT = "/Shot"
+_T = Sdf.ValueTypeNames
+
+
+def prim_spec(parent: Sdf.PrimSpec, name: str, type_name: str = "") -> Sdf.PrimSpec:
+    """A ``def`` prim spec under ``parent``."""
+    return Sdf.PrimSpec(parent, name, Sdf.SpecifierDef, type_name)
+
+
+def attr_spec(prim: Sdf.PrimSpec, name: str, type_name, value=None,
+              interpolation: str | None = None, uniform: bool = False) -> Sdf.AttributeSpec:
+    """An attribute spec on ``prim``, with its default value and interpolation if given."""
+    spec = Sdf.AttributeSpec(prim, name, type_name,
+                             Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying)
+    if value is not None:
+        spec.default = value
+    if interpolation is not None:
+        spec.SetInfo("interpolation", interpolation)
+    return spec
+
+
+def xform_order(prim: Sdf.PrimSpec, ops: list[str]) -> None:
+    spec = Sdf.AttributeSpec(prim, "xformOpOrder", _T.TokenArray, Sdf.VariabilityUniform)
+    spec.default = Vt.TokenArray(ops)
+
+
+def usda_string(text: str) -> str:
+    """``text`` as a double-quoted usda string literal."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+
+
+def vec3f(a: np.ndarray) -> Vt.Vec3fArray:
+    return Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(a, dtype=np.float32).reshape(-1, 3))
+
+
+def points_extent(points: np.ndarray) -> Vt.Vec3fArray:
+    if len(points) == 0:
+        return vec3f(np.zeros((2, 3)))
+    return vec3f(np.stack([points.min(axis=0), points.max(axis=0)]))
+
+
+def run_ends(values: np.ndarray) -> np.ndarray:
+    """(F,) bool: frames that start or end a run of equal values along axis 0 of (F, ...)."""
+    f = len(values)
+    keep = np.zeros(f, dtype=bool)
+    if f == 0:
+        return keep
+    keep[0] = True
+    if f > 1:
+        diff = (values[1:] != values[:-1]).reshape(f - 1, -1).any(axis=1)
+        keep[1:] |= diff     # first frame of a new value
+        keep[:-1] |= diff    # last frame of the old one (so interpolation holds it)
+    return keep
+
+
+def run_ends_pf(values: np.ndarray, live: np.ndarray) -> np.ndarray:
+    """(P, F) bool: per piece, :func:`_run_ends` of ``values`` (P, F, k) over its live
+    frames (``live`` (P, F), a prefix of the frames for each piece)."""
+    p, f = live.shape
+    keep = np.zeros((p, f), dtype=bool)
+    if f == 0:
+        return keep
+    keep[:, 0] = True
+    if f > 1:
+        diff = (values[:, 1:] != values[:, :-1]).any(axis=-1) & live[:, 1:]
+        keep[:, 1:] |= diff
+        keep[:, :-1] |= diff
+    return keep & live
+
+
+def model_gravity(cache: SimCache) -> np.ndarray:
+    """Model-frame gravity (m/s^2): meta["gravity_vector"], else -settings.gravity * up."""
+    if cache.meta.get("gravity_vector") is not None:
+        return np.asarray(cache.meta["gravity_vector"], dtype=np.float64).reshape(3)
+    return gravity_vector(cache.model.meta.get("up_axis", "Y"),
+                          cache.meta.get("settings", {}).get("gravity", 9.81))

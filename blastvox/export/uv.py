@@ -1,0 +1,115 @@
+"""Texture coordinates of the pieces' faces: the source look on the outside, box UVs inside.
+
+Every triangle of :func:`blastvox.export.pieces.piece_meshes` gets UVs at its three
+corners, computed in rest space (the intact model's frame), so they stay put as
+the pieces move:
+
+* an exterior face of an input that had a texture (the VoxelModel's source look,
+  :mod:`blastvox.voxelize.look`) takes the UVs of the source triangle nearest to
+  its centroid, by barycentric coordinates of each corner in that triangle's
+  plane: exact for conform faces (they are pieces of the source triangles),
+  a projection for jittered and cube cells. Its texture index is that triangle's;
+* every other face (fracture faces, untextured inputs, faces farther from the
+  source surface than ``REACH`` voxel edges) gets box UVs: the two rest
+  coordinates (m) across the axis its normal points along most, 1 UV unit per
+  metre, continuous across a piece's faces that share that axis; texture -1.
+
+UVs use the OpenGL convention (origin bottom left, v up), as USD's ``st``;
+glTF writers flip v.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+from trimesh.triangles import closest_point, points_to_barycentric
+
+from blastvox.cache import SimCache
+from blastvox.export.pieces import PieceMeshes
+
+#: How far (in voxel edges) a face's centroid may lie from the source surface and still
+#: take its texture: jittered cells stray by up to about half an edge plus the jitter.
+REACH = 0.75
+#: Source triangles whose centroids are nearest a face's centroid, searched exactly.
+CANDIDATES = 8
+
+
+def texture_names(cache: SimCache) -> list[str]:
+    """File-name and identifier safe, unique names of the model's textures (by index)."""
+    out: list[str] = []
+    for k, texture in enumerate(cache.model.textures):
+        base = re.sub(r"[^A-Za-z0-9_]", "_", str(texture.get("name", ""))) or f"texture_{k}"
+        if base[0].isdigit():
+            base = f"_{base}"
+        name, n = base, 1
+        while name in out:
+            name, n = f"{base}_{n}", n + 1
+        out.append(name)
+    return out
+
+
+@dataclass(frozen=True)
+class FaceUVs:
+    """uv (T, 3, 2) float32 per triangle corner; texture (T,) int32 (-1: none)."""
+
+    uv: np.ndarray
+    texture: np.ndarray
+
+
+def face_uvs(cache: SimCache, meshes: PieceMeshes) -> FaceUVs:
+    """UVs and texture index of every triangle of ``meshes`` (see the module doc)."""
+    rest = meshes.rest
+    uv = box_uvs(rest)
+    texture = np.full(len(rest), -1, dtype=np.int32)
+    a = cache.model.arrays
+    if "surface_triangles" not in a or not len(rest):
+        return FaceUVs(uv=uv, texture=texture)
+    outside = np.flatnonzero(~meshes.damage)
+    if outside.size:
+        edge = np.cbrt(a["voxel_volume"][meshes.voxel[outside]])
+        source, distance = nearest_triangles(a["surface_triangles"], rest[outside].mean(axis=1))
+        near = (distance <= REACH * edge) & (a["surface_texture"][source] >= 0)
+        faces, source = outside[near], source[near]
+        texture[faces] = a["surface_texture"][source]
+        uv[faces] = _interpolate(a["surface_triangles"][source], a["surface_uv"][source],
+                                 rest[faces])
+    return FaceUVs(uv=uv, texture=texture)
+
+
+def box_uvs(triangles: np.ndarray) -> np.ndarray:
+    """(T, 3, 2) float32 box UVs of (T, 3, 3) rest triangles: the coordinates across the
+    axis of largest |normal| component, in metres."""
+    normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    axis = np.argmax(np.abs(normal), axis=1)
+    across = np.array([[1, 2], [0, 2], [0, 1]])[axis]                       # (T, 2)
+    picked = np.take_along_axis(triangles, across[:, None, :].repeat(3, axis=1), axis=2)
+    return picked.astype(np.float32)
+
+
+def nearest_triangles(triangles: np.ndarray, points: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """For each point (n, 3), the index of the nearest of ``triangles`` (S, 3, 3) and its
+    distance (m): exact among the CANDIDATES triangles whose centroids are nearest (a
+    KD-tree of centroids), which holds the nearest triangle unless a much larger one
+    passes closer than their centroids (then a farther candidate is taken)."""
+    k = min(CANDIDATES, len(triangles))
+    _, candidates = cKDTree(triangles.mean(axis=1)).query(points, k=k)
+    candidates = np.asarray(candidates).reshape(len(points), k)
+    flat = candidates.ravel()
+    closest = closest_point(triangles[flat], np.repeat(points, k, axis=0))
+    distance = np.linalg.norm(closest - np.repeat(points, k, axis=0), axis=1).reshape(-1, k)
+    best = np.argmin(distance, axis=1)
+    rows = np.arange(len(points))
+    return candidates[rows, best], distance[rows, best]
+
+
+def _interpolate(source: np.ndarray, source_uv: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """UVs (T, 3, 2) of ``corners`` (T, 3, 3) by their barycentric coordinates in the
+    planes of ``source`` triangles (T, 3, 3) with corner UVs ``source_uv`` (T, 3, 2)."""
+    t = len(source)
+    bary = points_to_barycentric(np.repeat(source, 3, axis=0), corners.reshape(-1, 3))
+    bary = np.nan_to_num(bary.reshape(t, 3, 3))  # degenerate source: its first corner
+    return np.einsum("tcj,tjd->tcd", bary, source_uv.astype(np.float64)).astype(np.float32)
