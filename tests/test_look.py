@@ -181,3 +181,40 @@ def test_a_missing_texture_is_one_warning_and_the_base_colour(tmp_path: Path) ->
     assert warnings == ["warning: tet.obj: texture 'gone.png' of material 'skin' not found; "
                         "the base colour is used"]
     assert not VoxelModel.load(tmp_path / "tet.npz").textures
+
+
+def test_material_map_entries_that_set_nothing_warn() -> None:
+    """The truck's glass parts are open surfaces (skipped), so 'glass' sets no voxel;
+    'Chrome' names no material of the file: one warning each, naming the entry."""
+    from pathlib import Path as _Path
+
+    said: list[str] = []
+    truck = _Path(__file__).parent / "data" / "CesiumMilkTruck.glb"
+    voxelize([ObjectRequest(mesh=truck, voxel_size=(0.3,) * 3, material="steel",
+                            material_map={"glass": "glass", "Chrome": "steel",
+                                          "truck": "steel"})],
+             VoxelizeSettings(up_axis="Y"), warn=said.append)
+    entries = [line for line in said if "material_map" in line]
+    assert len(entries) == 2, said
+    assert "entry 'glass' matches only parts that were skipped" in entries[0]
+    assert "entry 'Chrome' matches no part's material" in entries[1]
+    assert "'truck'" in entries[1]  # the file's materials are listed
+
+
+def test_a_multi_primitive_gltf_gives_the_same_model_every_time(tmp_path: Path) -> None:
+    """trimesh names the nodes of a multi-primitive glTF mesh at random ("0_3a8c99");
+    parts were sorted and named by them, so two runs on the truck gave two models."""
+    import subprocess
+    import sys
+
+    truck = Path(__file__).parent / "data" / "CesiumMilkTruck.glb"
+    outputs = []
+    for run in range(2):
+        out = tmp_path / f"truck{run}.npz"
+        done = subprocess.run([sys.executable, "-m", "blastvox", "voxelize", str(truck), "-o",
+                               str(out), "--voxel-size", "0.3", "--material", "steel"],
+                              capture_output=True, text=True, timeout=600, check=False)
+        assert done.returncode == 0, done.stderr
+        assert "part 'Cesium_Milk_Truck_1'" in done.stderr  # the glass, by a stable name
+        outputs.append(out.read_bytes())
+    assert outputs[0] == outputs[1]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -167,7 +168,7 @@ def _load_surface(path: Path, data: bytes) -> list[Part]:
     if not isinstance(loaded, trimesh.Scene):
         raise MeshError(f"{shown}: cannot read mesh (not a mesh file)")
     parts: list[Part] = []
-    for node in sorted(loaded.graph.nodes_geometry):
+    for name, node in _stable_nodes(loaded, path):
         transform, geom_name = loaded.graph[node]
         geom = loaded.geometry[geom_name]
         if not isinstance(geom, trimesh.Trimesh):
@@ -176,11 +177,31 @@ def _load_surface(path: Path, data: bytes) -> list[Part]:
                                faces=np.asarray(geom.faces), process=False)
         mesh.apply_transform(transform)
         material = getattr(getattr(geom.visual, "material", None), "name", None)
-        name = node if node != path.name else path.stem
         uv, texture = _texture(geom)
         parts.append(Part(mesh=mesh, name=printable(str(name)), material=material,
                           source=path, uv=uv, texture=texture))
     return parts
+
+
+#: trimesh names the node of each primitive of a multi-primitive glTF mesh
+#: "<mesh index>_<6 random hex digits>": a different name on every load.
+_GENERATED_NODE = re.compile(r"\d+_[0-9a-f]{6}")
+
+
+def _stable_nodes(loaded: trimesh.Scene, path: Path) -> list[tuple[str, str]]:
+    """(part name, node) of every geometry node, in an order and with names that are
+    the same on every load: a generated node name is replaced by its geometry's name
+    (the Cesium Milk Truck's glass was "0_3a8c99" once and "0_e67eb9" the next time,
+    and sorting by it reordered the parts, so the same file gave different models)."""
+    entries = []
+    for node in loaded.graph.nodes_geometry:
+        transform, geom_name = loaded.graph[node]
+        name = str(geom_name) if _GENERATED_NODE.fullmatch(str(node)) else str(node)
+        if name == path.name:
+            name = path.stem
+        entries.append((name, np.asarray(transform, dtype=np.float64).tobytes(), node))
+    entries.sort(key=lambda e: (e[0], e[1]))
+    return [(name, node) for name, _, node in entries]
 
 
 def _texture(geom: trimesh.Trimesh) -> tuple[np.ndarray | None, bytes | None]:

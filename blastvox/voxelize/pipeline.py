@@ -234,6 +234,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     if not keep.any():
         raise MeshError(f"{source}: no voxel lies inside the mesh at voxel size "
                         f"{_fmt_size(spacing)} m; use a smaller voxel size")
+    _check_material_map(request, parts, [solids[i] for i in np.unique(chosen.part[keep])],
+                        source, warn)
     # renumber to the kept voxels
     new_index = np.cumsum(keep) - 1
     conform_local = new_index[conform_data[0]]
@@ -254,6 +256,27 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
         _merge_slivers(lat, cell_volume[keep], settings.min_conform_fraction, source, warn)
     _boundary(lat)
     return lat
+
+
+def _check_material_map(request: ObjectRequest, parts: list, used: list, source: str,
+                        warn) -> None:
+    """Warn about each ``material_map`` entry that gives no voxel its material: it names
+    no part's material (a typo), or only parts that were skipped or hold no voxel
+    (``used``: the solids that hold voxels)."""
+    def materials(items) -> set[str]:
+        return {(item.material or "").lower() for item in items}
+
+    read, kept = materials(parts), materials([s.part for s in used])
+    for key in request.material_map:
+        if key.lower() in kept:
+            continue
+        if key.lower() in read:
+            warn(f"{source}: material_map entry '{key}' matches only parts that were "
+                 "skipped or hold no voxel; it sets no voxel's material")
+        else:
+            known = ", ".join(sorted(repr(m) for m in read if m)) or "none"
+            warn(f"{source}: material_map entry '{key}' matches no part's material "
+                 f"(the file's materials: {known})")
 
 
 def _fmt_size(spacing: np.ndarray) -> str:
