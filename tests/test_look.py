@@ -153,6 +153,19 @@ def test_gltf_embeds_the_texture_and_flips_v(cache, tmp_path: Path) -> None:
                                    atol=1e-5)
 
 
+@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+def test_khronos_validator_passes_a_textured_export(cache, tmp_path: Path, suffix: str) -> None:
+    from blastvox.export.gltf_validate import validate_gltf, validator_available
+
+    reason = validator_available()
+    if reason is not None:
+        pytest.skip(f"Khronos glTF Validator unavailable: {reason}")
+    path = tmp_path / f"shot{suffix}"
+    export(cache, path, ExportOptions())
+    issues = validate_gltf(path)["issues"]
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"][:10]
+
+
 def _accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
     acc = doc["accessors"][index]
     view = doc["bufferViews"][acc["bufferView"]]
