@@ -168,6 +168,7 @@ def _load_surface(path: Path, data: bytes) -> list[Part]:
     if not isinstance(loaded, trimesh.Scene):
         raise MeshError(f"{shown}: cannot read mesh (not a mesh file)")
     parts: list[Part] = []
+    encoded: dict[int, bytes | None] = {}  # image id -> PNG: each image encoded once
     for name, node in _stable_nodes(loaded, path):
         transform, geom_name = loaded.graph[node]
         geom = loaded.geometry[geom_name]
@@ -177,7 +178,7 @@ def _load_surface(path: Path, data: bytes) -> list[Part]:
                                faces=np.asarray(geom.faces), process=False)
         mesh.apply_transform(transform)
         material = getattr(getattr(geom.visual, "material", None), "name", None)
-        uv, texture = _texture(geom)
+        uv, texture = _texture(geom, encoded)
         parts.append(Part(mesh=mesh, name=printable(str(name)), material=material,
                           source=path, uv=uv, texture=texture))
     return parts
@@ -204,10 +205,13 @@ def _stable_nodes(loaded: trimesh.Scene, path: Path) -> list[tuple[str, str]]:
     return [(name, node) for name, _, node in entries]
 
 
-def _texture(geom: trimesh.Trimesh) -> tuple[np.ndarray | None, bytes | None]:
+def _texture(geom: trimesh.Trimesh, encoded: dict[int, bytes | None]
+             ) -> tuple[np.ndarray | None, bytes | None]:
     """The mesh's per-vertex UVs and its base colour image as PNG bytes (glTF PBR
     ``baseColorTexture``, OBJ/MTL ``map_Kd``), or (None, None) when it has no textured
-    look. PNG from Pillow is byte-deterministic, so the same input gives the same model."""
+    look. PNG from Pillow is byte-deterministic, so the same input gives the same model.
+    ``encoded`` memoizes the PNG of each image object (a file's parts and instances
+    share images: the truck's body and wheels use one 2048 x 2048 atlas)."""
     visual = geom.visual
     uv = getattr(visual, "uv", None)
     material = getattr(visual, "material", None)
@@ -219,12 +223,21 @@ def _texture(geom: trimesh.Trimesh) -> tuple[np.ndarray | None, bytes | None]:
     uv = np.asarray(uv, dtype=np.float64)
     if uv.ndim != 2 or uv.shape[1] != 2 or not np.isfinite(uv).all():
         return None, None
+    if id(image) not in encoded:
+        encoded[id(image)] = _png(image)
+    png = encoded[id(image)]
+    return (uv, png) if png is not None else (None, None)
+
+
+def _png(image) -> bytes | None:
+    """``image`` (Pillow) as PNG bytes, or None if Pillow cannot decode it (the part
+    then keeps its material colour)."""
     out = io.BytesIO()
     try:
         image.convert("RGBA" if "A" in image.getbands() else "RGB").save(out, format="PNG")
-    except Exception:  # an image Pillow cannot decode: the part keeps its material colour
-        return None, None
-    return uv, out.getvalue()
+    except Exception:
+        return None
+    return out.getvalue()
 
 
 def _load_volume(path: Path) -> list[Part]:
