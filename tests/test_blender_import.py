@@ -180,6 +180,15 @@ def _check_mover(shot: Shot, report: dict) -> None:
         f"{shot.name(shot.mover)} (moved {shot.moved:.2f} m) at frame {shot.late}"))
 
 
+@pytest.mark.parametrize("kind", ["gltf", "usd"])
+def test_pieces_hang_under_their_object(shot: Shot, gltf: dict, usd: dict, kind: str) -> None:
+    """/Shot/<object>/<piece> (USD) and the object node (glTF) arrive as a parent named
+    after the source object, so an artist selects an object's pieces by its children."""
+    report = {"gltf": gltf, "usd": usd}[kind]
+    name = shot.cache.model.meta["objects"][0]["name"]
+    assert report["parents"] == {shot.name(p): name for p in range(shot.pieces)}
+
+
 def test_gltf_import(shot: Shot, gltf: dict) -> None:
     assert gltf["format"] == "gltf"
     assert gltf["piece_count"] == shot.pieces

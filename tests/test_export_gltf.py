@@ -131,12 +131,20 @@ def test_nodes_meshes_and_scene(shot: tuple[SimCache, Path], glb: tuple[Path, Do
     n_pieces, n_charges = cache.piece_count, len(cache.charge_tnt_kg)
     nodes = doc["nodes"]
     assert doc["asset"] == {"version": "2.0", "generator": f"blastvox {__version__}"}
-    assert len(nodes) == n_pieces + n_charges + 1
+    n_objects = len(cache.model.meta["objects"])
+    assert len(nodes) == n_pieces + n_charges + n_objects + 1
     assert [n["name"] for n in nodes[:n_pieces]] == [f"piece_{p:05d}" for p in range(n_pieces)]
-    assert [n["name"] for n in nodes[n_pieces:-1]] == [f"shock_{c:02d}" for c in range(n_charges)]
+    shock = n_pieces + n_charges
+    assert [n["name"] for n in nodes[n_pieces:shock]] == [f"shock_{c:02d}"
+                                                          for c in range(n_charges)]
+    # pieces hang under a node per source object; shock fronts hang under the root
+    objects = nodes[shock:-1]
+    assert [n["name"] for n in objects] == [o["name"] for o in cache.model.meta["objects"]]
+    assert sorted(c for n in objects for c in n["children"]) == list(range(n_pieces))
     root = nodes[-1]
     assert doc["scenes"][doc["scene"]]["nodes"] == [len(nodes) - 1]
-    assert root["children"] == list(range(len(nodes) - 1))
+    assert root["children"] == list(range(shock, len(nodes) - 1)) + list(range(n_pieces,
+                                                                               shock))
     assert not any(k in root for k in ("translation", "rotation", "scale", "matrix"))
     meshes = {n["mesh"] for n in nodes[:n_pieces]}
     assert len(meshes) == n_pieces  # a mesh of its own per piece
@@ -319,7 +327,7 @@ def test_no_shock_spheres_unless_asked(shot: tuple[SimCache, Path], tmp_path: Pa
     write_gltf(shot[0], tmp_path / "shot.glb", ExportOptions())
     doc, _ = read_glb((tmp_path / "shot.glb").read_bytes())
     assert not any(n["name"].startswith("shock") for n in doc["nodes"])
-    assert len(doc["nodes"]) == shot[0].piece_count + 1
+    assert len(doc["nodes"]) == shot[0].piece_count + 2  # pieces, their object, the root
 
 
 def test_shock_spheres(shot: tuple[SimCache, Path], glb: tuple[Path, Doc, bytes]) -> None:
@@ -482,7 +490,7 @@ def test_edge_cases_valid(tmp_path: Path, small: SimCache,
             write_gltf(cache, out, ExportOptions(shock=True))
             if suffix == ".glb":
                 doc, blob = read_glb(out.read_bytes())
-                assert len(doc["nodes"]) == cache.piece_count + len(cache.charge_tnt_kg) + 1
+                assert len(doc["nodes"]) == cache.piece_count + len(cache.charge_tnt_kg) + 2
                 if name == "ends":
                     assert doc["nodes"][0]["scale"] == [0.0, 0.0, 0.0]
                     assert accessor(doc, blob, channels(doc, 0)["scale"]["output"]).tolist() \

@@ -21,14 +21,22 @@ from pxr import Usd, UsdGeom, UsdShade  # noqa: E402
 from blastvox.cache import SimCache  # noqa: E402
 from blastvox.errors import OutputError  # noqa: E402
 from blastvox.export.api import ExportOptions, export  # noqa: E402
-from blastvox.export.pieces import animation, frame_change, piece_meshes  # noqa: E402
+from blastvox.export.pieces import (  # noqa: E402
+    animation,
+    frame_change,
+    piece_meshes,
+    piece_objects,
+)
 from blastvox.export.usd import write_usd  # noqa: E402
+from blastvox.export.usd_specs import piece_prim_paths  # noqa: E402
 from blastvox.export.usd_validate import validate_usd  # noqa: E402
 from blastvox.geometry import quaternion  # noqa: E402
 
 F, FPS = 10, 10.0
 VANISH_PIECE, VANISH_FRAME = 2, 6
 GRAVITY = 9.81
+#: the synthetic cache's pieces under their objects (piece 1 spans both: its first voxel's)
+PIECE = ["/Shot/left/piece_00000", "/Shot/left/piece_00001", "/Shot/right/piece_00002"]
 
 
 # ----------------------------------------------------------------------------- caches
@@ -149,7 +157,9 @@ def test_stage_metadata(synthetic, tmp_path, up):
 
 def test_one_xform_and_mesh_per_piece(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usdc")
-    pieces = stage.GetPrimAtPath("/Shot/Pieces").GetChildren()
+    assert [p.GetName() for p in stage.GetPrimAtPath("/Shot").GetChildren()
+            if p.IsA(UsdGeom.Xform)][:2] == ["left", "right"]
+    pieces = [stage.GetPrimAtPath(path) for path in PIECE]
     assert [p.GetName() for p in pieces] == ["piece_00000", "piece_00001", "piece_00002"]
     meshes = piece_meshes(synthetic, "Y")
     for p, prim in enumerate(pieces):
@@ -175,7 +185,7 @@ def test_world_transform_matches_cache(synthetic, tmp_path, up):
     stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
     c = frame_change("Z", up)
     for p, f in ((0, F - 1), (2, VANISH_FRAME - 1), (0, 3)):
-        prim = stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}")
+        prim = stage.GetPrimAtPath(PIECE[p])
         world = UsdGeom.XformCache(Usd.TimeCode(f)).GetLocalToWorldTransform(prim)
         pos = synthetic.piece_position[f, p].astype(np.float64)
         assert np.allclose(np.array(world.ExtractTranslation()), c @ pos, atol=1e-6)
@@ -190,35 +200,37 @@ def test_world_transform_matches_cache(synthetic, tmp_path, up):
 
 def test_unchanged_samples_are_pruned(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usda")
-    resting = UsdGeom.Xformable(stage.GetPrimAtPath("/Shot/Pieces/piece_00001"))
+    resting = UsdGeom.Xformable(stage.GetPrimAtPath(PIECE[1]))
     translate = resting.GetOrderedXformOps()[0].GetAttr()
     assert translate.GetTimeSamples() == [0.0]
-    moving = UsdGeom.Xformable(stage.GetPrimAtPath("/Shot/Pieces/piece_00000"))
+    moving = UsdGeom.Xformable(stage.GetPrimAtPath(PIECE[0]))
     assert len(moving.GetOrderedXformOps()[0].GetAttr().GetTimeSamples()) == F
     ops = [op.GetOpName() for op in moving.GetOrderedXformOps()]
     assert ops == ["xformOp:translate", "xformOp:orient"]
     assert moving.GetOrderedXformOps()[1].GetPrecision() == UsdGeom.XformOp.PrecisionFloat
     assert moving.GetOrderedXformOps()[0].GetPrecision() == UsdGeom.XformOp.PrecisionDouble
     # a vanished piece has no samples after it is gone
-    gone = UsdGeom.Xformable(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{VANISH_PIECE:05d}"))
+    gone = UsdGeom.Xformable(stage.GetPrimAtPath(PIECE[VANISH_PIECE]))
     assert max(gone.GetOrderedXformOps()[0].GetAttr().GetTimeSamples()) == VANISH_FRAME - 1
 
 
 def test_visibility_switches_at_end_frame(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usdc")
-    gone = UsdGeom.Imageable(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{VANISH_PIECE:05d}"))
+    gone = UsdGeom.Imageable(stage.GetPrimAtPath(PIECE[VANISH_PIECE]))
     for f in range(F):
         want = "invisible" if f >= VANISH_FRAME else "inherited"
         assert gone.ComputeVisibility(Usd.TimeCode(f)) == want
-    kept = UsdGeom.Imageable(stage.GetPrimAtPath("/Shot/Pieces/piece_00000"))
+    kept = UsdGeom.Imageable(stage.GetPrimAtPath(PIECE[0]))
     assert not kept.GetVisibilityAttr().HasAuthoredValue()
     assert kept.ComputeVisibility(Usd.TimeCode(F - 1)) == "inherited"
 
 
 # ----------------------------------------------------------------------------- materials
 
-def _subsets(stage: Usd.Stage, p: int) -> dict[str, UsdGeom.Subset]:
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/piece_{p:05d}"))
+def _subsets(stage: Usd.Stage, p: int, paths: list[str] = PIECE
+             ) -> dict[str, UsdGeom.Subset]:
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"{paths[p]}/piece_{p:05d}"))
+    assert mesh  # an invalid prim would crash GetGeomSubsets
     return {s.GetPrim().GetName(): s for s in
             UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "materialBind")}
 
@@ -230,7 +242,7 @@ def test_damage_subsets_match_piece_meshes(synthetic, tmp_path):
     for p in range(synthetic.piece_count):
         t0, t1 = meshes.offsets[p], meshes.offsets[p + 1]
         subsets = _subsets(stage, p)
-        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/piece_{p:05d}"))
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"{PIECE[p]}/piece_{p:05d}"))
         assert UsdGeom.Subset.GetFamilyType(mesh, "materialBind") == UsdGeom.Tokens.partition
         valid, reason = UsdGeom.Subset.ValidateFamily(mesh, UsdGeom.Tokens.face, "materialBind")
         assert valid, reason
@@ -262,7 +274,7 @@ def test_material_bindings(synthetic, tmp_path):
             assert np.allclose(shader.GetInput("diffuseColor").Get(), color, atol=1e-6)
             assert shader.GetInput("roughness").Get() == pytest.approx(0.8)
     for p in range(synthetic.piece_count):
-        mesh = stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}/piece_{p:05d}")
+        mesh = stage.GetPrimAtPath(f"{PIECE[p]}/piece_{p:05d}")
         assert mesh.HasAPI(UsdShade.MaterialBindingAPI)
         for name, subset in _subsets(stage, p).items():
             prim = subset.GetPrim()
@@ -272,7 +284,7 @@ def test_material_bindings(synthetic, tmp_path):
             suffix = "_damage" if kind == "damage" else ""
             assert bound.GetPath() == f"/Shot/Materials/{material}{suffix}"
     # displayColor per face agrees with the bound material
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/piece_00001"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(PIECE[1] + "/piece_00001"))
     display = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
     assert display.GetInterpolation() == UsdGeom.Tokens.uniform
     values = np.asarray(display.Get())
@@ -286,7 +298,7 @@ def test_material_bindings(synthetic, tmp_path):
 def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usdc")
     meshes = piece_meshes(synthetic, "Y")
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00001/piece_00001"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(PIECE[1] + "/piece_00001"))
     primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("damage")
     assert primvar.GetInterpolation() == UsdGeom.Tokens.uniform
     t0, t1 = meshes.offsets[1], meshes.offsets[2]
@@ -299,7 +311,7 @@ def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
     # samples only around the changes: frame 1 holds the old values, 2 steps, 4 holds, 5 steps
     assert primvar.GetAttr().GetTimeSamples() == [1.0, 2.0, 4.0, 5.0]
     untouched = UsdGeom.PrimvarsAPI(UsdGeom.Mesh(
-        stage.GetPrimAtPath("/Shot/Pieces/piece_00000/piece_00000"))).GetPrimvar("damage")
+        stage.GetPrimAtPath(PIECE[0] + "/piece_00000"))).GetPrimvar("damage")
     assert untouched.GetAttr().GetTimeSamples() == []
     assert np.all(np.asarray(untouched.Get(F - 1)) == 0.0)
 
@@ -412,11 +424,43 @@ def test_piece_xforms_carry_index_mass_and_object(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usda")
     names = ["left", "left", "right"]  # piece 1 spans both objects: its first voxel's
     for p in range(synthetic.piece_count):
-        primvars = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(f"/Shot/Pieces/piece_{p:05d}"))
+        primvars = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(PIECE[p]))
         assert primvars.GetPrimvar("blastvox:piece").Get() == p
         assert primvars.GetPrimvar("blastvox:mass").Get() == synthetic.piece_mass[p]
         assert primvars.GetPrimvar("blastvox:object").Get() == names[p]
     assert validate_usd(tmp_path / "shot.usda") == []
+
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_xform_velocity_primvars_are_the_motion(synthetic, tmp_path, up):
+    """Each piece Xform carries its velocity (m/s) and angular velocity (deg/s) as
+    time-sampled primvars; the synthetic pieces fly at v + g t and spin steadily."""
+    stage = _write(synthetic, tmp_path / "shot.usda", up=up)
+    c = frame_change("Z", up)
+    velocity = np.array([[-2.0, 1.0, 3.0], [0.0, 0.0, 0.0], [3.0, -1.0, 4.0]])
+    moving = np.array([1.0, 0.0, 1.0])
+    spin = np.array([[0.0, 0.0, 4.0], [0.0, 0.0, 0.0], [0.0, -6.0, 0.0]])  # rad/s
+    g = np.array([0.0, 0.0, -GRAVITY])
+    for p in range(synthetic.piece_count):
+        primvars = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(PIECE[p]))
+        linear = primvars.GetPrimvar("blastvox:velocity")
+        angular = primvars.GetPrimvar("blastvox:angularVelocity")
+        for f in range(1, min(F, int(synthetic.piece_end_frame[p])) - 1):
+            t = float(synthetic.frame_time[f])
+            np.testing.assert_allclose(np.asarray(linear.Get(f)),
+                                       (velocity[p] + moving[p] * g * t) @ c.T, atol=2e-3)
+            np.testing.assert_allclose(np.asarray(angular.Get(f)),
+                                       np.degrees(spin[p] @ c.T), atol=0.05)
+    # piece 1 rests: one sample holds its zero velocity for the whole shot
+    rest = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(PIECE[1])).GetPrimvar("blastvox:velocity")
+    assert rest.GetAttr().GetTimeSamples() == [0.0]
+
+
+def test_objects_become_xforms_with_valid_unique_names():
+    assert piece_prim_paths(["wall", "wall", "Camera", "my roof", "", "my_roof", "9x"]) == [
+        "/Shot/wall/piece_00000", "/Shot/wall/piece_00001", "/Shot/Camera_1/piece_00002",
+        "/Shot/my_roof/piece_00003", "/Shot/object/piece_00004",
+        "/Shot/my_roof_1/piece_00005", "/Shot/_x/piece_00006"]
 
 
 @pytest.mark.parametrize("up", ["Y", "Z"])
@@ -562,8 +606,9 @@ def test_validator_reports_errors(synthetic, tmp_path):
 def test_real_simulation(wall, tmp_path):
     cache, _ = wall
     stage = _write(cache, tmp_path / "wall.usdc", up="Y")
-    pieces = stage.GetPrimAtPath("/Shot/Pieces").GetChildren()
-    assert len(pieces) == cache.piece_count
+    paths = piece_prim_paths(piece_objects(cache))
+    pieces = [stage.GetPrimAtPath(path) for path in paths]
+    assert all(p.IsValid() for p in pieces) and len(pieces) == cache.piece_count
     c = frame_change(cache.model.meta["up_axis"], "Y")
     f = cache.frame_count - 1
     alive = np.flatnonzero(cache.piece_end_frame >= cache.frame_count)
@@ -576,7 +621,7 @@ def test_real_simulation(wall, tmp_path):
                        c @ cache.piece_position[f, p].astype(np.float64), atol=1e-5)
     meshes = piece_meshes(cache, "Y")
     total = sum(len(s.GetIndicesAttr().Get()) for q in range(cache.piece_count)
-                for n, s in _subsets(stage, q).items() if n.startswith("damage_"))
+                for n, s in _subsets(stage, q, paths).items() if n.startswith("damage_"))
     assert total == int(meshes.damage.sum())
     vanished = np.flatnonzero(cache.piece_end_frame < cache.frame_count)
     for q in vanished[:5].tolist():

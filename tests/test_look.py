@@ -23,7 +23,8 @@ from pxr import Sdf, Usd, UsdGeom, UsdShade
 
 from blastvox.errors import ContractError
 from blastvox.export.api import ExportOptions, export
-from blastvox.export.pieces import piece_meshes
+from blastvox.export.pieces import piece_meshes, piece_objects
+from blastvox.export.usd_specs import piece_prim_paths
 from blastvox.export.usd_validate import validate_usd
 from blastvox.export.uv import face_uvs
 from blastvox.model import VoxelModel
@@ -105,7 +106,8 @@ def test_usd_carries_st_the_texture_and_its_material(cache, tmp_path: Path) -> N
     texture = tmp_path / "shot_textures" / "cube_0.png"
     assert texture.read_bytes() == cache.model.texture_file(0)
     stage = Usd.Stage.Open(str(path))
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Shot/Pieces/piece_00000/piece_00000"))
+    piece = piece_prim_paths(piece_objects(cache))[0]
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"{piece}/piece_00000"))
     st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
     assert st.GetInterpolation() == "faceVarying"
     assert len(st.Get()) == len(mesh.GetFaceVertexIndicesAttr().Get())

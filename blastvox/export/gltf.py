@@ -2,9 +2,11 @@
 
 Layout (written straight from numpy: one JSON document and one binary buffer):
 
-* the scene holds one root node ``blastvox`` whose children are the piece
-  nodes ``piece_00000``... (node index = piece index) and, with
-  ``ExportOptions.shock``, one node per charge, ``shock_00``...;
+* the scene holds one root node ``blastvox`` whose children are one node per
+  source object (named after it, ``extras.object``) holding that object's piece
+  nodes ``piece_00000``... (node index = piece index; ``extras``: piece, object,
+  mass_kg), the camera and, with ``ExportOptions.shock``, one node per charge,
+  ``shock_00``...;
 * piece p's mesh has one primitive per (material, surface) and per (material,
   damage) present, indexed triangles with POSITION (min/max) and NORMAL (flat
   face normals; vertices shared only where position and normal agree);
@@ -45,7 +47,7 @@ from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
 from blastvox.export.options import ExportOptions
-from blastvox.export.pieces import animation, piece_meshes, piece_objects
+from blastvox.export.pieces import animation, object_groups, piece_meshes, piece_objects
 from blastvox.export.uv import face_uvs, texture_names
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change, up_vector
@@ -235,7 +237,12 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None,
 
     cameras = _camera(cache, b, nodes, channel, t_acc if n_frames else None)
 
-    nodes.append({"name": "blastvox", "children": list(range(len(nodes)))})
+    others = list(range(n_pieces, len(nodes)))  # shock fronts and the camera
+    for name, pieces in object_groups(objects).items():
+        nodes.append({"name": name or "object", "children": pieces,
+                      "extras": {"object": name}})
+    nodes.append({"name": "blastvox", "children": list(range(n_pieces + len(others),
+                                                                len(nodes))) + others})
     fps = cache.meta.get("fps")
     doc: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": f"blastvox {__version__}"},

@@ -107,6 +107,14 @@ def piece_objects(cache: SimCache) -> list[str]:
             for v in first.tolist()]
 
 
+def object_groups(objects: list[str]) -> dict[str, list[int]]:
+    """The pieces of each object name (index order), objects in order of first piece."""
+    groups: dict[str, list[int]] = {}
+    for p, name in enumerate(objects):
+        groups.setdefault(name, []).append(p)
+    return groups
+
+
 def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:
     """Boundary triangles of every final piece, piece-local, in the export frame."""
     a = cache.model.arrays

@@ -7,7 +7,8 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
       Materials/texture_<name>                    the source look: UsdPreviewSurface whose
                                                   diffuse colour is a UsdUVTexture of
                                                   ``<stem>_textures/<name>.png`` beside the file
-      Pieces/piece_00000 (Xform)                  layout "xforms": time-sampled translate
+      <object>/piece_00000 (Xform)                layout "xforms": pieces under an Xform
+                                                  per scene object; time-sampled translate
         piece_NNNNN (Mesh)                             (double3) and orient (quatf), visibility
           surface_<material>, damage_<material>,  for pieces that vanish; a static mesh with
           textured_<name>                         GeomSubsets (materialBind, partition), a
@@ -56,10 +57,17 @@ from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import OutputError
 from blastvox.export.options import ExportOptions
-from blastvox.export.pieces import animation, piece_meshes, piece_objects, velocities
+from blastvox.export.pieces import (
+    animation,
+    object_groups,
+    piece_meshes,
+    piece_objects,
+    velocities,
+)
 from blastvox.export.usd_effects import write_camera, write_particles, write_shock
 from blastvox.export.usd_specs import (
     ROOT,
+    object_prim_names,
     points_extent,
     run_ends_pf,
     usda_string,
@@ -140,6 +148,7 @@ class _Writer:
         self.meshes = piece_meshes(cache, options.up_axis)
         self.anim = animation(cache, options.up_axis)
         self.objects = piece_objects(cache)
+        self.object_prims = object_prim_names(self.objects)
         self.change = frame_change(cache.model.meta.get("up_axis", "Y"), options.up_axis)
         self.material_names = _material_names(cache)
         self.colors, self.damage_colors = _material_colors(cache, len(self.material_names))
@@ -359,36 +368,68 @@ class _Writer:
         keep_o = run_ends_pf(orient[..., 1:], live)
         row_t = "                %d: (%de-9, %de-9, %de-9),\n"
         row_o = "                %d: (%de-9, %de-9, %de-9, %de-9),\n"
-        out = ['    def Xform "Pieces"\n    {\n']
-        for p in range(self.pieces):
-            out.append(f'        def Xform "piece_{p:05d}"\n        {{\n')
-            out.append(self._piece_primvars_text(p, "            "))
-            end = int(self.end[p])
-            if end < f_count:
-                first = '                0: "inherited",\n' if end > 0 else ""
-                out.append(f"            token visibility.timeSamples = {{\n{first}"
-                           f'                {end}: "invisible",\n            }}\n')
-            kt, ko = keep_t[p], keep_o[p]
-            out.append("            quatf xformOp:orient.timeSamples = {\n")
-            out.append((row_o * int(ko.sum())) % tuple(orient[p][ko].ravel().tolist()))
-            out.append("            }\n            double3 xformOp:translate.timeSamples = {\n")
-            out.append((row_t * int(kt.sum())) % tuple(translate[p][kt].ravel().tolist()))
-            ops = '"xformOp:translate", "xformOp:orient"'
-            if end < f_count:
-                # Blender's USD importer ignores visibility: shrink to nothing as well
-                # held at 1 up to the frame before (samples interpolate linearly)
-                keep = "".join(f"                {f}: (1, 1, 1),\n"
-                               for f in sorted({0, end - 1}) if 0 <= f < end)
-                out.append("            }\n            float3 xformOp:scale.timeSamples = {\n"
-                           f"{keep}                {end}: (0, 0, 0),\n")
-                ops += ', "xformOp:scale"'
-            out.append("            }\n"
-                       f"            uniform token[] xformOpOrder = [{ops}]\n\n")
-            # the mesh carries the piece's name, so importers that merge an Xform with
-            # its only child (Blender) keep it
-            out.append(self._mesh_text(f"piece_{p:05d}", p, "            "))
-            out.append("        }\n\n")
-        out.append("    }\n")
+        velocity = self._velocity_rows(live)
+        out = []
+        for pieces in object_groups(self.objects).values():
+            out.append(f'    def Xform "{self.object_prims[pieces[0]]}"\n    {{\n')
+            for p in pieces:
+                out.append(self._xform_text(p, translate, orient, keep_t[p], keep_o[p],
+                                            velocity, (row_t, row_o)))
+            out.append("    }\n\n")
+        return "".join(out)
+
+    def _velocity_rows(self, live: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Per-piece velocity samples as integers of 1e-6 m/s and 1e-6 deg/s,
+        ``(frame, x, y, z)`` rows (P, F, 4) and which frames to keep (P, F)."""
+        linear, angular = velocities(self.anim)
+        frame = np.broadcast_to(np.arange(self.frames, dtype=np.int64)[:, None, None],
+                                (self.frames, self.pieces, 1))
+        out = []
+        for v in (linear, np.degrees(angular)):
+            v_n = np.rint(np.clip(np.nan_to_num(v), -NANO_LIMIT, NANO_LIMIT) * 1e6)
+            rows = np.concatenate([frame, v_n.astype(np.int64)], axis=-1).transpose(1, 0, 2)
+            out += [rows, run_ends_pf(rows[..., 1:], live)]
+        return tuple(out)
+
+    def _xform_text(self, p: int, translate: np.ndarray, orient: np.ndarray,
+                    kt: np.ndarray, ko: np.ndarray, velocity: tuple[np.ndarray, ...],
+                    rows: tuple[str, str]) -> str:
+        """One piece's Xform: constant primvars, velocity samples, transform samples
+        (kept at the ends of runs) and, for a piece that vanishes, visibility and scale."""
+        row_t, row_o = rows
+        f_count = self.frames
+        out = [f'        def Xform "piece_{p:05d}"\n        {{\n',
+               self._piece_primvars_text(p, "            ")]
+        row_v = "                %d: (%de-6, %de-6, %de-6),\n"
+        for name, (v, keep) in (("velocity", velocity[0:2]),
+                                ("angularVelocity", velocity[2:4])):
+            out.append(f"            vector3f primvars:blastvox:{name}.timeSamples = {{\n")
+            out.append((row_v * int(keep[p].sum())) % tuple(v[p][keep[p]].ravel().tolist()))
+            out.append("            }\n")
+        end = int(self.end[p])
+        if end < f_count:
+            first = '                0: "inherited",\n' if end > 0 else ""
+            out.append(f"            token visibility.timeSamples = {{\n{first}"
+                       f'                {end}: "invisible",\n            }}\n')
+        out.append("            quatf xformOp:orient.timeSamples = {\n")
+        out.append((row_o * int(ko.sum())) % tuple(orient[p][ko].ravel().tolist()))
+        out.append("            }\n            double3 xformOp:translate.timeSamples = {\n")
+        out.append((row_t * int(kt.sum())) % tuple(translate[p][kt].ravel().tolist()))
+        ops = '"xformOp:translate", "xformOp:orient"'
+        if end < f_count:
+            # Blender's USD importer ignores visibility: shrink to nothing as well
+            # held at 1 up to the frame before (samples interpolate linearly)
+            keep = "".join(f"                {f}: (1, 1, 1),\n"
+                           for f in sorted({0, end - 1}) if 0 <= f < end)
+            out.append("            }\n            float3 xformOp:scale.timeSamples = {\n"
+                       f"{keep}                {end}: (0, 0, 0),\n")
+            ops += ', "xformOp:scale"'
+        out.append("            }\n"
+                   f"            uniform token[] xformOpOrder = [{ops}]\n\n")
+        # the mesh carries the piece's name, so importers that merge an Xform with
+        # its only child (Blender) keep it
+        out.append(self._mesh_text(f"piece_{p:05d}", p, "            "))
+        out.append("        }\n\n")
         return "".join(out)
 
     def _piece_primvars_text(self, p: int, indent: str) -> str:
@@ -423,7 +464,7 @@ class _Writer:
     def _mesh_path(self, p: int) -> Sdf.Path:
         if self.instancer:
             return Sdf.Path(f"{ROOT}/Pieces/Prototypes/piece_{p:05d}")
-        return Sdf.Path(f"{ROOT}/Pieces/piece_{p:05d}/piece_{p:05d}")
+        return Sdf.Path(f"{ROOT}/{self.object_prims[p]}/piece_{p:05d}/piece_{p:05d}")
 
     def _mesh_values(self) -> None:
         m = self.meshes

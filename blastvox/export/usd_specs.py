@@ -7,12 +7,14 @@ Shared by :mod:`blastvox.export.usd` (pieces) and :mod:`blastvox.export.usd_effe
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, Vt
+from pxr import Sdf, Tf, Vt
 
 from blastvox.cache import SimCache
 from blastvox.geometry.frames import gravity_vector
 
 ROOT = "/Shot"
+#: children of /Shot that are not objects; an object with one of these names gets a suffix
+RESERVED_PRIMS = frozenset({"Materials", "Pieces", "Particles", "Camera", "Effects"})
 _T = Sdf.ValueTypeNames
 
 
@@ -41,6 +43,28 @@ def xform_order(prim: Sdf.PrimSpec, ops: list[str]) -> None:
 def usda_string(text: str) -> str:
     """``text`` as a double-quoted usda string literal."""
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+
+
+def object_prim_names(objects: list[str]) -> list[str]:
+    """A valid, unique prim name for each piece's object name (P,): the name made a USD
+    identifier (``Tf.MakeValidIdentifier``), ``object`` for an empty one, and a
+    ``_<n>`` suffix where two names meet or a name is one of :data:`RESERVED_PRIMS`."""
+    prim_of: dict[str, str] = {}
+    taken = set(RESERVED_PRIMS)
+    for name in dict.fromkeys(objects):
+        base = Tf.MakeValidIdentifier(name) if name else "object"
+        prim, n = base, 1
+        while prim in taken:
+            prim, n = f"{base}_{n}", n + 1
+        taken.add(prim)
+        prim_of[name] = prim
+    return [prim_of[name] for name in objects]
+
+
+def piece_prim_paths(objects: list[str]) -> list[str]:
+    """The path of each piece's Xform in the ``xforms`` layout,
+    ``/Shot/<object>/piece_NNNNN`` (P,), given each piece's object name."""
+    return [f"{ROOT}/{o}/piece_{p:05d}" for p, o in enumerate(object_prim_names(objects))]
 
 
 def vec3f(a: np.ndarray) -> Vt.Vec3fArray:

@@ -19,6 +19,7 @@ writes to stdout, are sent to stderr)::
 
     {"blender": "5.0.1", "format": "usd" | "gltf", "options": {...},
      "piece_count": N,          # objects whose name starts with "piece_"
+     "parents": {"piece_00000": "wall" | null, ...},  # each piece object's parent
      "objects": {"MESH": n, "EMPTY": n, ...},   # all scene objects by type
      "frame_start": s, "frame_end": e,          # scene frame range after the import
      "fps": 24.0,               # scene.render.fps / fps_base after the import
@@ -135,6 +136,7 @@ def main(argv: list[str]) -> int:
         "format": kind,
         "options": options,
         "piece_count": len(pieces),
+        "parents": {o.name: o.parent.name if o.parent else None for o in pieces},
         "objects": dict(sorted(Counter(o.type for o in scene.objects).items())),
         "frame_start": scene.frame_start,
         "frame_end": scene.frame_end,
