@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from blastvox.bounds import MAX_TOML_BYTES, Bound, printable, regular_file
+from blastvox.damage_look import PATTERNS
 from blastvox.errors import BlastvoxError, ContractError, InputError, MaterialError
 
 RGB = tuple[float, float, float]
@@ -80,6 +81,9 @@ class Material:
             every voxel its own chunk).
         chunk_weibull: Weibull modulus of the chunk volumes (large = uniform).
         chunk_bond_scale: factor (>= 1) on the strength of links inside a chunk.
+        damage_pattern: the texture drawn on fracture faces on export, one of
+            :data:`blastvox.damage_look.PATTERNS`; "" = the pattern named like the
+            material (:func:`blastvox.damage_look.pattern_for`).
     """
 
     name: str
@@ -104,6 +108,7 @@ class Material:
     chunk_size: float = 0.0
     chunk_weibull: float = 2.0
     chunk_bond_scale: float = 1.0
+    damage_pattern: str = ""
 
 
 # Field name -> kind; the kind selects the check in _check_field.
@@ -129,6 +134,7 @@ _FIELD_KINDS: dict[str, str] = {
     "chunk_size": "length",
     "chunk_weibull": "weibull",
     "chunk_bond_scale": "bond_scale",
+    "damage_pattern": "pattern",
 }
 #: The range of each numeric kind (documented in docs/user-guide.md, Limits): finite
 #: limits keep the simulator's products of yields, impulses and areas far from overflow.
@@ -153,9 +159,9 @@ _BOUNDS: dict[str, Bound] = {
 }
 _OPTIONAL = ("description", "link_impulse", "voxel_impulse", "pi_shape",
              "compressive_strength", "tensile_strength", "shear_strength", "youngs_modulus",
-             "chunk_size", "chunk_weibull", "chunk_bond_scale")
+             "chunk_size", "chunk_weibull", "chunk_bond_scale", "damage_pattern")
 _REQUIRED = [k for k in _FIELD_KINDS if k not in _OPTIONAL]
-_SCALARS = [k for k, kind in _FIELD_KINDS.items() if kind not in ("rgb", "text")]
+_SCALARS = [k for k, kind in _FIELD_KINDS.items() if kind not in ("rgb", "text", "pattern")]
 _TOML_POSITION = re.compile(r"\s*\(at (line \d+, column \d+|end of document)\)$")
 
 
@@ -200,6 +206,13 @@ def _check_field(key: str, value: Any, where: str) -> Any:
     if kind == "text":
         if not isinstance(value, str):
             raise MaterialError(f"{where}: must be a string (got {value!r})")
+        return value
+    if kind == "pattern":
+        if value != "" and value not in PATTERNS:
+            close = difflib.get_close_matches(str(value), list(PATTERNS), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise MaterialError(f"{where}: unknown damage pattern {value!r} "
+                                f"(known: {', '.join(PATTERNS)}){hint}")
         return value
     if kind == "rgb":
         if not isinstance(value, list | tuple) or len(value) != 3:
@@ -385,7 +398,8 @@ def material_table(lib: MaterialLibrary, names: list[str]) -> dict[str, np.ndarr
 
     Keys are ``material_<field>``: float64 ``(M,)`` for scalar fields, float64
     ``(M, 3)`` for ``material_color`` and ``material_damage_color``, and a
-    unicode ``(M,)`` array ``material_description`` (no pickles needed).
+    unicode ``(M,)`` arrays ``material_description`` and ``material_damage_pattern``
+    (no pickles needed).
     The names themselves are not included; store them alongside.
     """
     materials = [lib[n] for n in names]
@@ -397,6 +411,8 @@ def material_table(lib: MaterialLibrary, names: list[str]) -> dict[str, np.ndarr
         table[f"material_{k}"] = np.array(
             [getattr(m, k) for m in materials], dtype=np.float64).reshape(len(materials), 3)
     table["material_description"] = np.array([m.description for m in materials], dtype=np.str_)
+    table["material_damage_pattern"] = np.array([m.damage_pattern for m in materials],
+                                                dtype=np.str_)
     return table
 
 
@@ -422,7 +438,8 @@ def materials_from_table(names: list[str], arrays: Mapping[str, np.ndarray]) -> 
         values: dict[str, Any] = {k: float(columns[k][i]) for k in _SCALARS if k in columns}
         for k in ("color", "damage_color"):
             values[k] = tuple(float(c) for c in columns[k][i])
-        if "description" in columns:
-            values["description"] = str(columns["description"][i])
+        for k in ("description", "damage_pattern"):
+            if k in columns:
+                values[k] = str(columns[k][i])
         result.append(Material(name=name, **values))
     return result

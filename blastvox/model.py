@@ -61,6 +61,7 @@ from typing import Any
 import numpy as np
 
 from blastvox import __version__
+from blastvox.damage_look import PATTERNS
 from blastvox.geometry.frames import AXES, up_index
 from blastvox.geometry.voxel_faces import SURFACE_BIT as SURFACE_BIT  # voxel_boundary's bit 6
 from blastvox.geometry.voxel_faces import SURFACE_TAG
@@ -139,6 +140,7 @@ MATERIAL_ARRAYS: dict[str, Spec] = {
     "material_chunk_weibull": (_F8, ("M",)), "material_chunk_bond_scale": (_F8, ("M",)),
     "material_color": (_F8, ("M", 3)),
     "material_damage_color": (_F8, ("M", 3)), "material_description": (np.str_, ("M",)),
+    "material_damage_pattern": (np.str_, ("M",)),
 }
 #: Material arrays a file may lack (older models: the simulator reads the
 #: Material defaults, e.g. 0 impulse and infinite strengths).
@@ -147,7 +149,7 @@ OPTIONAL_MATERIAL_ARRAYS = ("material_link_impulse", "material_voxel_impulse",
                             "material_compressive_strength", "material_tensile_strength",
                             "material_shear_strength", "material_youngs_modulus",
                             "material_chunk_size", "material_chunk_weibull",
-                            "material_chunk_bond_scale")
+                            "material_chunk_bond_scale", "material_damage_pattern")
 #: Every member a VoxelModel file may hold besides ``meta``; others are never read.
 ARRAY_NAMES = (frozenset(_REQUIRED) | frozenset(OPTIONAL_ARRAYS) | frozenset(MATERIAL_ARRAYS)
                | frozenset(SURFACE_ARRAYS))
@@ -426,6 +428,12 @@ def _check_materials(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
         if key in arrays:
             check_range(path, prefix + key, arrays[key], lo, hi, lo_open=lo_open,
                         finite=finite)
+    patterns = arrays.get("material_damage_pattern")
+    if patterns is not None:
+        for m, pattern in enumerate(patterns.tolist()):
+            if pattern and pattern not in PATTERNS:
+                fail(path, f"{prefix}material_damage_pattern[{m}] is {_clip(pattern)}; "
+                           f"expected one of {', '.join(PATTERNS)} or ''")
 
 
 def _check_points(path: str | os.PathLike, name: str, points: np.ndarray,

@@ -489,6 +489,10 @@ class Output(_Model):
     shock: bool = Field(False, description=(
         "Also export each charge's shock front as a growing sphere (a viewport aid: a "
         "guide prim in USD, skipped by renderers; a translucent sphere in glTF)."))
+    damage_textures: bool = Field(True, description=(
+        "Fracture faces show their material's damage texture (its damage_pattern, "
+        "tinted to its damage_color; USD: PNGs in <stem>_textures/ beside the file); "
+        "false keeps the flat damage_color."))
 
 
 class Scene(_Model):

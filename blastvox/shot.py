@@ -97,7 +97,8 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
             cache = cache or SimCache.load(out.cache)
             log(f"export -> {path}")
             export(cache, path, ExportOptions(up_axis=out.up_axis, layout=out.layout,
-                                              shock=out.shock))
+                                              shock=out.shock,
+                                              damage_textures=out.damage_textures))
             ran.append("export")
     if not ran:
         log("up to date")

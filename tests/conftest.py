@@ -50,3 +50,27 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if item.module is not None and item.module.__name__.rsplit(".", 1)[-1] in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(scope="session")
+def shattered_slab(tmp_path_factory: pytest.TempPathFactory):
+    """A 2 x 2 x 0.5 m concrete slab (0.25 m voxels) that a 20 kg charge 1.5 m away
+    breaks into many pieces, with a scene camera close enough to see their fracture
+    faces at frame 3: for the damage-texture tests."""
+    import trimesh
+
+    from blastvox.simulate.engine import simulate
+    from blastvox.simulate.settings import ChargeSpec, SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    tmp = tmp_path_factory.mktemp("slab")
+    trimesh.creation.box(extents=(2, 2, 0.5)).apply_translation((0, 0, 0.25)).export(
+        tmp / "slab.stl")
+    model = voxelize([ObjectRequest(mesh=tmp / "slab.stl", voxel_size=(0.25,) * 3,
+                                    material="concrete")], VoxelizeSettings(up_axis="Z"))
+    cache = simulate(model, SimSettings(duration=0.25, fps=24.0, dust=False, fire=False,
+                                        fireball=False,
+                                        charges=(ChargeSpec((0, -1.5, 0.3), 20.0),),
+                                        camera=((0.3, -2.0, 1.4), (0.0, 0.0, 0.4), 35.0)))
+    assert cache.piece_count > 20
+    return cache

@@ -45,10 +45,10 @@ pytestmark = [
 ]
 
 
-def render(path: Path, out_dir: Path, frames: list[int]) -> dict:
+def render(path: Path, out_dir: Path, frames: list[int], size: str = SIZE) -> dict:
     """Run render_check.py; a crash inside Blender fails here with its exit code."""
     done = subprocess.run([str(BLENDER_PYTHON), str(RENDER_CHECK), str(path), str(out_dir),
-                           *map(str, frames), "--size", SIZE], capture_output=True,
+                           *map(str, frames), "--size", size], capture_output=True,
                           text=True, timeout=TIMEOUT, check=False)
     assert done.returncode == 0, (done.returncode, done.stderr[-3000:])
     return json.loads(done.stdout)
@@ -159,3 +159,32 @@ def test_a_textured_asset_keeps_its_look(textured: dict[str, SimCache], tmp_path
     if asset == "Duck":
         r, g, b = colours[0]
         assert r > 1.5 * b and g > 1.3 * b, colours[0]  # a yellow duck, not grey concrete
+
+
+def _detail(png: str) -> tuple[float, np.ndarray]:
+    """Mean |Laplacian| of the grey level over fully covered pixels, and the mean colour."""
+    image = np.asarray(Image.open(png).convert("RGBA"), dtype=float) / 255
+    grey = image[..., :3].mean(axis=2)
+    laplacian = np.abs(4 * grey[1:-1, 1:-1] - grey[:-2, 1:-1] - grey[2:, 1:-1]
+                       - grey[1:-1, :-2] - grey[1:-1, 2:])
+    covered = image[1:-1, 1:-1, 3] > 0.99
+    return float(laplacian[covered].mean()), image[..., :3][image[..., 3] > 0.99].mean(axis=0)
+
+
+@pytest.mark.parametrize("suffix", [".usdc", ".glb"])
+def test_fracture_faces_render_their_damage_texture(shattered_slab: SimCache, tmp_path: Path,
+                                                    suffix: str) -> None:
+    """Close to a shattered slab, its fracture faces show cracked concrete: the render
+    has more fine detail than with the flat damage colour, and the same mean colour."""
+    f = 3
+    got = {}
+    for flat in (False, True):
+        path = tmp_path / f"flat_{flat}" / f"slab{suffix}"
+        path.parent.mkdir()
+        export(shattered_slab, path, ExportOptions(damage_textures=not flat))
+        report = render(path, path.parent / "frames", [f], size="160x90")
+        assert report["camera"]["from_file"]
+        assert report["frames"][str(f)]["coverage"] > 0.3
+        got[flat] = _detail(report["frames"][str(f)]["png"])
+    assert got[False][0] > 1.15 * got[True][0], got
+    np.testing.assert_allclose(got[False][1], got[True][1], atol=0.03)

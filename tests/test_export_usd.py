@@ -134,8 +134,9 @@ def wall(tmp_path_factory) -> tuple[SimCache, Path]:
 
 
 def _write(cache: SimCache, path: Path, up: str = "Y", layout: str = "xforms",
-           shock: bool = False) -> Usd.Stage:
-    export(cache, path, ExportOptions(up_axis=up, layout=layout, shock=shock))
+           shock: bool = False, damage_textures: bool = True) -> Usd.Stage:
+    export(cache, path, ExportOptions(up_axis=up, layout=layout, shock=shock,
+                                      damage_textures=damage_textures))
     stage = Usd.Stage.Open(str(path))
     assert stage is not None
     return stage
@@ -260,7 +261,7 @@ def test_damage_subsets_match_piece_meshes(synthetic, tmp_path):
 
 
 def test_material_bindings(synthetic, tmp_path):
-    stage = _write(synthetic, tmp_path / "shot.usda")
+    stage = _write(synthetic, tmp_path / "shot.usda", damage_textures=False)  # flat colours
     names = synthetic.model.meta["materials"]
     colors = synthetic.model.arrays["material_color"]
     damage_colors = synthetic.model.arrays["material_damage_color"]
@@ -545,13 +546,20 @@ def test_instancer_orientation_matches(synthetic, tmp_path):
 @pytest.mark.parametrize("suffix", [".usda", ".usdc", ".usd"])
 @pytest.mark.parametrize("layout", ["xforms", "instancer"])
 def test_deterministic_bytes(synthetic, tmp_path, suffix, layout):
-    a, b = tmp_path / f"a{suffix}", tmp_path / f"b{suffix}"
+    a, b = tmp_path / "a" / f"shot{suffix}", tmp_path / "b" / f"shot{suffix}"
+    a.parent.mkdir()
+    b.parent.mkdir()
     export(synthetic, a, ExportOptions(layout=layout))
     export(synthetic, b, ExportOptions(layout=layout))
     assert a.read_bytes() == b.read_bytes()
     export(synthetic, a, ExportOptions(layout=layout))  # overwrite in place
     assert a.read_bytes() == b.read_bytes()
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([a.name, b.name])
+    files = sorted(p.relative_to(a.parent) for p in a.parent.rglob("*"))
+    assert files == sorted(p.relative_to(b.parent) for p in b.parent.rglob("*"))
+    assert [str(f) for f in files if f.suffix == ".png"]  # its damage textures
+    for f in files:
+        if (a.parent / f).is_file():
+            assert (a.parent / f).read_bytes() == (b.parent / f).read_bytes(), f
 
 
 def test_formats_follow_the_suffix(synthetic, tmp_path):
@@ -572,7 +580,7 @@ def test_failed_write_leaves_nothing(synthetic, tmp_path, monkeypatch):
             Path(name).write_bytes(b"half")
             return False
 
-    monkeypatch.setattr(usd, "build_layer", lambda cache, options, texture_dir=None: Broken())
+    monkeypatch.setattr(usd._Writer, "build", lambda self: Broken())
     out = tmp_path / "shot.usdc"
     with pytest.raises(OutputError, match="shot.usdc: USD could not write"):
         write_usd(synthetic, out, ExportOptions())

@@ -30,6 +30,7 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
 from blastvox.blast import explosives as _explosives
+from blastvox.damage_look import PATTERNS
 from blastvox.materials import _BOUNDS as _MATERIAL_BOUNDS
 from blastvox.materials import _FIELD_KINDS, Material, MaterialLibrary
 from blastvox.scene import Scene, scene_from_dict
@@ -105,6 +106,7 @@ MATERIAL_UNITS: dict[str, str] = {
     "color": "linear RGB",
     "damage_color": "linear RGB",
     "description": "",
+    "damage_pattern": "",
     "link_impulse": "Pa s",
     "voxel_impulse": "Pa s",
     "pi_shape": "-",
@@ -140,6 +142,7 @@ MATERIAL_KINDS: dict[str, str] = {
     **{kind: f"number {_range(bound)}" for kind, bound in _MATERIAL_BOUNDS.items()},
     "rgb": "3 numbers in [0, 1]",
     "text": "string",
+    "pattern": "one of " + ", ".join(PATTERNS) + ', or ""',
 }
 
 EXAMPLE = """\

@@ -27,6 +27,11 @@ def export(
     shock: bool = typer.Option(False, "--shock/--no-shock", help="Also write each charge's "
                                "shock front as a growing sphere (viewport aid; USD: a guide "
                                "prim that renders skip)."),
+    damage_textures: bool = typer.Option(True, "--damage-textures/--flat-damage",
+                                         help="Fracture faces show their material's damage "
+                                         "texture (cracked concrete, splintered wood...; "
+                                         "USD: PNGs in <stem>_textures/), or its flat "
+                                         "damage_color."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),
 ) -> None:
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
@@ -44,7 +49,7 @@ def export(
     started = time.perf_counter()
     cache = SimCache.load(cache_path)
     run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value,
-                                       shock=shock))
+                                       shock=shock, damage_textures=damage_textures))
     if not quiet:
         err_console().print(f"{output}: {cache.piece_count:,} pieces, {cache.frame_count} "
                             f"frames, {output.stat().st_size / 1e6:.2f} MB "

@@ -46,8 +46,15 @@ import numpy as np
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
+from blastvox.export.damage_textures import damage_textures
 from blastvox.export.options import ExportOptions
-from blastvox.export.pieces import animation, object_groups, piece_meshes, piece_objects
+from blastvox.export.pieces import (
+    PieceMeshes,
+    animation,
+    object_groups,
+    piece_meshes,
+    piece_objects,
+)
 from blastvox.export.uv import face_uvs, texture_names
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change, up_vector
@@ -57,6 +64,8 @@ FLOAT, UINT16, UINT32 = 5126, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 #: glTF sampler constants (OpenGL enums): LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT
 LINEAR_FILTER, LINEAR_MIPMAP_LINEAR, REPEAT = 9729, 9987, 10497
+SAMPLER = {"magFilter": LINEAR_FILTER, "minFilter": LINEAR_MIPMAP_LINEAR,
+           "wrapS": REPEAT, "wrapT": REPEAT}
 TRIANGLES = 4
 ROUGHNESS = 0.8
 SHOCK_COLOR = (1.0, 0.55, 0.15, 0.15)
@@ -73,9 +82,10 @@ def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None 
     """
     path = Path(path)
     bin_name = path.stem + ".bin"
-    shock = bool(options and options.shock)
+    options = options or ExportOptions()
     doc, blob = build_gltf(cache, buffer_uri=None if path.suffix.lower() == ".glb"
-                           else quote(bin_name), shock=shock)
+                           else quote(bin_name), shock=options.shock,
+                           damage_textures=options.damage_textures)
     if path.suffix.lower() == ".glb":
         with atomic_path(path) as tmp:
             tmp.write_bytes(glb_bytes(doc, blob))
@@ -155,17 +165,22 @@ def _f32(a: np.ndarray) -> bytes:
     return np.ascontiguousarray(a, dtype="<f4").tobytes()
 
 
-def build_gltf(cache: SimCache, buffer_uri: str | None = None,
-               shock: bool = False) -> tuple[dict[str, Any], bytes]:
+def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = False,
+               damage_textures: bool = True) -> tuple[dict[str, Any], bytes]:
     """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
 
     ``buffer_uri``: the buffer's uri (.gltf), or None for a GLB's embedded buffer.
     ``shock``: also one translucent sphere node per charge, scaled to its shock radius.
+    ``damage_textures``: fracture faces show their material's damage texture.
     """
     b = _Builder()
     mats, mat_index = _materials(cache)
     look = _texture_materials(cache, b, mats)
-    meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"])
+    pm = piece_meshes(cache, "Y")
+    if damage_textures:
+        _damage_texture_materials(cache, b, mats, mat_index, look,
+                                  np.unique(pm.material[pm.damage]).tolist())
+    meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"], pm)
     anim = animation(cache, "Y")
     n_pieces, n_frames = cache.piece_count, cache.frame_count
 
@@ -365,11 +380,11 @@ def _texture_materials(cache: SimCache, b: _Builder, mats: list[dict[str, Any]]
     per texture appended to ``mats``: {"images", "samplers", "textures", "material"}
     where "material"[k] is texture k's material index."""
     names = texture_names(cache)
-    look: dict[str, list] = {"images": [], "samplers": [], "textures": [], "material": []}
+    look: dict[str, list] = {"images": [], "samplers": [], "textures": [], "material": [],
+                             "names": names}
     if not names:
         return look
-    look["samplers"].append({"magFilter": LINEAR_FILTER, "minFilter": LINEAR_MIPMAP_LINEAR,
-                             "wrapS": REPEAT, "wrapT": REPEAT})
+    look["samplers"].append(SAMPLER)
     for k, name in enumerate(names):
         look["images"].append({"name": name, "mimeType": "image/png",
                                "bufferView": b.view(cache.model.texture_file(k))})
@@ -381,8 +396,26 @@ def _texture_materials(cache: SimCache, b: _Builder, mats: list[dict[str, Any]]
     return look
 
 
+def _damage_texture_materials(cache: SimCache, b: _Builder, mats: list[dict[str, Any]],
+                              mat_index: dict[tuple[int, bool], int], look: dict[str, list],
+                              fractured: list[int]) -> None:
+    """Each fractured material's damage texture, embedded like the look's textures and
+    made the ``baseColorTexture`` of its ``<material>_damage`` material (whose colour
+    factor becomes white: the texture carries the damage colour)."""
+    for d in damage_textures(cache, fractured, look["names"]):
+        if not look["samplers"]:
+            look["samplers"].append(SAMPLER)
+        look["images"].append({"name": d.name, "mimeType": "image/png",
+                               "bufferView": b.view(d.png)})
+        look["textures"].append({"sampler": 0, "source": len(look["images"]) - 1})
+        pbr = mats[mat_index[(d.material, True)]]["pbrMetallicRoughness"]
+        pbr["baseColorTexture"] = {"index": len(look["textures"]) - 1}
+        pbr["baseColorFactor"] = [1.0, 1.0, 1.0, 1.0]
+
+
 def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool], int],
-                  texture_material: list[int]) -> tuple[list[dict[str, Any]], np.ndarray]:
+                  texture_material: list[int], pm: PieceMeshes
+                  ) -> tuple[list[dict[str, Any]], np.ndarray]:
     """One mesh per piece with triangles (mesh dicts, mesh index per piece or -1).
 
     Primitives are groups of (piece, glTF material): the model material and damage,
@@ -391,7 +424,6 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     (no normal) are left out. TEXCOORD_0 holds the UVs of :mod:`blastvox.export.uv`
     with v flipped (glTF's origin is the image's top left).
     """
-    pm = piece_meshes(cache, "Y")
     uvs = face_uvs(cache, pm)
     n_pieces = cache.piece_count
     piece_mesh = np.full(n_pieces, -1, dtype=np.int64)

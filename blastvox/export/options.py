@@ -16,8 +16,12 @@ class ExportOptions:
     PointInstancer for shots with many thousands of pieces; USD only).
     shock: also write each charge's shock front as a growing sphere, a viewport aid
     (USD: a guide-purpose prim, which renderers and Blender's importer skip; glTF: a
-    translucent sphere, which a renderer does draw: it grows past the camera)."""
+    translucent sphere, which a renderer does draw: it grows past the camera).
+    damage_textures: draw each material's damage pattern on its fracture faces
+    (:mod:`blastvox.export.damage_textures`; USD: PNGs in ``<stem>_textures/``);
+    False keeps the flat ``damage_color`` and writes no texture files for them."""
 
     up_axis: str = "Y"
     layout: str = "xforms"
     shock: bool = False
+    damage_textures: bool = True

@@ -56,6 +56,7 @@ from pxr import Sdf, Tf, Vt
 from blastvox import __version__
 from blastvox.cache import SimCache
 from blastvox.errors import OutputError
+from blastvox.export.damage_textures import damage_textures
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import (
     animation,
@@ -157,6 +158,10 @@ class _Writer:
         self.texture_names = texture_names(cache)
         self.texture_dir = texture_dir or ""
         self._prepare_meshes()
+        fractured = np.unique(self.meshes.material[self.meshes.damage]).tolist()
+        self.damage_textures = {
+            d.material: d for d in (damage_textures(cache, fractured, self.texture_names)
+                                    if options.damage_textures else [])}
         self.layer = Sdf.Layer.CreateAnonymous("blastvox.usda")
 
     def build(self) -> Sdf.Layer:
@@ -241,10 +246,16 @@ class _Writer:
         out = ["#usda 1.0\n\n", f'def Xform "{ROOT[1:]}"\n{{\n',
                '    def Scope "Materials"\n    {\n']
         for m in self.used_materials:
-            for damage, color in ((False, self.colors[m]), (True, self.damage_colors[m])):
-                out.append(self._material_text(self._material_path(m, damage), color))
+            out.append(self._material_text(self._material_path(m, False), self.colors[m]))
+            if m in self.damage_textures:
+                out.append(self._texture_material_text(
+                    self._material_path(m, True), self.damage_textures[m].name))
+            else:
+                out.append(self._material_text(self._material_path(m, True),
+                                               self.damage_colors[m]))
         for k in np.unique(self.look.texture[self.look.texture >= 0]).tolist():
-            out.append(self._texture_material_text(k))
+            out.append(self._texture_material_text(self._texture_material_path(k),
+                                                   self.texture_names[k]))
         out.append("    }\n\n")
         out.append(self._instancer_text() if self.instancer else self._xforms_text())
         out.append("}\n")
@@ -264,12 +275,11 @@ class _Writer:
                 f"                float inputs:roughness = {ROUGHNESS}\n"
                 f"                token outputs:surface\n            }}\n        }}\n")
 
-    def _texture_material_text(self, k: int) -> str:
-        """UsdPreviewSurface whose diffuse colour is texture k (a UsdUVTexture of the file
-        beside the cache) read at the mesh's ``st``."""
-        path = self._texture_material_path(k)
+    def _texture_material_text(self, path: str, texture: str) -> str:
+        """Material ``path``: a UsdPreviewSurface whose diffuse colour is a UsdUVTexture of
+        ``<texture_dir>/<texture>.png`` beside the cache, read at the mesh's ``st``."""
         name = path.rsplit("/", 1)[1]
-        asset = f"./{self.texture_dir}/{self.texture_names[k]}.png"
+        asset = f"./{self.texture_dir}/{texture}.png"
         return (f'        def Material "{name}"\n        {{\n'
                 f"            token outputs:surface.connect = "
                 f"<{path}/PreviewSurface.outputs:surface>\n\n"
@@ -586,6 +596,14 @@ class _Writer:
                 set_sample(invisible, float(f), Vt.Int64Array.FromNumpy(gone))
                 gone_count = len(gone)
 
+    def texture_files(self) -> list[tuple[str, bytes]]:
+        """(name, PNG bytes) of every texture the layer's materials read: the source
+        look's, then the damage textures."""
+        return ([(name, self.cache.model.texture_file(k))
+                 for k, name in enumerate(self.texture_names)]
+                + [(d.name, d.png) for d in self.damage_textures.values()])
+
+
 def build_layer(cache: SimCache, options: ExportOptions,
                 texture_dir: str | None = None) -> Sdf.Layer:
     """The export as an anonymous in-memory layer (for tests and other writers);
@@ -594,32 +612,37 @@ def build_layer(cache: SimCache, options: ExportOptions,
 
 
 def write_usd(cache: SimCache, path: Path, options: ExportOptions) -> None:
-    """Write ``cache`` to ``path`` (.usda, .usdc or .usd: crate), atomically. A model
-    with a source look also gets its textures as PNG files in ``<stem>_textures/``
-    beside it (removed again if the USD file cannot be written)."""
+    """Write ``cache`` to ``path`` (.usda, .usdc or .usd: crate), atomically. Its
+    textures (the source look's, the damage textures) go beside it as PNG files in
+    ``<stem>_textures/`` (removed again if the USD file cannot be written)."""
     path = Path(path)
     texture_dir = f"{path.stem}_textures"
-    layer = build_layer(cache, options, texture_dir)
-    written = _write_textures(cache, path.parent / texture_dir)
+    writer = _Writer(cache, options, texture_dir)
+    layer = writer.build()
+    directory = path.parent / texture_dir
+    existed = directory.exists()
+    written = _write_textures(writer.texture_files(), directory)
     try:
         _export_layer(layer, path)
     except BaseException:
         for file in written:
             with contextlib.suppress(OSError):
                 file.unlink()
+        if not existed:
+            with contextlib.suppress(OSError):
+                directory.rmdir()
         raise
 
 
-def _write_textures(cache: SimCache, directory: Path) -> list[Path]:
-    """The model's textures as ``directory/<name>.png`` (each written atomically)."""
-    names = texture_names(cache)
+def _write_textures(files: list[tuple[str, bytes]], directory: Path) -> list[Path]:
+    """``files`` (name, PNG bytes) as ``directory/<name>.png`` (each written atomically)."""
     written: list[Path] = []
-    if names:
+    if files:
         directory.mkdir(exist_ok=True)
-    for k, name in enumerate(names):
+    for name, data in files:
         target = directory / f"{name}.png"
         with atomic_path(target) as tmp:
-            tmp.write_bytes(cache.model.texture_file(k))
+            tmp.write_bytes(data)
         written.append(target)
     return written
 
