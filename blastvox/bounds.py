@@ -216,6 +216,8 @@ STRENGTH_SCALE = Bound(0.0, 1e6, lo_open=True)
 #: A chunk size (m): 0 = no chunks; the voxelizer also refuses one below a voxel or above
 #: the object (blastvox.voxelize.chunks). The top is the materials' chunk_size limit.
 CHUNK_SIZE = Bound(0.0, 1e4, unit="m")
+#: factor on the yields of links between two touching parts of one input
+PART_BOND = Bound(0.0, 1e6, lo_open=True)
 CHARGE_KG = Bound(MIN_CHARGE_KG, MAX_CHARGE_KG, unit="kg")
 CHARGE_TIME_S = Bound(0.0, MAX_TIME_S, unit="s")
 DISTANCE_M = Bound(0.0, MAX_DISTANCE_M, unit="m")

@@ -144,6 +144,7 @@ Jitter = Annotated[float, limits.JITTER.constraints()]
 Length = Annotated[float, limits.LENGTH.constraints()]
 StrengthScale = Annotated[float, limits.STRENGTH_SCALE.constraints()]
 ChunkSize = Annotated[float, limits.CHUNK_SIZE.constraints()]
+PartBond = Annotated[float, limits.PART_BOND.constraints()]
 _CHUNK = "Chunk size instead of the material's: 0 (no chunks) or one voxel to the object's size."
 # The simulation's settings and budgets (simulation.*, particles.*, charges' mass and
 # time) are bounded where they are used: blastvox.simulate.settings.check_settings names
@@ -282,6 +283,14 @@ class SceneObject(_Model):
         "Moves each lattice vertex by a seeded random fraction of the voxel size; "
         "neighbouring voxels share vertices, so faces stay shared."))
     chunk_size: ChunkSize | None = Field(None, description=_CHUNK)
+    part_bond: PartBond = Field(1.0, description=(
+        "Factor on the strength of the links between two parts of the mesh that touch "
+        "(a glTF's nodes and primitives, an OBJ's objects): 1 welds them like one solid; "
+        "0.2 holds a tyre or a window in place by contact and lets it break off first."))
+    anchored: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Voxels touching the ground are foundations that hold the object until the "
+        "blast tears them off; false lets the object stand on the ground as a free "
+        "body (a vehicle, furniture, a crate)."))
     material: MaterialName = Field("concrete", description=(
         "Material of the object's voxels where neither material_map nor a rule sets one."))
     material_map: dict[str, MaterialName] = Field({}, description=(

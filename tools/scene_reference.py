@@ -50,6 +50,7 @@ UNITS: dict[str, str] = {
     "objects.resolution": "voxels",
     "objects.jitter": "voxel edges",
     "objects.chunk_size": "m",
+    "objects.part_bond": "-",
     "objects.transform.translate": "m",
     "objects.transform.rotate_deg": "degrees",
     "objects.transform.scale": "-",

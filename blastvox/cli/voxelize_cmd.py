@@ -69,6 +69,13 @@ def voxelize(
     chunk_size: float = typer.Option(None, "--chunk-size", help="Mean chunk size in metres "
                                      "(a chunk's equivalent cube side), overriding the "
                                      "materials' chunk_size; 0: no chunks."),
+    part_bond: float = typer.Option(None, "--part-bond", help="Factor on the strength of "
+                                    "links between touching parts of a mesh (glTF nodes, OBJ "
+                                    "objects): 1 (default) welds them; 0.2 lets a tyre or "
+                                    "window break off first."),
+    anchored: bool = typer.Option(True, "--anchor/--no-anchor", help="Voxels touching the "
+                                  "ground are foundations (default); --no-anchor: the "
+                                  "object stands on the ground as a free body."),
     material: str = typer.Option("concrete", "--material", help="Default material "
                                  "(see `blastvox materials`)."),
     materials_file: Path = typer.Option(None, "--materials", help="TOML file of extra or "
@@ -99,13 +106,23 @@ def voxelize(
         raise BlastvoxError(f"{scene}: give either --scene or MESH arguments, not both")
     if scene is None and not meshes:
         raise BlastvoxError("no input: give MESH files or --scene SCENE.toml")
-    from blastvox.bounds import CHUNK_SIZE, JITTER, MAX_VOXELS, RESOLUTION, check_seed, printable
+    from blastvox.bounds import (
+        CHUNK_SIZE,
+        JITTER,
+        MAX_VOXELS,
+        PART_BOND,
+        RESOLUTION,
+        check_seed,
+        printable,
+    )
 
     where = printable(scene or meshes[0])
     MAX_VOXELS.at(max_voxels, f"{where}: --max-voxels")
     JITTER.at(jitter, f"{where}: --jitter")
     if chunk_size is not None:
         CHUNK_SIZE.at(chunk_size, f"{where}: --chunk-size")
+    if part_bond is not None:
+        PART_BOND.at(part_bond, f"{where}: --part-bond")
     size = _parse_size(voxel_size, where) if voxel_size is not None else None
     if resolution is not None:
         RESOLUTION.at(resolution, f"{where}: --resolution")
@@ -119,7 +136,8 @@ def voxelize(
         mesh_flags = (("--voxel-size", voxel_size), ("--resolution", resolution),
                       ("--material", None if material == "concrete" else material),
                       ("--shape", None if shape == Shape.cube else shape),
-                      ("--jitter", jitter or None), ("--chunk-size", chunk_size))
+                      ("--jitter", jitter or None), ("--chunk-size", chunk_size),
+                      ("--part-bond", part_bond), ("--no-anchor", None if anchored else True))
         given = [flag for flag, value in mesh_flags if value is not None]
         if given:
             raise BlastvoxError(f"{where}: {given[0]} applies to MESH arguments; with --scene "
@@ -154,7 +172,9 @@ def voxelize(
             resolution = DEFAULT_RESOLUTION
         requests = [ObjectRequest(mesh=m, voxel_size=size, resolution=resolution,
                                   shape=shape.value, jitter=jitter, material=material,
-                                  chunk_size=chunk_size)
+                                  chunk_size=chunk_size,
+                                  part_bond=1.0 if part_bond is None else part_bond,
+                                  anchored=anchored)
                     for m in meshes]
         settings = VoxelizeSettings(up_axis=up_axis.value if up_axis else "Y",
                                     ground=ground_value,
@@ -199,7 +219,7 @@ def _recorded(requests, settings, scene) -> dict:
             "mesh": printable(Path(r.mesh).name), "name": r.name,
             "voxel_size": list(r.voxel_size) if r.voxel_size else None,
             "resolution": r.resolution, "shape": r.shape, "jitter": r.jitter,
-            "chunk_size": r.chunk_size,
+            "chunk_size": r.chunk_size, "part_bond": r.part_bond, "anchored": r.anchored,
             "material": r.material, "material_map": dict(r.material_map),
             "transform": r.transform.tolist() if r.transform is not None else None,
             "rules": [{"kind": x.kind, "a": list(x.a), "b": x.b if isinstance(x.b, float)

@@ -71,6 +71,11 @@ class ObjectRequest:
     transform: np.ndarray | None = None
     rules: list[RegionRule] = field(default_factory=list)
     chunk_size: float | None = None
+    #: factor on the yields of links between voxels of two different parts of the input
+    #: (1: welded like one solid)
+    part_bond: float = 1.0
+    #: voxels touching the ground are foundations (False: a free body standing on it)
+    anchored: bool = True
     #: how the model's metadata names the mesh (objects[i].source): the path as written
     #: in the scene file, relative to it; default ``mesh`` as given.
     source: str | None = None
@@ -425,7 +430,8 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "vertices", "voxel_vertices", "voxel_ijk", "voxel_object", "material_name_idx",
         "voxel_volume", "voxel_centroid", "voxel_inertia", "voxel_boundary", "strength",
         "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
-        "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side")}
+        "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side",
+        "link_bond", "anchored")}
     voxel_base = vertex_base = tri_base = 0
     look = LookBuilder()
 
@@ -473,6 +479,9 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         per["link_face"].append(lat.link_face)
         per["link_midpoint"].append(lat.link_midpoint)
         per["link_area"].append(lat.link_area)
+        across = lat.part[lat.link_voxels[:, 0]] != lat.part[lat.link_voxels[:, 1]]
+        per["link_bond"].append(np.where(across, lat.request.part_bond, 1.0))
+        per["anchored"].append(np.full(n, lat.request.anchored))
         per["conform_voxels"].append(lat.conform_local + voxel_base)
         per["conform_offsets"].append(lat.conform_offsets[:-1] + tri_base)
         per["conform_triangles"].append(lat.conform_triangles)
@@ -518,7 +527,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
     if textures:  # only a textured input adds the look (untextured models are unchanged)
         arrays.update(surface)
         meta["textures"] = textures
-    _foundations(arrays, ground, up, cat["strength"], settings.seed)
+    _foundations(arrays, ground, up, cat["strength"], cat["anchored"].astype(bool))
     return VoxelModel(arrays=arrays, meta=meta)
 
 
@@ -556,6 +565,7 @@ def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up
                                cat["voxel_centroid"].reshape(-1, 3), lv, table, rng_chunk)
     link_yield = link_yield * chunks.bond_factor(voxel_chunk, lv,
                                                  table["material_chunk_bond_scale"][weaker])
+    link_yield = link_yield * cat["link_bond"]  # touching parts: ObjectRequest.part_bond
     table.update(voxel_yield=voxel_yield, link_yield=link_yield, voxel_chunk=voxel_chunk,
                  voxel_combustibility=table["material_combustibility"][mat].astype(np.float64),
                  _rng_found=np.asarray(rng_found.random(n)))
@@ -571,8 +581,9 @@ def _ground_height(ground, vertices: np.ndarray, up: int) -> float | None:
 
 
 def _foundations(arrays: dict, ground: float | None, up: int, strength: np.ndarray,
-                 seed: int) -> None:
-    """Tag voxels touching the ground and give them perturbed foundation yields."""
+                 anchored: np.ndarray) -> None:
+    """Tag voxels touching the ground (of anchored objects, (N,) bool) and give them
+    perturbed foundation yields."""
     u = arrays.pop("_rng_found")
     n = len(arrays["voxel_mass"])
     if ground is None:
@@ -584,7 +595,7 @@ def _foundations(arrays: dict, ground: float | None, up: int, strength: np.ndarr
     owner = np.repeat(arrays["conform_voxels"], np.diff(arrays["conform_offsets"]))
     np.minimum.at(lowest, owner, arrays["conform_triangles"][:, :, up].min(axis=1))
     size = np.cbrt(np.maximum(arrays["voxel_volume"], 0.0))
-    found = lowest <= ground + 1e-3 * size
+    found = (lowest <= ground + 1e-3 * size) & anchored
     mat = arrays["voxel_material"]
     mean = arrays["material_foundation_yield"][mat]
     voxel_mean = arrays["material_voxel_yield_mean"][mat]
