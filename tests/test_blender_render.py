@@ -188,3 +188,43 @@ def test_fracture_faces_render_their_damage_texture(shattered_slab: SimCache, tm
         got[flat] = _detail(report["frames"][str(f)]["png"])
     assert got[False][0] > 1.15 * got[True][0], got
     np.testing.assert_allclose(got[False][1], got[True][1], atol=0.03)
+
+
+@pytest.fixture(scope="module")
+def truck_shot(tmp_path_factory: pytest.TempPathFactory) -> SimCache:
+    """examples/truck at 0.15 m voxels: the textured truck (its scene's light vehicle and
+    tyre materials, wheels held by part_bond, not anchored) thrown and broken by 50 kg."""
+    from blastvox.scene import load_scene
+    from blastvox.simulate.engine import simulate
+    from blastvox.simulate.settings import ChargeSpec, SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    spec = load_scene(ROOT / "examples" / "truck" / "scene.toml")
+    obj = spec.objects[0]
+    model = voxelize([ObjectRequest(mesh=Path(obj.mesh), voxel_size=(0.15,) * 3,
+                                    material=obj.material, material_map=obj.material_map,
+                                    part_bond=obj.part_bond, anchored=obj.anchored)],
+                     VoxelizeSettings(up_axis="Y", library=spec.material_library()),
+                     warn=lambda message: None)
+    charge = spec.charges[0]
+    return simulate(model, SimSettings(duration=0.5, fps=24.0, dt=1 / 960, charges=(
+        ChargeSpec(tuple(charge.position), charge.mass_kg),)))
+
+
+@pytest.mark.parametrize("suffix", [".usdc", ".glb"])
+def test_truck_renders_broken_and_textured_mid_shot(truck_shot: SimCache, tmp_path: Path,
+                                                   suffix: str) -> None:
+    cache = truck_shot
+    assert cache.piece_count > 3 and (cache.piece_end_frame >= cache.frame_count).all()
+    moved = np.linalg.norm(cache.piece_position[-1] - cache.piece_position[0], axis=1)
+    assert moved.max() > 0.3  # the blast threw something
+    path = tmp_path / f"truck{suffix}"
+    export(cache, path, ExportOptions())
+    frames = [0, mid_frame(cache)]
+    report = render(path, tmp_path / "frames", frames)
+    for f in frames:
+        got = report["frames"][str(f)]
+        assert got["coverage"] > 0.03 and got["luminance"] > 0.08, (f, got)
+    # the truck's texture is mostly white and pale blue: light, not the flat grey steel
+    r, g, b = report["frames"]["0"]["rgb"]
+    assert b >= r - 0.02 and report["frames"]["0"]["luminance"] > 0.3

@@ -358,3 +358,16 @@ def test_voxel_size_accepts_positive_scalars_and_triples(size: float | list[floa
 def test_voxel_size_rejects_non_positive(size: float) -> None:
     message = error_of({"objects": [{"mesh": "a.obj", "voxel_size": size}]})
     assert message.startswith("scene.toml: objects[0].voxel_size: ")
+
+
+@pytest.mark.parametrize("scene", sorted(
+    str(p.relative_to(Path(__file__).resolve().parents[1]))
+    for p in (Path(__file__).resolve().parents[1] / "examples").glob("*/scene.toml")))
+def test_every_example_scene_loads(scene: str) -> None:
+    """The bundled examples are valid scenes whose meshes exist (a renamed key or mesh
+    would otherwise surface only when someone runs `make -C examples`)."""
+    from blastvox.scene import load_scene
+
+    spec = load_scene(Path(__file__).resolve().parents[1] / scene)
+    assert spec.objects and all(Path(o.mesh).is_file() for o in spec.objects)
+    assert spec.output.model is not None and spec.output.cache is not None

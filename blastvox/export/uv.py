@@ -31,8 +31,10 @@ from blastvox.cache import SimCache
 from blastvox.export.pieces import PieceMeshes
 
 #: How far (in voxel edges) a face's centroid may lie from the source surface and still
-#: take its texture: jittered cells stray by up to about half an edge plus the jitter.
-REACH = 0.75
+#: take its texture. A cube cell is kept when its centre is inside, so the steps of a
+#: staircase along a slanted surface put outside faces up to about sqrt(3) edges from
+#: it; with less, those steps showed the flat material colour in stripes.
+REACH = 2.0
 #: Source triangles whose centroids are nearest a face's centroid, searched exactly.
 CANDIDATES = 8
 
