@@ -493,8 +493,10 @@ class Output(_Model):
         "Export file(s): .usda, .usdc, .usd, .gltf or .glb; the suffix picks the format."))
     up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = Field("Y", description=(
         "Up axis of the exported files."))
-    layout: Literal["xforms", "instancer"] = Field("xforms", description=(
-        "USD layout: an Xform and a Mesh per piece, or one PointInstancer."))
+    layout: Literal["xforms", "instancer", "skinned"] = Field("xforms", description=(
+        "xforms: an Xform and a Mesh per piece (USD), a node per piece (glTF); "
+        "instancer: one USD PointInstancer; skinned: one glTF mesh with a joint per "
+        "piece, which imports into Blender as one object (thousands of pieces)."))
     shock: bool = Field(False, description=(
         "Also export each charge's shock front as a growing sphere (a viewport aid: a "
         "guide prim in USD, skipped by renderers; a translucent sphere in glTF)."))

@@ -236,3 +236,20 @@ def test_usd_vanished_pieces_hidden(shot: Shot, usd: dict) -> None:
              if at[shot.name(p)]["bounds"] is not None
              and np.any(np.ptp(np.asarray(at[shot.name(p)]["bounds"]), axis=0) > 1e-6)]
     assert not shown, f"{len(shown)} of {len(shot.gone)} vanished pieces still shown"
+
+
+def test_gltf_skinned_layout_imports_as_one_object(shot: Shot, gltf: dict, tmp_path: Path
+                                                   ) -> None:
+    """--layout skinned arrives as one armature and one mesh, and every shown vertex is
+    where the node-per-piece import puts it (the same scene bounds at mid and late
+    frames)."""
+    from blastvox.export.api import ExportOptions, export
+
+    path = tmp_path / "skinned.glb"
+    export(shot.cache, path, ExportOptions(layout="skinned"))
+    report = _blender(path, [shot.mid, shot.late])
+    assert report["objects"].get("ARMATURE") == 1 and report["piece_count"] == 0
+    assert sum(report["objects"].values()) <= 4  # root empty, armature, mesh, bone shape
+    for f in (shot.mid, shot.late):
+        np.testing.assert_allclose(report["scene_bounds"][str(f)],
+                                   gltf["scene_bounds"][str(f)], atol=TOL)

@@ -14,6 +14,7 @@ from blastvox.cli.options import UpAxis
 class Layout(StrEnum):
     xforms = "xforms"
     instancer = "instancer"
+    skinned = "skinned"
 
 
 def export(
@@ -23,7 +24,9 @@ def export(
                                 ".gltf or .glb (the suffix picks the format)."),
     up_axis: UpAxis = typer.Option(UpAxis.Y, "--up-axis", help="Up axis of the written file."),
     layout: Layout = typer.Option(Layout.xforms, "--layout", help="xforms: an Xform and Mesh "
-                                  "per piece; instancer: a USD PointInstancer (many pieces)."),
+                                  "per piece (USD) or a node per piece (glTF); instancer: a USD "
+                                  "PointInstancer (many pieces); skinned: a glTF of one mesh "
+                                  "with a joint per piece (imports fast in Blender)."),
     shock: bool = typer.Option(False, "--shock/--no-shock", help="Also write each charge's "
                                "shock front as a growing sphere (viewport aid; USD: a guide "
                                "prim that renders skip)."),

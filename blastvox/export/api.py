@@ -29,13 +29,16 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
     if options.up_axis not in UP_AXES:
         raise BlastvoxError(f"{path}: --up-axis must be Y or Z (got {options.up_axis!r})")
     if suffix in USD_SUFFIXES:
+        if options.layout == "skinned":
+            raise BlastvoxError(f"{path}: --layout skinned is glTF only; USD takes xforms "
+                                f"or instancer")
         from blastvox.export.usd import write_usd
 
         write_usd(cache, path, options)
     elif suffix in GLTF_SUFFIXES:
-        if options.layout != "xforms":
-            raise BlastvoxError(f"{path}: --layout {options.layout} is USD only; glTF uses one "
-                                f"node per piece")
+        if options.layout == "instancer":
+            raise BlastvoxError(f"{path}: --layout instancer is USD only; glTF takes xforms "
+                                f"(a node per piece) or skinned (one mesh, a joint per piece)")
         from blastvox.export.gltf import write_gltf
 
         write_gltf(cache, path, options)

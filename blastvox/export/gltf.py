@@ -70,6 +70,7 @@ TRIANGLES = 4
 ROUGHNESS = 0.8
 SHOCK_COLOR = (1.0, 0.55, 0.15, 0.15)
 SPHERE_SEGMENTS, SPHERE_RINGS = 32, 16
+MAX_JOINTS = 65536  # JOINTS_0 as unsigned 16-bit
 U16_VERTEX_LIMIT = 65535  # a primitive with fewer vertices uses 16-bit indices (65535 = restart)
 _GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 
@@ -85,7 +86,8 @@ def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None 
     options = options or ExportOptions()
     doc, blob = build_gltf(cache, buffer_uri=None if path.suffix.lower() == ".glb"
                            else quote(bin_name), shock=options.shock,
-                           damage_textures=options.damage_textures)
+                           damage_textures=options.damage_textures,
+                           skinned=options.layout == "skinned")
     if path.suffix.lower() == ".glb":
         with atomic_path(path) as tmp:
             tmp.write_bytes(glb_bytes(doc, blob))
@@ -166,13 +168,19 @@ def _f32(a: np.ndarray) -> bytes:
 
 
 def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = False,
-               damage_textures: bool = True) -> tuple[dict[str, Any], bytes]:
+               damage_textures: bool = True, skinned: bool = False
+               ) -> tuple[dict[str, Any], bytes]:
     """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
 
     ``buffer_uri``: the buffer's uri (.gltf), or None for a GLB's embedded buffer.
     ``shock``: also one translucent sphere node per charge, scaled to its shock radius.
     ``damage_textures``: fracture faces show their material's damage texture.
+    ``skinned``: one mesh of all pieces skinned to one joint per piece (the piece
+    nodes) instead of a mesh per piece: importers make one object, not thousands.
     """
+    if skinned and cache.piece_count > MAX_JOINTS:
+        raise BlastvoxError(f"--layout skinned holds at most {MAX_JOINTS:,} pieces "
+                            f"(JOINTS_0 is 16-bit); this shot has {cache.piece_count:,}")
     b = _Builder()
     mats, mat_index = _materials(cache)
     look = _texture_materials(cache, b, mats)
@@ -180,7 +188,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     if damage_textures:
         _damage_texture_materials(cache, b, mats, mat_index, look,
                                   np.unique(pm.material[pm.damage]).tolist())
-    meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"], pm)
+    meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"], pm, skinned)
     anim = animation(cache, "Y")
     n_pieces, n_frames = cache.piece_count, cache.frame_count
 
@@ -205,7 +213,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
         node: dict[str, Any] = {"name": f"piece_{p:05d}",
                                 "extras": {"piece": p, "object": objects[p],
                                            "mass_kg": masses[p]}}
-        if piece_mesh[p] >= 0:
+        if piece_mesh[p] >= 0 and not skinned:
             node["mesh"] = int(piece_mesh[p])
         if n_frames:
             node["translation"] = first_t[p]
@@ -258,11 +266,15 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
                       "extras": {"object": name}})
     nodes.append({"name": "blastvox", "children": list(range(n_pieces + len(others),
                                                                 len(nodes))) + others})
+    roots = [len(nodes) - 1]
+    if skinned and meshes:  # a skinned mesh's node ignores its transform: keep it a root
+        nodes.append({"name": "pieces", "mesh": 0, "skin": 0})
+        roots.append(len(nodes) - 1)
     fps = cache.meta.get("fps")
     doc: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": f"blastvox {__version__}"},
         "scene": 0,
-        "scenes": [{"name": "blastvox", "nodes": [len(nodes) - 1],
+        "scenes": [{"name": "blastvox", "nodes": roots,
                     "extras": {"up_axis": "Y", "units": "m", "frame_count": n_frames,
                                "fps": fps if isinstance(fps, int | float) else None,
                                "piece_count": n_pieces}}],
@@ -270,6 +282,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     }
     if cameras:
         doc["cameras"] = cameras
+    if skinned and meshes:  # no inverseBindMatrices: identity, the vertices are piece-local
+        doc["skins"] = [{"name": "pieces", "joints": list(range(n_pieces))}]
     if meshes:
         doc["meshes"] = meshes
     if mats:
@@ -414,9 +428,11 @@ def _damage_texture_materials(cache: SimCache, b: _Builder, mats: list[dict[str,
 
 
 def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool], int],
-                  texture_material: list[int], pm: PieceMeshes
+                  texture_material: list[int], pm: PieceMeshes, skinned: bool = False
                   ) -> tuple[list[dict[str, Any]], np.ndarray]:
-    """One mesh per piece with triangles (mesh dicts, mesh index per piece or -1).
+    """One mesh per piece with triangles (mesh dicts, mesh index per piece or -1); with
+    ``skinned``, one mesh of all pieces (primitives per material) whose vertices are
+    bound to their piece's joint (JOINTS_0 = piece, WEIGHTS_0 = 1), mesh index 0.
 
     Primitives are groups of (piece, glTF material): the model material and damage,
     or the source look's texture; within a group, corners with the same float32
@@ -441,9 +457,10 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     n_tri = len(solid)
     if n_tri == 0:
         return [], piece_mesh
-    order = solid[np.lexsort((solid, gmat[solid], tri_piece[solid]))]
+    primary, secondary = (gmat, tri_piece) if skinned else (tri_piece, gmat)
+    order = solid[np.lexsort((solid, secondary[solid], primary[solid]))]
     tri_piece, gmat = tri_piece[order], gmat[order]
-    key = np.stack([tri_piece, gmat], axis=1)
+    key = gmat[:, None] if skinned else np.stack([tri_piece, gmat], axis=1)
     change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
     starts = np.flatnonzero(change)  # first triangle of each primitive
     group = np.cumsum(change) - 1  # primitive of each triangle
@@ -456,8 +473,10 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     corner_group = np.repeat(group, 3)
     # shared vertices: equal (group, position, normal and UV bits); stable sort keeps
     # first use
-    cols = np.concatenate([corner_group[:, None].astype(np.int32), corners.view(np.int32),
-                           normals.view(np.int32), texcoords.view(np.int32)], axis=1)
+    corner_piece = np.repeat(tri_piece, 3).astype(np.int32)  # skinned: no sharing across
+    cols = np.concatenate([corner_group[:, None].astype(np.int32), corner_piece[:, None],
+                           corners.view(np.int32), normals.view(np.int32),
+                           texcoords.view(np.int32)], axis=1)
     srt = np.lexsort(cols.T[::-1])
     s = cols[srt]
     new = np.r_[True, np.any(s[1:] != s[:-1], axis=1)]
@@ -469,6 +488,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     inverse[srt] = rank[uid]
     keep = np.sort(first)
     vpos, vnrm, vuv, vgroup = corners[keep], normals[keep], texcoords[keep], corner_group[keep]
+    skin = _skin_views(b, corner_piece[keep]) if skinned else None
 
     n_groups = len(starts)
     vstart = np.searchsorted(vgroup, np.arange(n_groups + 1))
@@ -504,7 +524,9 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     n_idx, idx_off = np.diff(cstart).tolist(), idx_offsets.tolist()
     for g in range(n_groups):
         p = g_piece[g]
-        if piece_mesh[p] < 0:
+        if skinned and not meshes:
+            meshes.append({"name": "pieces", "primitives": []})
+        elif not skinned and piece_mesh[p] < 0:
             piece_mesh[p] = len(meshes)
             meshes.append({"name": f"piece_{p:05d}", "primitives": []})
         n_v = counts_l[g]
@@ -520,8 +542,26 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
             "material": g_mat[g],
             "mode": TRIANGLES,
         }
+        if skin is not None:
+            prim["attributes"]["JOINTS_0"] = b.accessor(skin[0], vstart_l[g] * 8, UINT16,
+                                                        n_v, "VEC4")
+            prim["attributes"]["WEIGHTS_0"] = b.accessor(skin[1], vstart_l[g] * 16, FLOAT,
+                                                         n_v, "VEC4")
         meshes[-1]["primitives"].append(prim)
+    if skinned:
+        piece_mesh[:] = 0
     return meshes, piece_mesh
+
+
+def _skin_views(b: _Builder, vertex_piece: np.ndarray) -> tuple[int, int]:
+    """Buffer views of JOINTS_0 (u16 VEC4: the vertex's piece, then three zero-weight
+    0s) and WEIGHTS_0 (f32 VEC4: 1, 0, 0, 0) for vertices of pieces (V,)."""
+    joints = np.zeros((len(vertex_piece), 4), dtype="<u2")
+    joints[:, 0] = vertex_piece
+    weights = np.zeros((len(vertex_piece), 4), dtype=np.float32)
+    weights[:, 0] = 1.0
+    return (b.view(joints.tobytes(), ARRAY_BUFFER, 8),
+            b.view(_f32(weights), ARRAY_BUFFER, 16))
 
 
 def _sphere_mesh(b: _Builder, material: int) -> dict[str, Any]:

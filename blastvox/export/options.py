@@ -12,8 +12,9 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class ExportOptions:
     """up_axis: "Y" (default, glTF's and Blender-USD's convention) or "Z".
-    layout: "xforms" (one Xform + Mesh per piece) or "instancer" (USD
-    PointInstancer for shots with many thousands of pieces; USD only).
+    layout: "xforms" (one Xform + Mesh per piece; a glTF node per piece),
+    "instancer" (USD PointInstancer for shots with many thousands of pieces; USD
+    only) or "skinned" (glTF only: one mesh of all pieces, a joint per piece).
     shock: also write each charge's shock front as a growing sphere, a viewport aid
     (USD: a guide-purpose prim, which renderers and Blender's importer skip; glTF: a
     translucent sphere, which a renderer does draw: it grows past the camera).

@@ -26,6 +26,7 @@ writes to stdout, are sent to stderr)::
      "actions": A,              # bpy.data.actions (glTF animation arrives as actions)
      "action_frame_range": [a, b] | null,       # union of the actions' frame ranges
      "transform_caches": C,     # Transform Cache constraints (USD transform animation)
+     "scene_bounds": {"FRAME": [[x0, y0, z0], [x1, y1, z1]] | null},  # all shown meshes
      "frames": {"FRAME": {"piece_00000": {
          "location": [x, y, z],     # evaluated matrix_world.translation (Blender Z-up world)
          "rotation": [w, x, y, z],  # evaluated matrix_world's rotation, unit quaternion
@@ -152,6 +153,11 @@ def main(argv: list[str]) -> int:
         scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         at = report["frames"][str(frame)] = {}
+        boxes = [b for b in (_bounds(o, depsgraph) for o in scene.objects if o.parent is None)
+                 if b is not None]
+        report.setdefault("scene_bounds", {})[str(frame)] = (
+            [np.min([b[0] for b in boxes], axis=0).tolist(),
+             np.max([b[1] for b in boxes], axis=0).tolist()] if boxes else None)
         for o in pieces:
             world = o.evaluated_get(depsgraph).matrix_world
             at[o.name] = {"location": list(world.translation),
