@@ -66,6 +66,9 @@ IMPORT_TARGET_S = 30.0
 HERO_EXPORT_S = 5.0
 HERO_MB = 25.0
 SUFFIXES = (".usdc", ".glb")
+#: (file name tail, layout) exported per case: USD and glTF with a node per piece, and
+#: glTF's skinned layout (one mesh, a joint per piece)
+VARIANTS = ((".usdc", "xforms"), (".glb", "xforms"), ("_skinned.glb", "skinned"))
 
 #: Run by the Blender venv's python: import argv[1] into an empty scene, print JSON.
 BLENDER_IMPORT = r"""
@@ -175,14 +178,14 @@ def truck_cache(duration: float = DURATION_S):
     return simulate(model, SimSettings(duration=duration, fps=FPS, charges=(charge,)))
 
 
-def time_export(cache, path: Path, repeat: int) -> float:
+def time_export(cache, path: Path, repeat: int, layout: str = "xforms") -> float:
     """Best of ``repeat`` wall times of ``export(cache, path)``."""
     from blastvox.export.api import ExportOptions, export
 
     best = float("inf")
     for _ in range(repeat):
         t0 = time.perf_counter()
-        export(cache, path, ExportOptions())
+        export(cache, path, ExportOptions(layout=layout))
         best = min(best, time.perf_counter() - t0)
     return best
 
@@ -270,9 +273,9 @@ def main(argv: list[str] | None = None) -> int:
                          f"{cache.frame_count} frames; voxelize + simulate "
                          f"{time.perf_counter() - t0:.1f} s.")
             stem = "wall" if case.startswith("(a)") else "truck"
-            for suffix in SUFFIXES:
-                path = out / f"{stem}{suffix}"
-                seconds = time_export(cache, path, repeat)
+            for tail, layout in VARIANTS:
+                path = out / f"{stem}{tail}"
+                seconds = time_export(cache, path, repeat, layout)
                 rows.append(Row(case, path, cache.piece_count, cache.model.voxel_count,
                                 cache.frame_count, seconds, path.stat().st_size / 1e6))
             del cache
@@ -280,6 +283,8 @@ def main(argv: list[str] | None = None) -> int:
         blender = "Blender: not found"
         for row in rows:
             if row.case.startswith("(b)"):
+                if row.path.name.endswith("_skinned.glb"):
+                    continue
                 hero = row.path.suffix == ".usdc"
                 row.target = f"export < {HERO_EXPORT_S:g} s, < {HERO_MB:g} MB" if hero else ""
                 row.result = (verdict(row.export_s < HERO_EXPORT_S and row.size_mb < HERO_MB)
@@ -314,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
                 imp = f"{r.import_note} ({r.process_s:.0f})"
             else:
                 imp = r.import_note or "—"
-            print(f"| {r.case} | {r.path.suffix} | {r.pieces:,} | {r.voxels:,} | {r.frames} | "
+            print(f"| {r.case} | {r.path.name} | {r.pieces:,} | {r.voxels:,} | {r.frames} | "
                   f"{r.export_s:.2f} | {r.size_mb:.1f} | {imp} | {r.target} | {r.result} |")
         print()
         for note in notes:
