@@ -1,4 +1,4 @@
-"""glTF ``--layout skinned``: one mesh of all pieces, a joint per piece.
+"""glTF ``--layout skinned``: skinned meshes of up to SKIN_JOINTS pieces, a joint per piece.
 
 An importer makes one object of it instead of one per piece (Blender's glTF
 importer slows down with the square of the object count). The file must be the
@@ -18,6 +18,7 @@ from test_export_gltf import accessor, read_glb
 
 from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
+from blastvox.export import gltf
 from blastvox.export.api import ExportOptions, export
 
 GOLDEN = Path(__file__).resolve().parents[1] / "examples" / "golden"
@@ -28,59 +29,78 @@ def house() -> SimCache:
     return SimCache.load(GOLDEN / "house.sim.npz")
 
 
-@pytest.fixture(scope="module")
-def files(house: SimCache, tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple]:
+@pytest.fixture(scope="module", params=[256, 10], ids=["one_skin", "skins_of_10"])
+def files(house: SimCache, request: pytest.FixtureRequest,
+          tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple]:
+    """Both layouts of the house; skinned with the default skin size (one skin for its
+    72 pieces) and with skins of 10 joints (8 skins)."""
     tmp = tmp_path_factory.mktemp("skinned")
     out = {}
-    for layout in ("xforms", "skinned"):
-        path = tmp / f"{layout}.glb"
-        export(house, path, ExportOptions(layout=layout))
-        out[layout] = (path, *read_glb(path.read_bytes()))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(gltf, "SKIN_JOINTS", request.param)
+        for layout in ("xforms", "skinned"):
+            path = tmp / f"{layout}.glb"
+            export(house, path, ExportOptions(layout=layout))
+            out[layout] = (path, *read_glb(path.read_bytes()))
+    out["skin_joints"] = request.param
     return out
 
 
-def _piece_points(doc: dict, blob: bytes, prims: list[dict], joint: int | None
-                  ) -> dict[int, np.ndarray]:
-    """Sorted unique vertex positions per piece, from per-piece meshes (joint None: the
-    primitives' piece is given by the caller) or from JOINTS_0."""
+def _skinned_points(doc: dict, blob: bytes) -> dict[int, np.ndarray]:
+    """Sorted unique vertex positions per piece of a skinned file: each mesh's JOINTS_0
+    indexes the joints of the skin its node names."""
     out: dict[int, list] = {}
-    for piece, prim in prims:
-        pos = accessor(doc, blob, prim["attributes"]["POSITION"])
-        if joint is None:
-            out.setdefault(piece, []).append(pos)
+    for node in doc["nodes"]:
+        if "skin" not in node:
             continue
-        joints = accessor(doc, blob, prim["attributes"]["JOINTS_0"])[:, 0]
-        for p in np.unique(joints).tolist():
-            out.setdefault(p, []).append(pos[joints == p])
+        joints = np.asarray(doc["skins"][node["skin"]]["joints"])
+        for prim in doc["meshes"][node["mesh"]]["primitives"]:
+            pos = accessor(doc, blob, prim["attributes"]["POSITION"])
+            piece = joints[accessor(doc, blob, prim["attributes"]["JOINTS_0"])[:, 0]]
+            for p in np.unique(piece).tolist():
+                out.setdefault(p, []).append(pos[piece == p])
     return {p: np.unique(np.concatenate(v), axis=0) for p, v in out.items()}
 
 
-def test_one_mesh_skinned_to_the_piece_nodes(house: SimCache, files: dict) -> None:
+def _node_points(doc: dict, blob: bytes) -> dict[int, np.ndarray]:
+    """The same for a file with a mesh per piece node."""
+    out = {}
+    for p, node in enumerate(doc["nodes"]):
+        if "mesh" in node and node["name"].startswith("piece_"):
+            out[p] = np.unique(np.concatenate([
+                accessor(doc, blob, prim["attributes"]["POSITION"])
+                for prim in doc["meshes"][node["mesh"]]["primitives"]]), axis=0)
+    return out
+
+
+def test_skins_partition_the_pieces_of_each_object(house: SimCache, files: dict) -> None:
     _, doc, blob = files["skinned"]
-    n = house.piece_count
-    assert len(doc["meshes"]) == 1 and doc["skins"] == [{"name": "pieces",
-                                                          "joints": list(range(n))}]
-    (skinned,) = [i for i, node in enumerate(doc["nodes"]) if "skin" in node]
-    assert skinned in doc["scenes"][0]["nodes"]  # a root: its own transform is ignored
+    n, size = house.piece_count, files["skin_joints"]
+    skins = [s["joints"] for s in doc["skins"]]
+    assert sorted(j for s in skins for j in s) == list(range(n))
+    assert all(1 <= len(s) <= size for s in skins) and len(skins) == -(-n // size)
+    objects = [doc["nodes"][p]["extras"]["object"] for p in range(n)]
+    assert all(len({objects[j] for j in s}) == 1 for s in skins)
     assert not any("mesh" in doc["nodes"][p] for p in range(n))
-    for prim in doc["meshes"][0]["primitives"]:
-        weights = accessor(doc, blob, prim["attributes"]["WEIGHTS_0"])
-        joints = accessor(doc, blob, prim["attributes"]["JOINTS_0"])
-        np.testing.assert_array_equal(weights, np.tile([1.0, 0, 0, 0], (len(weights), 1)))
-        assert np.all(joints[:, 1:] == 0) and joints[:, 0].max() < n
-    # a primitive per material, not per piece
-    materials = [p["material"] for p in doc["meshes"][0]["primitives"]]
-    assert len(materials) == len(set(materials))
+    skinned = [i for i, node in enumerate(doc["nodes"]) if "skin" in node]
+    assert len(skinned) == len(doc["meshes"]) == len(skins)
+    assert set(skinned) <= set(doc["scenes"][0]["nodes"])  # roots: transforms ignored
+    for node in (doc["nodes"][i] for i in skinned):
+        materials = []
+        for prim in doc["meshes"][node["mesh"]]["primitives"]:
+            weights = accessor(doc, blob, prim["attributes"]["WEIGHTS_0"])
+            joints = accessor(doc, blob, prim["attributes"]["JOINTS_0"])
+            np.testing.assert_array_equal(weights, np.tile([1.0, 0, 0, 0], (len(weights), 1)))
+            assert np.all(joints[:, 1:] == 0)
+            assert joints[:, 0].max() < len(doc["skins"][node["skin"]]["joints"])
+            materials.append(prim["material"])
+        assert len(materials) == len(set(materials))  # a primitive per material
 
 
 def test_each_piece_keeps_its_mesh_and_animation(files: dict) -> None:
     _, xdoc, xblob = files["xforms"]
     _, sdoc, sblob = files["skinned"]
-    per_node = [(p, prim) for p, node in enumerate(xdoc["nodes"]) if "mesh" in node
-                and node["name"].startswith("piece_")
-                for prim in xdoc["meshes"][node["mesh"]]["primitives"]]
-    want = _piece_points(xdoc, xblob, per_node, None)
-    got = _piece_points(sdoc, sblob, [(None, p) for p in sdoc["meshes"][0]["primitives"]], 0)
+    want, got = _node_points(xdoc, xblob), _skinned_points(sdoc, sblob)
     assert sorted(got) == sorted(want)
     for p in want:
         np.testing.assert_array_equal(got[p], want[p])

@@ -7,6 +7,12 @@ Layout (written straight from numpy: one JSON document and one binary buffer):
   nodes ``piece_00000``... (node index = piece index; ``extras``: piece, object,
   mass_kg), the camera and, with ``ExportOptions.shock``, one node per charge,
   ``shock_00``...;
+* with ``layout="skinned"`` the piece nodes carry no mesh: they are the joints of
+  skins of up to :data:`SKIN_JOINTS` pieces of one object each (``skin_NNN``
+  nodes under the object node hold their pieces), and one mesh per skin on a
+  root node holds its pieces' triangles, a primitive per material, each vertex
+  bound to its piece (JOINTS_0, WEIGHTS_0 = 1); importers make an armature and
+  a mesh per skin instead of an object per piece;
 * piece p's mesh has one primitive per (material, surface) and per (material,
   damage) present, indexed triangles with POSITION (min/max) and NORMAL (flat
   face normals; vertices shared only where position and normal agree);
@@ -70,7 +76,7 @@ TRIANGLES = 4
 ROUGHNESS = 0.8
 SHOCK_COLOR = (1.0, 0.55, 0.15, 0.15)
 SPHERE_SEGMENTS, SPHERE_RINGS = 32, 16
-MAX_JOINTS = 65536  # JOINTS_0 as unsigned 16-bit
+SKIN_JOINTS = 256  # pieces per skin in the skinned layout
 U16_VERTEX_LIMIT = 65535  # a primitive with fewer vertices uses 16-bit indices (65535 = restart)
 _GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 
@@ -175,12 +181,10 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     ``buffer_uri``: the buffer's uri (.gltf), or None for a GLB's embedded buffer.
     ``shock``: also one translucent sphere node per charge, scaled to its shock radius.
     ``damage_textures``: fracture faces show their material's damage texture.
-    ``skinned``: one mesh of all pieces skinned to one joint per piece (the piece
-    nodes) instead of a mesh per piece: importers make one object, not thousands.
+    ``skinned``: skinned meshes of up to SKIN_JOINTS pieces each, a joint per piece
+    (the piece nodes), instead of a mesh per piece: importers make a few objects,
+    not thousands.
     """
-    if skinned and cache.piece_count > MAX_JOINTS:
-        raise BlastvoxError(f"--layout skinned holds at most {MAX_JOINTS:,} pieces "
-                            f"(JOINTS_0 is 16-bit); this shot has {cache.piece_count:,}")
     b = _Builder()
     mats, mat_index = _materials(cache)
     look = _texture_materials(cache, b, mats)
@@ -188,7 +192,13 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     if damage_textures:
         _damage_texture_materials(cache, b, mats, mat_index, look,
                                   np.unique(pm.material[pm.damage]).tolist())
-    meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"], pm, skinned)
+    objects = piece_objects(cache)
+    skins = _skin_groups(objects) if skinned else []
+    skin_of = np.zeros(cache.piece_count, dtype=np.int64)
+    for k, joints in enumerate(skins):
+        skin_of[joints] = k
+    meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"], pm,
+                                       skin_of if skinned else None)
     anim = animation(cache, "Y")
     n_pieces, n_frames = cache.piece_count, cache.frame_count
 
@@ -207,7 +217,6 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     end = np.asarray(anim.end_frame, dtype=np.int64)
     first_t = _floats(position[0]) if n_frames else []
     first_r = _floats(rotation[0]) if n_frames else []
-    objects = piece_objects(cache)
     masses = np.asarray(cache.piece_mass, dtype=np.float64).tolist()
     for p in range(n_pieces):
         node: dict[str, Any] = {"name": f"piece_{p:05d}",
@@ -261,15 +270,25 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     cameras = _camera(cache, b, nodes, channel, t_acc if n_frames else None)
 
     others = list(range(n_pieces, len(nodes)))  # shock fronts and the camera
-    for name, pieces in object_groups(objects).items():
+    groups = object_groups(objects)
+    if skinned:  # a node per skin between each object and its pieces
+        for name in groups:
+            groups[name] = []
+        for k, joints in enumerate(skins):
+            groups[objects[joints[0]]].append(len(nodes))
+            nodes.append({"name": f"skin_{k:03d}", "children": joints})
+    object_nodes = []
+    for name, pieces in groups.items():
+        object_nodes.append(len(nodes))
         nodes.append({"name": name or "object", "children": pieces,
                       "extras": {"object": name}})
-    nodes.append({"name": "blastvox", "children": list(range(n_pieces + len(others),
-                                                                len(nodes))) + others})
+    nodes.append({"name": "blastvox", "children": object_nodes + others})
     roots = [len(nodes) - 1]
-    if skinned and meshes:  # a skinned mesh's node ignores its transform: keep it a root
-        nodes.append({"name": "pieces", "mesh": 0, "skin": 0})
-        roots.append(len(nodes) - 1)
+    if skinned:  # a skinned mesh's node ignores its transform: keep it a root
+        for m, k in sorted({int(piece_mesh[j[0]]): k for k, j in enumerate(skins)
+                            if piece_mesh[j[0]] >= 0}.items()):
+            roots.append(len(nodes))
+            nodes.append({"name": f"pieces_{k:03d}", "mesh": m, "skin": k})
     fps = cache.meta.get("fps")
     doc: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": f"blastvox {__version__}"},
@@ -283,7 +302,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     if cameras:
         doc["cameras"] = cameras
     if skinned and meshes:  # no inverseBindMatrices: identity, the vertices are piece-local
-        doc["skins"] = [{"name": "pieces", "joints": list(range(n_pieces))}]
+        doc["skins"] = [{"name": f"skin_{k:03d}", "joints": joints}
+                        for k, joints in enumerate(skins)]
     if meshes:
         doc["meshes"] = meshes
     if mats:
@@ -427,12 +447,25 @@ def _damage_texture_materials(cache: SimCache, b: _Builder, mats: list[dict[str,
         pbr["baseColorFactor"] = [1.0, 1.0, 1.0, 1.0]
 
 
+def _skin_groups(objects: list[str]) -> list[list[int]]:
+    """The joints (piece indices) of each skin: each object's pieces in runs of at most
+    SKIN_JOINTS. Blender's importer gives each skin an armature, and adding an F-curve
+    to an action costs time in proportion to those it already holds: small skins keep
+    the import linear in the number of pieces."""
+    out = []
+    for pieces in object_groups(objects).values():
+        out += [pieces[i:i + SKIN_JOINTS] for i in range(0, len(pieces), SKIN_JOINTS)]
+    return out
+
+
 def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool], int],
-                  texture_material: list[int], pm: PieceMeshes, skinned: bool = False
+                  texture_material: list[int], pm: PieceMeshes,
+                  skin_of: np.ndarray | None = None
                   ) -> tuple[list[dict[str, Any]], np.ndarray]:
     """One mesh per piece with triangles (mesh dicts, mesh index per piece or -1); with
-    ``skinned``, one mesh of all pieces (primitives per material) whose vertices are
-    bound to their piece's joint (JOINTS_0 = piece, WEIGHTS_0 = 1), mesh index 0.
+    ``skin_of`` (P,) each piece's skin, one mesh per skin (primitives per material)
+    whose vertices are bound to their piece's joint (JOINTS_0 = the piece's place in
+    its skin, WEIGHTS_0 = 1), mesh index = skin.
 
     Primitives are groups of (piece, glTF material): the model material and damage,
     or the source look's texture; within a group, corners with the same float32
@@ -457,10 +490,11 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     n_tri = len(solid)
     if n_tri == 0:
         return [], piece_mesh
-    primary, secondary = (gmat, tri_piece) if skinned else (tri_piece, gmat)
-    order = solid[np.lexsort((solid, secondary[solid], primary[solid]))]
-    tri_piece, gmat = tri_piece[order], gmat[order]
-    key = gmat[:, None] if skinned else np.stack([tri_piece, gmat], axis=1)
+    skinned = skin_of is not None
+    owner = skin_of[tri_piece] if skinned else tri_piece  # a mesh per skin or per piece
+    order = solid[np.lexsort((solid, tri_piece[solid], gmat[solid], owner[solid]))]
+    tri_piece, gmat, owner = tri_piece[order], gmat[order], owner[order]
+    key = np.stack([owner, gmat], axis=1)
     change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
     starts = np.flatnonzero(change)  # first triangle of each primitive
     group = np.cumsum(change) - 1  # primitive of each triangle
@@ -488,7 +522,14 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     inverse[srt] = rank[uid]
     keep = np.sort(first)
     vpos, vnrm, vuv, vgroup = corners[keep], normals[keep], texcoords[keep], corner_group[keep]
-    skin = _skin_views(b, corner_piece[keep]) if skinned else None
+    if skinned:
+        joint = np.zeros(n_pieces, dtype=np.int64)  # each piece's place in its skin
+        for k in np.unique(skin_of).tolist():
+            mine = np.flatnonzero(skin_of == k)
+            joint[mine] = np.arange(len(mine))
+        skin = _skin_views(b, joint[corner_piece[keep]])
+    else:
+        skin = None
 
     n_groups = len(starts)
     vstart = np.searchsorted(vgroup, np.arange(n_groups + 1))
@@ -517,18 +558,20 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     idx_view = b.view(idx.tobytes(), ELEMENT_ARRAY_BUFFER)
 
     meshes: list[dict[str, Any]] = []
-    g_piece = tri_piece[starts].tolist()
+    g_owner = owner[starts].tolist()
     g_mat = gmat[starts].tolist()
     lo_l, hi_l = _floats(lo), _floats(hi)
     vstart_l, counts_l, wide_l = vstart.tolist(), counts.tolist(), wide.tolist()
     n_idx, idx_off = np.diff(cstart).tolist(), idx_offsets.tolist()
     for g in range(n_groups):
-        p = g_piece[g]
-        if skinned and not meshes:
-            meshes.append({"name": "pieces", "primitives": []})
-        elif not skinned and piece_mesh[p] < 0:
-            piece_mesh[p] = len(meshes)
-            meshes.append({"name": f"piece_{p:05d}", "primitives": []})
+        if g == 0 or g_owner[g] != g_owner[g - 1]:
+            meshes.append({"name": f"{'pieces' if skinned else 'piece'}_"
+                                   f"{g_owner[g]:{'03' if skinned else '05'}d}",
+                           "primitives": []})
+            if skinned:
+                piece_mesh[skin_of == g_owner[g]] = len(meshes) - 1
+            else:
+                piece_mesh[g_owner[g]] = len(meshes) - 1
         n_v = counts_l[g]
         prim = {
             "attributes": {
@@ -548,8 +591,6 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
             prim["attributes"]["WEIGHTS_0"] = b.accessor(skin[1], vstart_l[g] * 16, FLOAT,
                                                          n_v, "VEC4")
         meshes[-1]["primitives"].append(prim)
-    if skinned:
-        piece_mesh[:] = 0
     return meshes, piece_mesh
 
 
