@@ -504,7 +504,7 @@ def test_edge_cases_valid(tmp_path: Path, small: SimCache,
                 assert issues["numErrors"] == issues["numWarnings"] == 0, (name, issues)
 
     # 32-bit indices where a primitive has too many vertices for 16 bits
-    monkeypatch.setattr("blastvox.export.gltf.U16_VERTEX_LIMIT", 10)
+    monkeypatch.setattr("blastvox.export.gltf_meshes.U16_VERTEX_LIMIT", 10)
     out = tmp_path / "u32.glb"
     write_gltf(small, out)
     doc, blob = read_glb(out.read_bytes())

@@ -18,7 +18,7 @@ from test_export_gltf import accessor, read_glb
 
 from blastvox.cache import SimCache
 from blastvox.errors import BlastvoxError
-from blastvox.export import gltf
+from blastvox.export import gltf_meshes
 from blastvox.export.api import ExportOptions, export
 
 GOLDEN = Path(__file__).resolve().parents[1] / "examples" / "golden"
@@ -37,7 +37,7 @@ def files(house: SimCache, request: pytest.FixtureRequest,
     tmp = tmp_path_factory.mktemp("skinned")
     out = {}
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(gltf, "SKIN_JOINTS", request.param)
+        patch.setattr(gltf_meshes, "SKIN_JOINTS", request.param)
         for layout in ("xforms", "skinned"):
             path = tmp / f"{layout}.glb"
             export(house, path, ExportOptions(layout=layout))
