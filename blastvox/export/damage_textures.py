@@ -17,6 +17,7 @@ import numpy as np
 
 from blastvox.cache import SimCache
 from blastvox.damage_look import damage_png, pattern_for
+from blastvox.export.names import unique
 
 
 @dataclass(frozen=True)
@@ -43,11 +44,7 @@ def damage_textures(cache: SimCache, materials: list[int],
     for m in materials:
         material = names[m] if m < len(names) else f"material_{m}"
         pattern = pattern_for(material, str(chosen[m]) if chosen is not None else "")
-        base = "damage_" + (re.sub(r"[^A-Za-z0-9_]", "_", material) or str(m))
-        name, n = base, 1
-        while name in used:
-            name, n = f"{base}_{n}", n + 1
-        used.add(name)
+        name = unique("damage_" + (re.sub(r"[^A-Za-z0-9_]", "_", material) or str(m)), used)
         color = tuple(float(c) for c in np.clip(colors[m], 0.0, 1.0))
         out.append(DamageTexture(m, name, pattern, damage_png(pattern, color)))
     return out

@@ -107,10 +107,10 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     keep = np.sort(first)
     vpos, vnrm, vuv, vgroup = corners[keep], normals[keep], texcoords[keep], corner_group[keep]
     if skinned:
-        joint = np.zeros(n_pieces, dtype=np.int64)  # each piece's place in its skin
-        for k in np.unique(skin_of).tolist():
-            mine = np.flatnonzero(skin_of == k)
-            joint[mine] = np.arange(len(mine))
+        by_skin = np.argsort(skin_of, kind="stable")  # each piece's place in its skin:
+        first = np.searchsorted(skin_of[by_skin], skin_of[by_skin])  # its rank there
+        joint = np.empty(n_pieces, dtype=np.int64)
+        joint[by_skin] = np.arange(n_pieces) - first
         skin = _skin_views(b, joint[corner_piece[keep]])
     else:
         skin = None
@@ -147,15 +147,13 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     lo_l, hi_l = _floats(lo), _floats(hi)
     vstart_l, counts_l, wide_l = vstart.tolist(), counts.tolist(), wide.tolist()
     n_idx, idx_off = np.diff(cstart).tolist(), idx_offsets.tolist()
+    owner_mesh = np.full(n_pieces, -1, dtype=np.int64)  # mesh of each piece (or skin)
     for g in range(n_groups):
         if g == 0 or g_owner[g] != g_owner[g - 1]:
+            owner_mesh[g_owner[g]] = len(meshes)
             meshes.append({"name": f"{'pieces' if skinned else 'piece'}_"
                                    f"{g_owner[g]:{'03' if skinned else '05'}d}",
                            "primitives": []})
-            if skinned:
-                piece_mesh[skin_of == g_owner[g]] = len(meshes) - 1
-            else:
-                piece_mesh[g_owner[g]] = len(meshes) - 1
         n_v = counts_l[g]
         prim = {
             "attributes": {
@@ -175,6 +173,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
             prim["attributes"]["WEIGHTS_0"] = b.accessor(skin[1], vstart_l[g] * 16, FLOAT,
                                                          n_v, "VEC4")
         meshes[-1]["primitives"].append(prim)
+    piece_mesh = owner_mesh[skin_of] if skinned else owner_mesh
     return meshes, piece_mesh
 
 

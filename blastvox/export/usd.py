@@ -83,6 +83,11 @@ from blastvox.io.atomic import atomic_path
 ROUGHNESS = 0.8
 NANO_LIMIT = 9.0e9  # m: |translation| * 1e9 must fit an int64
 _T = Sdf.ValueTypeNames
+#: usda time-sample rows (frame, integer components): nanometres, 1e-9 quaternion
+#: components, micro-units (1e-6 m/s, 1e-6 deg/s)
+ROW_NANO = "                %d: (%de-9, %de-9, %de-9),\n"
+ROW_QUAT = "                %d: (%de-9, %de-9, %de-9, %de-9),\n"
+ROW_MICRO = "                %d: (%de-6, %de-6, %de-6),\n"
 
 
 def _fps(cache: SimCache) -> float:
@@ -376,15 +381,13 @@ class _Writer:
         live = np.arange(f_count)[None, :] < np.maximum(self.end, 1)[:, None]       # (P, F)
         keep_t = run_ends_pf(translate[..., 1:], live)
         keep_o = run_ends_pf(orient[..., 1:], live)
-        row_t = "                %d: (%de-9, %de-9, %de-9),\n"
-        row_o = "                %d: (%de-9, %de-9, %de-9, %de-9),\n"
         velocity = self._velocity_rows(live)
         out = []
         for pieces in object_groups(self.objects).values():
             out.append(f'    def Xform "{self.object_prims[pieces[0]]}"\n    {{\n')
             for p in pieces:
                 out.append(self._xform_text(p, translate, orient, keep_t[p], keep_o[p],
-                                            velocity, (row_t, row_o)))
+                                            velocity))
             out.append("    }\n\n")
         return "".join(out)
 
@@ -402,19 +405,16 @@ class _Writer:
         return tuple(out)
 
     def _xform_text(self, p: int, translate: np.ndarray, orient: np.ndarray,
-                    kt: np.ndarray, ko: np.ndarray, velocity: tuple[np.ndarray, ...],
-                    rows: tuple[str, str]) -> str:
+                    kt: np.ndarray, ko: np.ndarray, velocity: tuple[np.ndarray, ...]) -> str:
         """One piece's Xform: constant primvars, velocity samples, transform samples
         (kept at the ends of runs) and, for a piece that vanishes, visibility and scale."""
-        row_t, row_o = rows
         f_count = self.frames
         out = [f'        def Xform "piece_{p:05d}"\n        {{\n',
                self._piece_primvars_text(p, "            ")]
-        row_v = "                %d: (%de-6, %de-6, %de-6),\n"
         for name, (v, keep) in (("velocity", velocity[0:2]),
                                 ("angularVelocity", velocity[2:4])):
             out.append(f"            vector3f primvars:blastvox:{name}.timeSamples = {{\n")
-            out.append((row_v * int(keep[p].sum())) % tuple(v[p][keep[p]].ravel().tolist()))
+            out.append((ROW_MICRO * int(keep[p].sum())) % tuple(v[p][keep[p]].ravel().tolist()))
             out.append("            }\n")
         end = int(self.end[p])
         if end < f_count:
@@ -422,9 +422,9 @@ class _Writer:
             out.append(f"            token visibility.timeSamples = {{\n{first}"
                        f'                {end}: "invisible",\n            }}\n')
         out.append("            quatf xformOp:orient.timeSamples = {\n")
-        out.append((row_o * int(ko.sum())) % tuple(orient[p][ko].ravel().tolist()))
+        out.append((ROW_QUAT * int(ko.sum())) % tuple(orient[p][ko].ravel().tolist()))
         out.append("            }\n            double3 xformOp:translate.timeSamples = {\n")
-        out.append((row_t * int(kt.sum())) % tuple(translate[p][kt].ravel().tolist()))
+        out.append((ROW_NANO * int(kt.sum())) % tuple(translate[p][kt].ravel().tolist()))
         ops = '"xformOp:translate", "xformOp:orient"'
         if end < f_count:
             # Blender's USD importer ignores visibility: shrink to nothing as well

@@ -10,6 +10,7 @@ import numpy as np
 from pxr import Sdf, Tf, Vt
 
 from blastvox.cache import SimCache
+from blastvox.export.names import unique
 from blastvox.geometry.frames import gravity_vector
 
 ROOT = "/Shot"
@@ -52,12 +53,7 @@ def object_prim_names(objects: list[str]) -> list[str]:
     prim_of: dict[str, str] = {}
     taken = set(RESERVED_PRIMS)
     for name in dict.fromkeys(objects):
-        base = Tf.MakeValidIdentifier(name) if name else "object"
-        prim, n = base, 1
-        while prim in taken:
-            prim, n = f"{base}_{n}", n + 1
-        taken.add(prim)
-        prim_of[name] = prim
+        prim_of[name] = unique(Tf.MakeValidIdentifier(name) if name else "object", taken)
     return [prim_of[name] for name in objects]
 
 

@@ -20,7 +20,6 @@ glTF writers flip v.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +27,7 @@ from scipy.spatial import cKDTree
 from trimesh.triangles import closest_point, points_to_barycentric
 
 from blastvox.cache import SimCache
+from blastvox.export.names import identifier, unique
 from blastvox.export.pieces import PieceMeshes
 
 #: How far (in voxel edges) a face's centroid may lie from the source surface and still
@@ -41,16 +41,9 @@ CANDIDATES = 8
 
 def texture_names(cache: SimCache) -> list[str]:
     """File-name and identifier safe, unique names of the model's textures (by index)."""
-    out: list[str] = []
-    for k, texture in enumerate(cache.model.textures):
-        base = re.sub(r"[^A-Za-z0-9_]", "_", str(texture.get("name", ""))) or f"texture_{k}"
-        if base[0].isdigit():
-            base = f"_{base}"
-        name, n = base, 1
-        while name in out:
-            name, n = f"{base}_{n}", n + 1
-        out.append(name)
-    return out
+    taken: set[str] = set()
+    return [unique(identifier(str(texture.get("name", "")), f"texture_{k}"), taken)
+            for k, texture in enumerate(cache.model.textures)]
 
 
 @dataclass(frozen=True)
