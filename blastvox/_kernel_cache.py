@@ -24,7 +24,9 @@ import sys
 from pathlib import Path
 
 KEEP = 3
-_MARKERS = (b"numba", b"blastvox.jit")
+#: A module that compiles code imports numba or blastvox.jit (a mention in a docstring
+#: does not count: it would key the cache on modules no kernel reads).
+_KERNEL_MODULE = re.compile(rb"^[ \t]*(?:import|from)[ \t]+(?:numba|blastvox\.jit)\b", re.M)
 #: ``from pkg.x.y import a, b`` or ``from pkg.x import (a,\n b)``: the module and the
 #: names; ``import pkg.x.y``: the module. For the package's name ``pkg``.
 _FROM = r"^[ \t]*from[ \t]+({0}(?:\.\w+)*)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)"
@@ -47,7 +49,7 @@ def _kernel_sources(package: Path) -> set[Path]:
     texts = {path: path.read_bytes() for path in package.rglob("*.py")}
     name = re.escape(package.name)
     froms, plains = re.compile(_FROM.format(name), re.M), re.compile(_PLAIN.format(name), re.M)
-    todo = [path for path, text in texts.items() if any(m in text for m in _MARKERS)]
+    todo = [path for path, text in texts.items() if _KERNEL_MODULE.search(text)]
     found: set[Path] = set()
     while todo:
         path = todo.pop()

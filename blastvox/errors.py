@@ -43,6 +43,11 @@ class BudgetError(BlastvoxError):
     """A configured resource budget (voxel count, memory) would be exceeded."""
 
 
+class WedgeError(BlastvoxError):
+    """A wedge cannot run: an unknown or unsettable KEY, bad VALUES, a grid over its
+    budget, or a Dask scheduler that cannot be reached."""
+
+
 class SimulationLimitWarning(UserWarning):
     """A run's settings go beyond what the simulator can honour (see blastvox.simulate.limits).
 

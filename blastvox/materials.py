@@ -362,6 +362,11 @@ def _unknown(name: object, known: Any) -> str:
     return f"unknown material {name!r} (known: {', '.join(sorted(set(known)))})"
 
 
+def field_names() -> list[str]:
+    """The keys a material table may set (besides ``base``), in the library's order."""
+    return list(_FIELD_KINDS)
+
+
 def _suggest(key: str) -> str:
     close = difflib.get_close_matches(key, list(_FIELD_KINDS), n=1)
     if close:

@@ -506,6 +506,24 @@ class Output(_Model):
         "false keeps the flat damage_color."))
 
 
+class Wedge(_Model):
+    """A wedge of the scene (``blastvox wedge``): the keys to vary and where shots go."""
+
+    vary: dict[str, list[Any] | str] = Field({}, description=(
+        "KEY = values to run the scene over: a TOML array, or a 'START:STOP:COUNT' "
+        "(':log') range string; KEY is a dotted path into this file, e.g. "
+        "\"charges.0.mass_kg\" = [10, 50]. The grid is every combination; "
+        "--vary options add keys or replace these."))
+    sample: Annotated[int, Field(strict=True, ge=1)] | None = Field(None, description=(
+        "Run a seeded random sample of this many shots of the grid instead of all."))
+    sample_seed: Seed = Field(0, description="Seed of the random sample.")
+    out: FilePath | None = Field(None, description=(
+        "Directory of the wedge's shots, summary and contact sheet; default: wedge/ "
+        "beside output.cache, else <scene stem>_wedge/ beside the scene."))
+    preview: Annotated[bool, Field(strict=True)] = Field(True, description=(
+        "Render a preview strip of each shot and a contact sheet of all of them."))
+
+
 class Scene(_Model):
     """A validated scene. Build with :func:`load_scene` or :func:`scene_from_dict`.
 
@@ -540,6 +558,8 @@ class Scene(_Model):
     camera: Camera | None = Field(None, description=(
         "Shot camera for the exports, previews and camera shake (none: no camera)."))
     output: Output = Field(Output(), description="Output paths of the stages, export options.")
+    wedge: Wedge | None = Field(None, description=(
+        "Parameter sweep for `blastvox wedge` (ignored by the other commands)."))
 
     _library: MaterialLibrary | None = PrivateAttr(default=None)
     _source: str | None = PrivateAttr(default=None)

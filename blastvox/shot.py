@@ -9,10 +9,15 @@ and a rerun picks up where it stopped.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from blastvox.errors import SceneError
+
+if TYPE_CHECKING:
+    from blastvox.scene import Scene
 
 
 def _stale(output: Path, inputs: list[Path]) -> bool:
@@ -48,7 +53,19 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     from blastvox.scene import load_scene
 
     scene_path = Path(scene_path)
-    scene = load_scene(scene_path)
+    return build_shot(load_scene(scene_path), scene_path, force=force, log=log, warn=warn)
+
+
+def build_shot(scene: Scene, scene_path: Path, force: bool = False,
+               log: Callable[[str], None] = print, warn: Callable[[str], None] | None = None,
+               seconds: dict[str, float] | None = None) -> list[str]:
+    """Bring the outputs of ``scene`` (read from ``scene_path``, whose name the model
+    records) up to date, as :func:`run_scene`; returns the stages that ran.
+
+    ``seconds``, if given, receives the wall time of each stage that ran (s), keyed
+    by stage name ("voxelize", "simulate", "export").
+    """
+    seconds = {} if seconds is None else seconds
     out = scene.output
     if out.model is None or out.cache is None:
         raise SceneError(f"{scene_path}: output.model and output.cache must be set for "
@@ -72,10 +89,12 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
         from blastvox.voxelize.requests import requests_from_scene, settings_from_scene
 
         log(f"voxelize -> {out.model}")
+        started = time.perf_counter()
         settings = settings_from_scene(scene)
         settings.recorded = {"scene": scene_path.name}
         model = voxelize(requests_from_scene(scene), settings, warn=warn)
         model.save(out.model)
+        seconds["voxelize"] = time.perf_counter() - started
         ran.append("voxelize")
     cache = None
     if ran or _stale(out.cache, [out.model, scene_path]):
@@ -84,21 +103,25 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
 
         if not sim.charges:
             raise SceneError(f"{scene_path}: charges: the scene has no [[charges]] to simulate")
+        started = time.perf_counter()
         model = model or VoxelModel.load(out.model)
         log(f"simulate -> {out.cache}")
         cache = simulate(model, sim, progress=Progress(notes=log), warn=warn)
         cache.save(out.cache)
+        seconds["simulate"] = time.perf_counter() - started
         ran.append("simulate")
     for path in exports:
         if "simulate" in ran or _stale(path, [out.cache, scene_path]):
             from blastvox.cache import SimCache
             from blastvox.export.api import ExportOptions, export
 
+            started = time.perf_counter()
             cache = cache or SimCache.load(out.cache)
             log(f"export -> {path}")
             export(cache, path, ExportOptions(up_axis=out.up_axis, layout=out.layout,
                                               shock=out.shock,
                                               damage_textures=out.damage_textures))
+            seconds["export"] = seconds.get("export", 0.0) + time.perf_counter() - started
             ran.append("export")
     if not ran:
         log("up to date")

@@ -86,6 +86,8 @@ UNITS: dict[str, str] = {
     "camera.position": "m",
     "camera.look_at": "m",
     "camera.focal_length_mm": "mm",
+    "wedge.sample": "shots",
+    "wedge.sample_seed": "-",
 }
 
 #: Defaults that a model validator computes (the schema marks these keys required or unset).

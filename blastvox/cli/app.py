@@ -14,6 +14,7 @@ from blastvox.cli import (
     run_cmd,
     simulate_cmd,
     voxelize_cmd,
+    wedge_cmd,
 )
 
 app = typer.Typer(
@@ -34,6 +35,8 @@ app.command("export", help="Bake a SimCache into a USD or glTF cache (pieces, da
             "dust, shock).")(export_cmd.export)
 app.command("run", help="Build a whole shot from a scene: voxelize, simulate, export, "
             "skipping up-to-date stages (like make).")(run_cmd.run)
+app.command("wedge", help="Run a scene over a grid of parameter values (charge, seed, "
+            "strength, voxel size, dt...) on Dask; resumable.")(wedge_cmd.wedge)
 app.command("info", help="Summarise a blastvox file (VoxelModel or SimCache); --json for "
             "scripts.")(
     info_cmd.info)

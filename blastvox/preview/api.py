@@ -98,11 +98,14 @@ def choose_camera(scene: PreviewScene, spec: CameraSpec | None, frames: list[int
 
 
 def prepare(cache: SimCache, frames: list[int], options: PreviewOptions,
-            source: str = "SimCache") -> Shot:
-    """Scene, camera and renderer for ``frames`` of ``cache``."""
+            source: str = "SimCache", camera_frames: list[int] | None = None) -> Shot:
+    """Scene, camera and renderer for ``frames`` of ``cache``; an automatic camera frames
+    ``camera_frames`` (default ``frames``: ``[0]`` frames the intact model, the same
+    camera for every variant of a wedge)."""
     scene = PreviewScene(cache)
     width, height = options.size
-    camera, shake = choose_camera(scene, options.camera, frames, width / height, source)
+    camera, shake = choose_camera(scene, options.camera, camera_frames or frames,
+                                  width / height, source)
     lo, hi = scene.action_box(frames)
     distance = float(np.linalg.norm(camera.eye - 0.5 * (lo + hi)))
     settings = RenderSettings(width=width, height=height, supersample=options.supersample,

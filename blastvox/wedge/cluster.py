@@ -1,0 +1,96 @@
+"""Running a wedge's shots on Dask: a LocalCluster by default, or an existing scheduler.
+
+Each shot is one task (:func:`blastvox.wedge.shot.run_shot`) on a worker with one
+thread, so a worker runs one shot at a time; the simulator's compiled kernels are
+shared through their on-disk cache. Shots that finished in an earlier wedge are not
+submitted. A shot that fails, or whose worker dies, is reported as failed and the
+others go on. On Ctrl-C the client and a local cluster are closed (stopping its
+workers); every stage file is written atomically, so the next run resumes.
+
+An existing cluster (``--scheduler tcp://host:8786``, e.g. one started by
+dask-jobqueue on a farm or the Dask Kubernetes operator) needs blastvox installed
+on its workers at the same version and the scene, its inputs and the wedge's
+output directory on a file system they all share, at the same paths.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import logging
+import os
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from blastvox.errors import WedgeError
+from blastvox.wedge.plan import ShotSpec
+from blastvox.wedge.shot import cached_result, record, run_shot
+
+#: Seconds to wait for an existing scheduler before giving up.
+CONNECT_TIMEOUT_S = 10.0
+
+
+@contextlib.contextmanager
+def connect(scheduler: str | None, workers: int | None,
+            timeout_s: float = CONNECT_TIMEOUT_S) -> Iterator[Any]:
+    """A ``dask.distributed.Client``: to ``scheduler`` if given, else to a new
+    LocalCluster of ``workers`` single-threaded worker processes (default: one per
+    CPU). An unreachable scheduler is one :class:`~blastvox.errors.WedgeError` line."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=f"{timeout_s}s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            reason = str(exc).split("\n")[0] or type(exc).__name__
+            raise WedgeError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
+                             f"({reason})") from None
+        with client:
+            yield client
+        return
+    count = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
+        yield client
+
+
+def dashboard_link(client: Any, remote: bool) -> str | None:
+    """The address of the scheduler's dashboard, if it serves one (a local one draws its
+    plots only with bokeh installed)."""
+    if not remote and importlib.util.find_spec("bokeh") is None:
+        return None
+    try:
+        services = client.scheduler_info().get("services", {})
+    except Exception:  # an old or unusual scheduler: no link is no harm
+        return None
+    return client.dashboard_link if "dashboard" in services else None
+
+
+def run_shots(client: Any, shots: list[ShotSpec],
+              done: Callable[[dict[str, Any]], None] = lambda result: None
+              ) -> list[dict[str, Any]]:
+    """Results of ``shots`` in their order: finished ones read back ("cached"), the rest
+    run on ``client``'s workers; ``done`` is called with each result as it arrives."""
+    from dask.distributed import as_completed
+
+    results: dict[int, dict[str, Any]] = {}
+    todo = []
+    for spec in shots:
+        cached = cached_result(spec)
+        if cached is None:
+            todo.append(spec)
+        else:
+            results[spec.index] = cached
+            done(cached)
+    futures = {client.submit(run_shot, spec, pure=False): spec for spec in todo}
+    for future in as_completed(futures):
+        spec = futures[future]
+        try:
+            result = future.result()
+        except Exception as exc:  # the worker died (out of memory, killed): one shot lost
+            result = record(spec, "failed", f"worker lost: {type(exc).__name__}: {exc}",
+                            {}, {}, 0.0)
+        results[spec.index] = result
+        done(result)
+    return [results[spec.index] for spec in shots]

@@ -1,0 +1,157 @@
+"""One wedge shot, as a Dask worker runs it: voxelize, simulate, export, preview strip.
+
+:func:`run_shot` builds the shot's scene exactly as ``blastvox run`` builds a
+scene file (:func:`blastvox.shot.build_shot`), so its files are byte-identical
+to running the same scene by itself. It never raises for a failed shot: the
+result says ``"failed"`` with the one-line error, and the shot's ``log.txt``
+holds its messages (and the traceback of an unexpected error). Only a finished
+shot writes ``result.json``, last and atomically: a shot without one (failed,
+interrupted, its worker lost) runs again on the next wedge, reusing the stage
+files it had finished.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import time
+import traceback
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blastvox.errors import BlastvoxError
+from blastvox.wedge.plan import ShotSpec
+
+RESULT = "result.json"
+LOG = "log.txt"
+PREVIEW = "preview.png"
+#: Pixel size and number of the frames of a shot's preview strip (first to last).
+PREVIEW_SIZE = (320, 180)
+PREVIEW_FRAMES = 4
+#: A piece "moved" when its centre of mass travelled further than this (m).
+MOVED_M = 1e-3
+
+
+def run_shot(spec: ShotSpec) -> dict[str, Any]:
+    """Run ``spec``'s shot (missing stages only); its result record (see :func:`record`)."""
+    from blastvox.scene import scene_from_dict
+    from blastvox.shot import build_shot
+
+    directory = Path(spec.directory)
+    lines: list[str] = []
+    seconds: dict[str, float] = {}
+    started = time.perf_counter()
+    status, error, stats = "ran", None, {}
+    try:
+        scene_path = Path(spec.scene_path)
+        scene = scene_from_dict(spec.scene, f"{scene_path} ({spec.label()})", scene_path.parent)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            build_shot(scene, scene_path, log=lines.append,
+                       warn=lambda m: lines.append(f"warning: {m}"), seconds=seconds)
+        lines += [f"warning: {w.message}" for w in caught]
+        cache = _load_cache(Path(scene.output.cache))
+        stats = cache_stats(cache)
+        if spec.preview:
+            begun = time.perf_counter()
+            write_preview_strip(cache, directory / PREVIEW)
+            seconds["preview"] = time.perf_counter() - begun
+    except BlastvoxError as exc:
+        status, error = "failed", str(exc)
+    except MemoryError:
+        status, error = "failed", "out of memory"
+    except Exception as exc:  # a bug must not stop the other shots: its traceback is logged
+        status, error = "failed", f"{type(exc).__name__}: {exc}"
+        lines.append(traceback.format_exc())
+    if error:
+        lines.append(f"error: {error}")
+    result = record(spec, status, error, stats, seconds, time.perf_counter() - started)
+    _write_text(directory / LOG, "\n".join(lines) + "\n")
+    if status == "ran":
+        _write_text(directory / RESULT, json.dumps(result, indent=1, sort_keys=True) + "\n")
+    return result
+
+
+def record(spec: ShotSpec, status: str, error: str | None, stats: dict[str, Any],
+           seconds: dict[str, float], total_s: float) -> dict[str, Any]:
+    """A shot's result: ``shot`` (grid index), ``key``, ``params``, ``status`` ("ran",
+    "cached", "failed"), ``error`` (one line or None), the cache's ``stats`` (see
+    :func:`cache_stats`), stage ``seconds`` (voxelize, simulate, export, preview),
+    ``total_s``, the ``worker`` host and process, and the shot's ``directory``."""
+    return {"shot": spec.index, "key": spec.key, "params": spec.params, "status": status,
+            "error": error, "stats": stats,
+            "seconds": {k: round(v, 3) for k, v in seconds.items()},
+            "total_s": round(total_s, 3), "worker": f"{socket.gethostname()}:{os.getpid()}",
+            "directory": spec.directory}
+
+
+def cached_result(spec: ShotSpec) -> dict[str, Any] | None:
+    """The result of a shot that finished in an earlier wedge (status "cached"), or None
+    if it has not (no readable ``result.json`` for this key, or an output is missing)."""
+    directory = Path(spec.directory)
+    try:
+        result = json.loads((directory / RESULT).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(result, dict) or result.get("key") != spec.key:
+        return None
+    output = spec.scene["output"]
+    needed = [output["model"], output["cache"], *output.get("export", [])]
+    if spec.preview:
+        needed.append(str(directory / PREVIEW))
+    if not all(Path(p).is_file() for p in needed):
+        return None
+    return {**result, "status": "cached", "params": spec.params, "shot": spec.index,
+            "directory": spec.directory}
+
+
+def cache_stats(cache: Any) -> dict[str, Any]:
+    """What a wedge compares of a SimCache: pieces (all, moving), broken links, voxels
+    turned to dust, and the mass (kg) of the whole model and of what moved (voxels
+    turned to dust, and voxels whose final piece travelled more than :data:`MOVED_M`),
+    with the moved fraction."""
+    a, model = cache.arrays, cache.model.arrays
+    moving = np.linalg.norm(a["piece_position"][-1] - a["piece_position"][0], axis=-1) > MOVED_M
+    voxel_moved = moving[a["voxel_piece"]] | (a["voxel_destroyed_frame"] >= 0)
+    mass = float(np.sum(model["voxel_mass"]))
+    moved = float(np.sum(model["voxel_mass"][voxel_moved]))
+    return {"pieces": int(len(a["piece_mass"])), "moving_pieces": int(moving.sum()),
+            "broken_links": int(len(a["link_break_link"])),
+            "dust_voxels": int(np.count_nonzero(a["voxel_destroyed_frame"] >= 0)),
+            "mass_kg": round(mass, 6), "moved_mass_kg": round(moved, 6),
+            "moved_fraction": round(moved / mass, 6) if mass > 0 else 0.0}
+
+
+def write_preview_strip(cache: Any, path: Path) -> None:
+    """A row of :data:`PREVIEW_FRAMES` frames of ``cache``, first to last, each
+    :data:`PREVIEW_SIZE` and labelled with its frame and time, seen by the scene's
+    camera or else an automatic camera framing the intact model (the same view for
+    every variant of a wedge)."""
+    from blastvox.preview.api import prepare
+    from blastvox.preview.options import PreviewOptions
+    from blastvox.preview.sheet import contact_sheet, draw_label, frame_label
+    from blastvox.preview.writers import write_png
+
+    count = cache.frame_count
+    frames = sorted({int(round(f)) for f in np.linspace(0, count - 1, PREVIEW_FRAMES)})
+    shot = prepare(cache, frames, PreviewOptions(size=PREVIEW_SIZE), camera_frames=[0])
+    times = shot.scene.times
+    images = [draw_label(shot.render(f), frame_label(f, float(times[f]))) for f in frames]
+    write_png(contact_sheet(images, columns=len(images)), path)
+
+
+def _load_cache(path: Path) -> Any:
+    from blastvox.cache import SimCache
+
+    return SimCache.load(path)
+
+
+def _write_text(path: Path, text: str) -> None:
+    from blastvox.io.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
