@@ -99,6 +99,7 @@ bench: $(STAMP)
 	  $(BIN)/python benchmarks/performance.py > "$$out.perf"; sed 's/^## /### /' "$$out.perf"; \
 	  section Export export.py; $(BIN)/python benchmarks/export.py; \
 	  section Preview preview.py; $(BIN)/python benchmarks/preview.py; \
+	  section 'Wedges on Dask' wedge.py; $(BIN)/python benchmarks/wedge.py; \
 	  section 'Speed/accuracy trade' 'tradeoff.py --plot docs/images/tradeoff.png'; \
 	  $(BIN)/python benchmarks/tradeoff.py --plot docs/images/tradeoff.png; \
 	  printf '\n![Wall time against error: combined (Pareto fronts drawn) and per metric]'; \
