@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from blastvox.errors import SceneError
 
@@ -56,6 +56,19 @@ def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] 
     return build_shot(load_scene(scene_path), scene_path, force=force, log=log, warn=warn)
 
 
+def check_simulation(scene: Scene, source: str) -> Any:
+    """The scene's simulation settings (``SimSettings``), refused (one line naming
+    ``source``) if a run of them would exceed its budgets: cheap, so a shot can be
+    refused before voxelize."""
+    from blastvox.simulate.settings import check_settings
+    from blastvox.simulate.settings import settings_from_scene as sim_settings
+
+    sim = sim_settings(scene, source)
+    if sim.charges:
+        check_settings(sim)
+    return sim
+
+
 def build_shot(scene: Scene, scene_path: Path, force: bool = False,
                log: Callable[[str], None] = print, warn: Callable[[str], None] | None = None,
                seconds: dict[str, float] | None = None) -> list[str]:
@@ -77,12 +90,7 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
     if scene.materials_file is not None:
         voxel_inputs.append(Path(scene.materials_file))
     _check_outputs(out.model, out.cache, exports, voxel_inputs)
-    from blastvox.simulate.settings import check_settings
-    from blastvox.simulate.settings import settings_from_scene as sim_settings
-
-    sim = sim_settings(scene, str(scene_path))
-    if sim.charges:  # a run over its budget is refused before voxelize runs
-        check_settings(sim)
+    sim = check_simulation(scene, str(scene_path))
     model = None
     if force or _stale(out.model, voxel_inputs):
         from blastvox.voxelize.pipeline import voxelize

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from bad_input import assert_clean_failure, run_blastvox, unchanged
 
-from blastvox.errors import SceneError, WedgeError
+from blastvox.errors import BlastvoxError, BudgetError, SceneError, WedgeError
 from blastvox.scene import Scene
 from blastvox.wedge.keys import check_key, split_key, valid_keys, with_values
 from blastvox.wedge.plan import plan_wedge
@@ -191,6 +191,8 @@ def test_wedge_table_and_options(duck_scene: Path) -> None:
 @pytest.mark.parametrize(("vary", "error", "words"), [
     (["charges.0.mass_kg=1,-2"], SceneError, "charges[0].mass_kg"),
     (["seed=1,1"], WedgeError, "listed twice"),
+    (["simulation.dt=0.001,1e-9"], BudgetError, "simulation.dt=1e-09): simulation.duration"),
+    (["charges.0.mass_kg=1,1e300"], BlastvoxError, "mass_kg=1e+300): charges[0].mass_kg"),
     ([], WedgeError, "nothing to vary"),
     (["seed"], WedgeError, "KEY=VALUES"),
     (["seed=0:999:1000", "simulation.fps=1:100:100"], WedgeError, "at most 10,000"),

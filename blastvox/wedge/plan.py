@@ -176,13 +176,17 @@ def _export_names(raw: dict[str, Any]) -> list[str]:
 def _shot(index: int, axes: list[Axis], base: dict[str, Any], exports: list[str],
           scene_path: Path, out: Path, preview: bool, memo: dict[Path, str]) -> ShotSpec:
     from blastvox.scene import scene_from_dict
+    from blastvox.shot import check_simulation
 
     combo = np.unravel_index(index, [len(a.values) for a in axes])
     params = {a.key: a.values[int(i)] for a, i in zip(axes, combo, strict=True)}
     data = with_values(base, params)
     probe = ShotSpec(index, "", params, {}, "", "", preview)
-    scene = scene_from_dict(_with_outputs(data, out / "_", exports), f"{printable(scene_path)} "
-                            f"({probe.label()})", scene_path.parent)
+    source = f"{printable(scene_path)} ({probe.label()})"
+    scene = scene_from_dict(_with_outputs(data, out / "_", exports), source, scene_path.parent)
+    if not scene.charges:
+        raise SceneError(f"{source}: charges: the shot has no [[charges]] to simulate")
+    check_simulation(scene, source)  # a shot over its budgets: refused before any runs
     inputs = list(itertools.chain.from_iterable(mesh_resources(Path(o.mesh))
                                                 for o in scene.objects))
     if scene.materials_file is not None:

@@ -42,6 +42,8 @@ def run_shot(spec: ShotSpec) -> dict[str, Any]:
     from blastvox.shot import build_shot
 
     directory = Path(spec.directory)
+    for stale in directory.glob(".*.partial"):  # a write cut short when its worker was killed
+        stale.unlink(missing_ok=True)
     lines: list[str] = []
     seconds: dict[str, float] = {}
     started = time.perf_counter()
