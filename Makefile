@@ -40,15 +40,16 @@ $(BLENDER_STAMP): tools/blender/requirements.txt
 	$(BLENDER_VENV)/bin/python -m pip install --quiet -r tools/blender/requirements.txt
 	touch $(BLENDER_STAMP)
 
-## test: install, then lint and run the whole test suite
+## test: install, then lint and run the whole test suite (a test file per CPU, up to 4 at once)
+PYTEST_PARALLEL := -n auto --maxprocesses 4 --dist loadfile
 test: $(STAMP) $(VALIDATOR) $(BLENDER_STAMP)
 	$(BIN)/ruff check blastvox tests benchmarks
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(PYTEST_PARALLEL)
 
 ## test-fast: the everyday lane (no subprocess shots, goldens or Blender): a couple of minutes
 test-fast: $(STAMP)
 	$(BIN)/ruff check blastvox tests benchmarks
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow" $(PYTEST_PARALLEL)
 
 ## goldens: refresh examples/golden/ from the current code (say why in the commit)
 goldens: $(STAMP)

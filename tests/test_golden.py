@@ -34,6 +34,8 @@ def _bake(tmp_path: Path, shot: str) -> Path:
     run = subprocess.run([*BLASTVOX, "run", "scene.toml", "-q"], cwd=where,
                          capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stderr
+    # the shot stays within every limit of the simulator (a SimulationLimitWarning line)
+    assert "blastvox: warning:" not in run.stderr, run.stderr
     return where / "out"
 
 

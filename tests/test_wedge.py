@@ -170,6 +170,19 @@ def test_grid_order_sample_and_keys(duck_scene: Path, tmp_path: Path) -> None:
     assert [s.index for s in same.shots] == [s.index for s in sample.shots]
 
 
+def test_a_material_property_overrides_that_field_only(duck_scene: Path) -> None:
+    from blastvox.materials import MaterialLibrary
+    from blastvox.scene import scene_from_dict
+
+    plan = plan_wedge(duck_scene, ["materials.wood.link_yield_mean=1e5,4e5"])
+    builtin = MaterialLibrary.builtin()["wood"]
+    for shot, expected in zip(plan.shots, (1e5, 4e5), strict=True):
+        wood = scene_from_dict(shot.scene, "s", duck_scene.parent).material_library()["wood"]
+        assert wood.link_yield_mean == expected != builtin.link_yield_mean
+        assert wood.density == builtin.density  # the rest of wood is the built-in's
+    assert plan.shots[0].key != plan.shots[1].key
+
+
 def test_key_follows_the_input_bytes(duck_scene: Path) -> None:
     before = plan_wedge(duck_scene, ["seed=0,1"]).shots[0].key
     mesh = duck_scene.parent / "Duck.glb"
