@@ -78,15 +78,16 @@ def wedge(
         if link:
             say(f"Dask dashboard: {link}")
         progress.start("shots", len(shots))
+        labels = {spec.index: spec.label() for spec in shots}
 
         def done(result: dict) -> None:
-            say(_line(result, plan.shots))
+            say(_line(result, labels[result["shot"]]))
             progress.advance()
 
         results = run_shots(client, shots, done)
-    labels = [spec.label() for spec in shots]
     csv_path, _ = write_summary(plan.out, plan.axes, plan.grid_size, results)
-    sheet = write_sheet(plan.out / "sheet.png", results, labels) if plan.preview else None
+    sheet = write_sheet(plan.out / "sheet.png", results,
+                        [labels[r["shot"]] for r in results]) if plan.preview else None
     failed = [r for r in results if r["status"] == "failed"]
     ran = sum(r["status"] == "ran" for r in results)
     say(f"wedge: {ran} ran, {len(results) - ran - len(failed)} up to date, {len(failed)} "
@@ -103,8 +104,8 @@ def _local_workers(workers: int | None, shots: int) -> int:
     return max(1, min(workers or os.cpu_count() or 1, shots))
 
 
-def _line(result: dict, shots: list) -> str:
-    label = next(s.label() for s in shots if s.index == result["shot"])
+def _line(result: dict, label: str) -> str:
+    """One shot's line: its values, status, time and what it made."""
     if result["status"] == "failed":
         return f"{label}: failed: {result['error']}"
     stats = result.get("stats") or {}

@@ -30,6 +30,8 @@ GAP_PX = 4
 BACKGROUND = (20, 20, 22)
 CAPTION_TEXT = (245, 245, 240)
 FAILED_TEXT = (255, 120, 110)
+#: Shots the contact sheet shows (the first ones, in grid order): 100 strips of 180 px.
+MAX_SHEET_SHOTS = 100
 
 
 def summary_rows(axes: list[Axis], results: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -68,9 +70,11 @@ def write_summary(out: Path, axes: list[Axis], grid_size: int,
 
 def write_sheet(path: Path, results: list[dict[str, Any]], labels: list[str]) -> Path | None:
     """Stack the shots' preview strips (``<directory>/preview.png``) under their
-    ``labels``; a failed shot is a caption with its error. None if no shot has a strip."""
+    ``labels``, the first :data:`MAX_SHEET_SHOTS`; a failed shot is a caption with its
+    error. None if no shot has a strip."""
     from PIL import Image, ImageDraw, ImageFont
 
+    results, labels = results[:MAX_SHEET_SHOTS], labels[:MAX_SHEET_SHOTS]
     strips = [_strip(r) for r in results]
     width = max((s.shape[1] for s in strips if s is not None), default=0)
     if width == 0:
