@@ -20,16 +20,15 @@ def data_dir() -> Path:
     return DATA
 
 
-@pytest.fixture(scope="session", autouse=True)
-def warm_numba_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Run a tiny voxelize -> simulate (every effect on) once per test session."""
+def _warm_kernels(tmp: Path) -> None:
+    """Run a tiny voxelize -> simulate (every effect on) in ``tmp``: every kernel compiled
+    into (or loaded from) the on-disk cache."""
     import trimesh
 
     from blastvox.simulate.engine import simulate
     from blastvox.simulate.settings import ChargeSpec, SimSettings
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
-    tmp = tmp_path_factory.mktemp("warmup")
     trimesh.creation.box(extents=(1.0, 0.5, 1.0)).export(tmp / "wall.stl")
     for shape, fracture in (("cube", "yield"), ("conform", "damage")):
         model = voxelize([ObjectRequest(mesh=tmp / "wall.stl", voxel_size=(0.25,) * 3,
@@ -38,6 +37,25 @@ def warm_numba_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
         simulate(model, SimSettings(duration=0.3, fracture=fracture,
                                     camera=((0.0, -10.0, 1.0), (0.0, 0.0, 0.5), 35.0),
                                     charges=(ChargeSpec((0.0, -1.5, 0.5), 2.0),)))
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """With pytest-xdist (``-n``), fill the kernel cache once in the controller before the
+    workers start (xdist starts them in a trylast hook), so that they load the kernels
+    instead of each compiling all of them at once on a cold cache."""
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        _warm_kernels(Path(tmp))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def warm_numba_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Warm the kernels once per test session (per xdist worker: loads from the cache)."""
+    _warm_kernels(tmp_path_factory.mktemp("warmup"))
 
 
 #: Modules whose tests bake whole shots in subprocesses, render or run Blender: the
