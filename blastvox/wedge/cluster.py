@@ -88,8 +88,10 @@ def run_shots(client: Any, shots: list[ShotSpec],
         spec = futures[future]
         try:
             result = future.result()
-        except Exception as exc:  # the worker died (out of memory, killed): one shot lost
-            result = record(spec, "failed", f"worker lost: {type(exc).__name__}: {exc}",
+        except Exception as exc:  # its workers died (out of memory, killed): one shot lost
+            what = "worker lost" if type(exc).__name__ == "KilledWorker" else "task failed"
+            reason = str(exc).split("\n")[0]
+            result = record(spec, "failed", f"{what}: {type(exc).__name__}: {reason}",
                             {}, {}, 0.0)
         results[spec.index] = result
         done(result)

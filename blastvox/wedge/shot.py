@@ -72,9 +72,12 @@ def run_shot(spec: ShotSpec) -> dict[str, Any]:
     if error:
         lines.append(f"error: {error}")
     result = record(spec, status, error, stats, seconds, time.perf_counter() - started)
-    _write_text(directory / LOG, "\n".join(lines) + "\n")
-    if status == "ran":
-        _write_text(directory / RESULT, json.dumps(result, indent=1, sort_keys=True) + "\n")
+    try:
+        _write_text(directory / LOG, "\n".join(lines) + "\n")
+        if status == "ran":
+            _write_text(directory / RESULT, json.dumps(result, indent=1, sort_keys=True) + "\n")
+    except BlastvoxError as exc:  # a full disk, a read-only directory: the shot is not done
+        result = record(spec, "failed", str(exc), stats, seconds, time.perf_counter() - started)
     return result
 
 
