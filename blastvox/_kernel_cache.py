@@ -70,11 +70,21 @@ def _kernel_sources(package: Path) -> set[Path]:
     return found
 
 
+#: Set by :func:`configure` for child processes: the directory it pointed
+#: NUMBA_CACHE_DIR at, and the user's own NUMBA_CACHE_DIR before that ("" = unset). A
+#: child that inherits NUMBA_CACHE_DIR unchanged shares its parent's cache instead of
+#: nesting a second one inside it (and compiling every kernel again).
+_SET_BY_US = "BLASTVOX_KERNEL_CACHE"
+_USERS_OWN = "BLASTVOX_USER_NUMBA_CACHE_DIR"
+
+
 def cache_directory(package: Path, environ: dict[str, str] | None = None) -> Path:
     """The cache directory for the kernels of ``package`` as it is now (see module doc)."""
     environ = os.environ if environ is None else environ
     key = source_hash(package)
     user = environ.get("NUMBA_CACHE_DIR")
+    if user and user == environ.get(_SET_BY_US):  # inherited from a blastvox process
+        user = environ.get(_USERS_OWN) or None
     if user:
         return Path(user) / f"blastvox-{key}"
     base = Path(environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
@@ -85,7 +95,11 @@ def configure(package: Path) -> Path:
     """Point numba's cache at :func:`cache_directory` (also if numba is imported already)
     and prune old siblings. Returns the directory."""
     directory = cache_directory(package)
+    user = os.environ.get("NUMBA_CACHE_DIR")
+    if not (user and user == os.environ.get(_SET_BY_US)):
+        os.environ[_USERS_OWN] = user or ""
     os.environ["NUMBA_CACHE_DIR"] = str(directory)
+    os.environ[_SET_BY_US] = str(directory)
     numba = sys.modules.get("numba")
     if numba is not None:
         numba.config.CACHE_DIR = str(directory)

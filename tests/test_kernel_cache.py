@@ -82,6 +82,25 @@ def test_the_directory_follows_numba_cache_dir(tmp_path):
         tmp_path / "x" / "blastvox" / "numba" / key
 
 
+def test_a_child_process_shares_its_parents_cache(tmp_path):
+    """configure() points NUMBA_CACHE_DIR at the keyed directory. A child process that
+    inherits it (a CLI run from a script, a Dask worker of `blastvox wedge`) must use
+    that same directory, not nest a second cache inside it and compile everything
+    again; a NUMBA_CACHE_DIR set for the child still wins."""
+    from blastvox.jit import KERNEL_CACHE
+
+    code = "import blastvox.jit as j; print(j.KERNEL_CACHE)"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    inherited = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                               text=True, timeout=120, check=True).stdout.strip()
+    assert Path(inherited) == KERNEL_CACHE
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "mine")
+    explicit = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                              text=True, timeout=120, check=True).stdout.strip()
+    key = KERNEL_CACHE.name.removeprefix("blastvox-")
+    assert Path(explicit) == tmp_path / "mine" / f"blastvox-{key}"
+
+
 def _run_kernel(pkg: Path, cache: Path) -> str:
     code = ("import sys; from pathlib import Path; from blastvox import _kernel_cache; "
             f"_kernel_cache.configure(Path({str(pkg)!r})); "
