@@ -223,6 +223,33 @@ def test_a_refused_value_names_the_shot(duck_scene: Path) -> None:
         plan_wedge(duck_scene, ["charges.0.mass_kg=1,-2"])
 
 
+def test_cache_stats_count_what_moved_and_how_it_broke() -> None:
+    """Three pieces of 1 kg voxels: a 10-voxel piece that flies (one of its voxels turned
+    to dust), a single voxel that flies, a single voxel that stays."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from blastvox.wedge.shot import cache_stats
+
+    position = np.zeros((2, 3, 3))
+    position[1, :2, 0] = [2.0, 0.5]  # pieces 0 and 1 move, piece 2 stays
+    destroyed = np.full(12, -1)
+    destroyed[3] = 5
+    cache = SimpleNamespace(
+        arrays={"piece_position": position, "piece_mass": np.array([10.0, 1.0, 1.0]),
+                "voxel_piece": np.array([0] * 10 + [1, 2]), "voxel_destroyed_frame": destroyed,
+                "link_break_link": np.arange(4)},
+        model=SimpleNamespace(arrays={"voxel_mass": np.ones(12)}))
+    stats = cache_stats(cache)
+    assert stats["pieces"] == 3 and stats["moving_pieces"] == 2 and stats["broken_links"] == 4
+    assert stats["dust_voxels"] == 1
+    assert stats["mass_kg"] == 12.0 and stats["moved_mass_kg"] == 11.0
+    assert stats["moved_fraction"] == pytest.approx(11 / 12)
+    assert stats["single_voxel_fraction"] == 0.5
+    assert stats["chunky_mass_fraction"] == pytest.approx(9 / 10)
+
+
 # --- the CLI: errors ----------------------------------------------------------------
 
 def test_cli_unknown_key_is_one_line(duck_scene: Path) -> None:

@@ -23,7 +23,8 @@ from blastvox.wedge.plan import Axis
 from blastvox.wedge.values import format_value
 
 STAT_COLUMNS = ("pieces", "moving_pieces", "broken_links", "dust_voxels", "mass_kg",
-                "moved_mass_kg", "moved_fraction")
+                "moved_mass_kg", "moved_fraction", "single_voxel_fraction",
+                "chunky_mass_fraction")
 TIME_COLUMNS = ("voxelize", "simulate", "export", "preview")
 CAPTION_PX = 22
 GAP_PX = 4

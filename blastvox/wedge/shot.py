@@ -32,6 +32,8 @@ PREVIEW = "preview.png"
 #: Pixel size and number of the frames of a shot's preview strip (first to last).
 PREVIEW_SIZE = (320, 180)
 PREVIEW_FRAMES = 4
+#: Voxels of a piece that reads as a chunk of rubble rather than a loose voxel.
+CHUNKY_VOXELS = 8
 #: A piece "moved" when its centre of mass travelled further than this (m).
 MOVED_M = 1e-3
 
@@ -116,19 +118,33 @@ def cached_result(spec: ShotSpec) -> dict[str, Any] | None:
 
 def cache_stats(cache: Any) -> dict[str, Any]:
     """What a wedge compares of a SimCache: pieces (all, moving), broken links, voxels
-    turned to dust, and the mass (kg) of the whole model and of what moved (voxels
-    turned to dust, and voxels whose final piece travelled more than :data:`MOVED_M`),
-    with the moved fraction."""
+    turned to dust, the mass (kg) of the whole model and of what moved (voxels turned
+    to dust, and voxels whose final piece travelled more than :data:`MOVED_M`) with the
+    moved fraction, and how the moving pieces are made: the fraction of them that are a
+    single voxel, and the fraction of their mass in pieces of :data:`CHUNKY_VOXELS` or
+    more voxels (rubble, not voxel soup)."""
     a, model = cache.arrays, cache.model.arrays
     moving = np.linalg.norm(a["piece_position"][-1] - a["piece_position"][0], axis=-1) > MOVED_M
-    voxel_moved = moving[a["voxel_piece"]] | (a["voxel_destroyed_frame"] >= 0)
-    mass = float(np.sum(model["voxel_mass"]))
-    moved = float(np.sum(model["voxel_mass"][voxel_moved]))
+    dust = a["voxel_destroyed_frame"] >= 0
+    voxel_moved = moving[a["voxel_piece"]] | dust
+    voxel_mass = model["voxel_mass"]
+    mass, moved = float(np.sum(voxel_mass)), float(np.sum(voxel_mass[voxel_moved]))
+    whole = ~dust  # a piece's voxels at the end of the shot
+    size = np.bincount(a["voxel_piece"][whole], minlength=len(moving))
+    piece_mass = np.bincount(a["voxel_piece"][whole], weights=voxel_mass[whole],
+                             minlength=len(moving))
+    flying = moving & (size > 0)
+    flying_mass = float(piece_mass[flying].sum())
     return {"pieces": int(len(a["piece_mass"])), "moving_pieces": int(moving.sum()),
             "broken_links": int(len(a["link_break_link"])),
-            "dust_voxels": int(np.count_nonzero(a["voxel_destroyed_frame"] >= 0)),
+            "dust_voxels": int(np.count_nonzero(dust)),
             "mass_kg": round(mass, 6), "moved_mass_kg": round(moved, 6),
-            "moved_fraction": round(moved / mass, 6) if mass > 0 else 0.0}
+            "moved_fraction": round(moved / mass, 6) if mass > 0 else 0.0,
+            "single_voxel_fraction": round(float(np.mean(size[flying] == 1)), 6)
+            if flying.any() else 0.0,
+            "chunky_mass_fraction": round(float(piece_mass[flying & (size >= CHUNKY_VOXELS)]
+                                                .sum()) / flying_mass, 6)
+            if flying_mass > 0 else 0.0}
 
 
 def write_preview_strip(cache: Any, path: Path) -> None:
