@@ -344,21 +344,23 @@ def test_a_failed_shot_does_not_stop_the_others(duck_scene: Path, tmp_path: Path
 
 def test_an_interrupted_wedge_resumes_with_the_missing_shots(duck_scene: Path,
                                                             tmp_path: Path) -> None:
-    """Ctrl-C a wedge on its own LocalCluster after its first shot; the re-run runs only
-    the shots that had not finished and leaves the finished ones' files alone."""
+    """Ctrl-C a wedge on its own LocalCluster after its first shot, as a terminal does (to
+    the whole process group: the wedge and its workers); the re-run runs only the shots
+    that had not finished and leaves the finished ones' files alone."""
     out = tmp_path / "wedge"
     args = [sys.executable, "-m", "blastvox", "wedge", str(duck_scene), "--vary",
             "seed=0:9:10", "-o", str(out), "--workers", "1", "--no-preview"]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     child = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             env=env, preexec_fn=_default_sigint)
+                             env=env, preexec_fn=_default_sigint, start_new_session=True)
     deadline = time.monotonic() + 120
     while not list(out.glob("shots/*/result.json")) and time.monotonic() < deadline:
         time.sleep(0.05)
-    child.send_signal(signal.SIGINT)
+    os.killpg(child.pid, signal.SIGINT)
     _, stderr = child.communicate(timeout=60)
     assert child.returncode == 130, stderr
-    assert "Traceback" not in stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert stderr.splitlines()[-1] == "blastvox: interrupted; no partial output left"
     finished = {p.parent.name: p.parent.joinpath("sim.npz").stat().st_mtime_ns
                 for p in out.glob("shots/*/result.json")}
     assert 1 <= len(finished) < 10

@@ -19,6 +19,8 @@ import contextlib
 import importlib.util
 import logging
 import os
+import signal
+import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -49,10 +51,28 @@ def connect(scheduler: str | None, workers: int | None,
             yield client
         return
     count = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
-            Client(cluster) as client:
+    with _ctrl_c_blocked():
+        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=logging.ERROR)
+    with cluster, Client(cluster) as client:
         yield client
+
+
+@contextlib.contextmanager
+def _ctrl_c_blocked() -> Iterator[None]:
+    """Ignore SIGINT while the local cluster starts its processes: they inherit the
+    ignored signal, so a Ctrl-C, which a terminal sends to the whole process group,
+    stops only the wedge, which then closes the cluster and its workers (instead of
+    each worker printing its own KeyboardInterrupt traceback). A Ctrl-C in the second
+    this takes is lost; SIGTERM still stops everything."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def dashboard_link(client: Any, remote: bool) -> str | None:
