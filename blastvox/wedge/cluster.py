@@ -51,7 +51,7 @@ def connect(scheduler: str | None, workers: int | None,
             yield client
         return
     count = workers or os.cpu_count() or 1
-    with _ctrl_c_blocked():
+    with _workers_ignore_ctrl_c():
         cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
@@ -59,7 +59,7 @@ def connect(scheduler: str | None, workers: int | None,
 
 
 @contextlib.contextmanager
-def _ctrl_c_blocked() -> Iterator[None]:
+def _workers_ignore_ctrl_c() -> Iterator[None]:
     """Ignore SIGINT while the local cluster starts its processes: they inherit the
     ignored signal, so a Ctrl-C, which a terminal sends to the whole process group,
     stops only the wedge, which then closes the cluster and its workers (instead of

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -84,7 +85,7 @@ def parse_vary(option: str) -> tuple[str, str]:
     return key.strip(), values
 
 
-def plan_wedge(scene_path: Path, vary: list[str] = (), sample: int | None = None,
+def plan_wedge(scene_path: Path, vary: Sequence[str] = (), sample: int | None = None,
                sample_seed: int | None = None, out: Path | None = None,
                preview: bool | None = None) -> WedgePlan:
     """The plan of a wedge of the scene file at ``scene_path``.
@@ -119,7 +120,8 @@ def plan_wedge(scene_path: Path, vary: list[str] = (), sample: int | None = None
                      shots=shots, preview=preview)
 
 
-def _axes(table: dict[str, Any], options: list[str], valid: list[str], source: str) -> list[Axis]:
+def _axes(table: dict[str, Any], options: Sequence[str], valid: list[str],
+          source: str) -> list[Axis]:
     axes: dict[str, Axis] = {}
     for key, values in table.items():
         dotted = check_key(key, valid, f"{source}: wedge.vary")
