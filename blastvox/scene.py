@@ -490,7 +490,8 @@ class Output(_Model):
     cache: FilePath | None = Field(None, description=(
         "SimCache (.npz) that simulate writes and export reads."))
     export: FilePath | list[FilePath] | None = Field(None, description=(
-        "Export file(s): .usda, .usdc, .usd, .gltf or .glb; the suffix picks the format."))
+        "Export file(s): .usda, .usdc, .usd, .usdz, .gltf or .glb; the suffix picks the "
+        "format."))
     up_axis: Annotated[Literal["Y", "Z"], _case("upper")] = Field("Y", description=(
         "Up axis of the exported files."))
     layout: Literal["xforms", "instancer", "skinned"] = Field("xforms", description=(

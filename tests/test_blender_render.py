@@ -64,7 +64,7 @@ def mid_frame(cache: SimCache) -> int:
     return cache.frame_count // 2
 
 
-@pytest.mark.parametrize("suffix", [".usdc", ".glb"])
+@pytest.mark.parametrize("suffix", [".usdc", ".glb", ".usdz"])
 def test_house_renders_at_frame_0_and_mid_shot(house: tuple[SimCache, Path], suffix: str
                                                ) -> None:
     cache, tmp = house

@@ -8,7 +8,7 @@ import typer
 
 
 def diff(
-    a: Path = typer.Argument(..., metavar="A", help="A blastvox .npz, USD (.usd/.usda/.usdc) "
+    a: Path = typer.Argument(..., metavar="A", help="A blastvox .npz, USD (.usd/.usda/.usdc/.usdz) "
                              "or glTF (.glb/.gltf) file, e.g. the fresh bake."),
     b: Path = typer.Argument(..., metavar="B", help="The file to compare with, of the same "
                              "kind, e.g. the committed golden file."),

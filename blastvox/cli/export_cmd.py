@@ -21,7 +21,8 @@ def export(
     cache_path: Path = typer.Argument(..., metavar="SIM", help="SimCache .npz from "
                                       "`blastvox simulate`."),
     output: Path = typer.Option(..., "-o", "--output", help="Output: .usda, .usdc, .usd, "
-                                ".gltf or .glb (the suffix picks the format)."),
+                                ".usdz (one package with its textures), .gltf or .glb (the "
+                                "suffix picks the format)."),
     up_axis: UpAxis = typer.Option(UpAxis.Y, "--up-axis", help="Up axis of the written file."),
     layout: Layout = typer.Option(Layout.xforms, "--layout", help="xforms: an Xform and Mesh "
                                   "per piece (USD) or a node per piece (glTF); instancer: a USD "

@@ -5,7 +5,7 @@ differences (empty when they agree):
 
 * blastvox ``.npz`` (VoxelModel or SimCache): meta (JSON, ``tool_version``
   ignored) and every array: names, shapes, dtypes and values;
-* OpenUSD (``.usd``/``.usda``/``.usdc``; a .usda may be compared with a .usdc):
+* OpenUSD (``.usd``/``.usda``/``.usdc``/``.usdz``; a .usda may be compared with a .usdc):
   stage metadata (upAxis, metersPerUnit, timeCodesPerSecond, framesPerSecond,
   start/end time codes, defaultPrim, customLayerData except ``creator``), prim
   paths, types and applied schemas, every authored attribute (type, default

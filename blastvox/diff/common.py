@@ -14,7 +14,7 @@ import numpy as np
 from blastvox.errors import BlastvoxError
 
 NPZ_SUFFIXES = (".npz",)
-USD_SUFFIXES = (".usd", ".usda", ".usdc")
+USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 GLTF_SUFFIXES = (".glb", ".gltf")
 KINDS = {**{s: "npz" for s in NPZ_SUFFIXES}, **{s: "usd" for s in USD_SUFFIXES},
          **{s: "gltf" for s in GLTF_SUFFIXES}}

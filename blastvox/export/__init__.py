@@ -1,1 +1,1 @@
-"""Export stage: SimCache -> USD (.usda/.usdc/.usd) and glTF 2.0 (.gltf/.glb) caches."""
+"""Export stage: SimCache -> USD (.usda/.usdc/.usd, .usdz) and glTF 2.0 (.gltf/.glb) caches."""

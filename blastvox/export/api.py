@@ -1,9 +1,9 @@
 """``export(cache, path, options)``: the export stage's one entry point.
 
-The format follows the output suffix: .usda/.usdc/.usd (OpenUSD) or
-.gltf/.glb (glTF 2.0). Writers produce byte-identical files for the same
-cache and options (stable names and order, no timestamps) and write
-atomically.
+The format follows the output suffix: .usda/.usdc/.usd (OpenUSD), .usdz (a
+package of the .usdc and its textures) or .gltf/.glb (glTF 2.0). Writers
+produce byte-identical files for the same cache and options (stable names and
+order, no timestamps) and write atomically.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from blastvox.geometry.frames import UP_AXES
 
 __all__ = ["ExportOptions", "GLTF_SUFFIXES", "USD_SUFFIXES", "export"]
 
-USD_SUFFIXES = (".usda", ".usdc", ".usd")
+USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
 GLTF_SUFFIXES = (".gltf", ".glb")
 
 
@@ -32,9 +32,14 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
         if options.layout == "skinned":
             raise BlastvoxError(f"{path}: --layout skinned is glTF only; USD takes xforms "
                                 f"or instancer")
-        from blastvox.export.usd import write_usd
+        if suffix == ".usdz":
+            from blastvox.export.usdz import write_usdz
 
-        write_usd(cache, path, options)
+            write_usdz(cache, path, options)
+        else:
+            from blastvox.export.usd import write_usd
+
+            write_usd(cache, path, options)
     elif suffix in GLTF_SUFFIXES:
         if options.layout == "instancer":
             raise BlastvoxError(f"{path}: --layout instancer is USD only; glTF takes xforms "
