@@ -134,6 +134,24 @@ def test_unknown_key_names_the_nearest(duck_scene: Path, key: str, nearest: str)
     assert f"unknown key '{key}'" in line and nearest in line.split("nearest:")[1], line
 
 
+def test_a_part_name_with_dots_is_quoted(duck_scene: Path) -> None:
+    duck_scene.write_text(SCENE.replace('material = "wood"',
+                                        'material = "wood"\nmaterial_map = { "Wheels.001" = '
+                                        '"steel" }'))
+    key = 'objects.0.material_map."Wheels.001"'
+    assert split_key(key) == ["objects", "0", "material_map", "Wheels.001"]
+    plan = plan_wedge(duck_scene, [f"{key}=brick,stone"])
+    assert [s.scene["objects"][0]["material_map"] for s in plan.shots] == [
+        {"Wheels.001": "brick"}, {"Wheels.001": "stone"}]
+    assert plan.shots[0].label() == f"shot 0: {key}=brick"
+    with pytest.raises(WedgeError) as caught:  # unquoted: the quoted key is suggested
+        plan_wedge(duck_scene, ["objects.0.material_map.Wheels.001=brick"])
+    assert key in str(caught.value)
+    for bad in ('charges..mass_kg', 'charges.0.', '"\\q".x', "[0]"):
+        with pytest.raises(WedgeError, match="dotted path"):
+            split_key(bad)
+
+
 def test_outputs_are_not_a_wedge_key(duck_scene: Path) -> None:
     with pytest.raises(WedgeError, match="outputs itself"):
         plan_wedge(duck_scene, ["output.cache=a.npz,b.npz"])

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import json
 import re
 import types
 import typing
@@ -29,15 +30,29 @@ from blastvox.errors import WedgeError
 
 #: Keys a wedge sets itself (each shot's outputs) or reads (the wedge table).
 RESERVED = ("output.model", "output.cache", "output.export", "wedge")
-_INDEX = re.compile(r"\[(\d+)\]")
+#: A KEY: parts (plain, or "quoted" as in TOML) joined by dots, list items as [N] too.
+_PART = r'"(?:[^"\\]|\\.)*"|[A-Za-z0-9_-]+'
+_KEY = re.compile(rf"(?:{_PART})(?:\.(?:{_PART})|\[\d+\])*")
+_TOKEN = re.compile(rf"({_PART})|\[(\d+)\]")
 
 
 def split_key(key: str) -> list[str]:
-    """``"charges[0].mass_kg"`` -> ``["charges", "0", "mass_kg"]``."""
-    parts = _INDEX.sub(r".\1", key.strip()).split(".")
-    if not key.strip() or any(not p for p in parts):
-        raise WedgeError(f"--vary {key!r}: a KEY is a dotted path such as charges.0.mass_kg")
-    return parts
+    """``'charges[0].mass_kg'`` -> ``["charges", "0", "mass_kg"]``; a part with dots or
+    spaces is quoted as in TOML: ``'objects.0.material_map."Wheels.001"'``."""
+    text = key.strip()
+    try:
+        if _KEY.fullmatch(text):
+            return [json.loads(part) if part.startswith('"') else part or index
+                    for part, index in _TOKEN.findall(text)]
+    except ValueError:  # a bad escape inside quotes
+        pass
+    raise WedgeError(f"--vary {key!r}: a KEY is a dotted path such as charges.0.mass_kg "
+                     f'(quote a part with dots: material_map."Wheels.001")')
+
+
+def join_key(parts: list[str]) -> str:
+    """The key of ``parts`` as :func:`split_key` reads it (quoted where needed)."""
+    return ".".join(p if re.fullmatch(r"[A-Za-z0-9_-]+", p) else json.dumps(p) for p in parts)
 
 
 def valid_keys(scene_model: type[BaseModel], data: Mapping[str, Any],
@@ -49,7 +64,7 @@ def valid_keys(scene_model: type[BaseModel], data: Mapping[str, Any],
     """
     keys = set(_model_keys(scene_model, data, ""))
     for name in material_names:
-        keys.update(f"materials.{name}.{field}" for field in material_fields)
+        keys.update(join_key(["materials", name, field]) for field in material_fields)
     return sorted(k for k in keys if not any(k == r or k.startswith(r + ".") for r in RESERVED))
 
 
@@ -66,7 +81,8 @@ def _model_keys(model: type[BaseModel], data: Any, prefix: str) -> Iterator[str]
             yield from _model_keys(sub, written, key + ".")
         elif _is_dict(field.annotation) and name != "materials":
             yield key
-            yield from (f"{key}.{k}" for k in (written or {}) if isinstance(written, Mapping))
+            yield from (join_key([*key.split("."), str(k)]) for k in (written or {})
+                        if isinstance(written, Mapping))
         elif name != "materials":
             yield key
 
@@ -98,7 +114,7 @@ def _is_dict(annotation: Any) -> bool:
 def check_key(key: str, valid: list[str], where: str) -> str:
     """``key`` in its dotted form if it is in ``valid``; else a WedgeError naming it and
     the nearest valid keys (``where`` names the option or scene key)."""
-    dotted = ".".join(split_key(key))
+    dotted = join_key(split_key(key))
     if dotted in valid:
         return dotted
     if any(dotted == r or dotted.startswith(r + ".") for r in RESERVED):
@@ -126,7 +142,7 @@ def with_values(data: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str,
     (creating missing tables; list items must exist, as :func:`check_key` ensures)."""
     out = copy.deepcopy(dict(data))
     for key, value in values.items():
-        parts = key.split(".")
+        parts = split_key(key)
         node: Any = out
         for part in parts[:-1]:
             if isinstance(node, list):
