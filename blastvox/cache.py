@@ -161,7 +161,7 @@ class SimCache:
     def summary(self) -> dict[str, Any]:
         """JSON-safe summary for ``blastvox info``."""
         a = self.arrays
-        moving = np.linalg.norm(a["piece_position"][-1] - a["piece_position"][0], axis=-1) > 1e-3
+        moving = moved_pieces(a)
         return {
             "kind": "SimCache", "schema_version": self.meta.get("schema_version"),
             "tool_version": self.meta.get("tool_version"),
@@ -174,6 +174,17 @@ class SimCache:
             "charge_count": int(len(a["charge_tnt_kg"])),
             "fracture": self.meta.get("fracture"), "seed": self.meta.get("seed"),
         }
+
+
+#: A piece moved when its centre travelled further than this over the shot (m).
+MOVED_M = 1e-3
+
+
+def moved_pieces(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+    """(P,) bool: the pieces whose centre travelled more than :data:`MOVED_M` from the
+    first frame to the last, from a SimCache's ``arrays``."""
+    position = arrays["piece_position"]
+    return np.linalg.norm(position[-1] - position[0], axis=-1) > MOVED_M
 
 
 def check_cache(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],

@@ -52,7 +52,7 @@ def wedge(
     sheet.png (the shots side by side)."""
     from blastvox.cli.console import RichProgress, err_console
     from blastvox.io.outputs import check_output
-    from blastvox.wedge.cluster import connect, dashboard_link, run_shots
+    from blastvox.wedge.cluster import connect, dashboard_link, local_workers, run_shots
     from blastvox.wedge.plan import plan_wedge
     from blastvox.wedge.report import write_sheet, write_summary
 
@@ -69,7 +69,7 @@ def wedge(
         return
     sampled = f" (a sample of {plan.grid_size:,})" if len(shots) < plan.grid_size else ""
     with RichProgress(not quiet and sys.stderr.isatty()) as progress, \
-            connect(scheduler, _local_workers(workers, len(shots)),
+            connect(scheduler, local_workers(workers, len(shots)),
                     connect_timeout) as client:
         for name in ("summary.csv", "summary.json", "sheet.png"):
             check_output(plan.out / name, [scene], label=f"--out ({name})", make_dirs=True)
@@ -95,13 +95,6 @@ def wedge(
         + (f", {sheet}" if sheet else ""))
     if failed:
         raise typer.Exit(1)
-
-
-def _local_workers(workers: int | None, shots: int) -> int:
-    """Workers of a local cluster: as asked, else one per CPU; never more than shots."""
-    import os
-
-    return max(1, min(workers or os.cpu_count() or 1, shots))
 
 
 def _line(result: dict, label: str) -> str:

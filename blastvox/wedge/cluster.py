@@ -33,11 +33,12 @@ CONNECT_TIMEOUT_S = 10.0
 
 
 @contextlib.contextmanager
-def connect(scheduler: str | None, workers: int | None,
+def connect(scheduler: str | None, workers: int,
             timeout_s: float = CONNECT_TIMEOUT_S) -> Iterator[Any]:
     """A ``dask.distributed.Client``: to ``scheduler`` if given, else to a new
-    LocalCluster of ``workers`` single-threaded worker processes (default: one per
-    CPU). An unreachable scheduler is one :class:`~blastvox.errors.WedgeError` line."""
+    LocalCluster of ``workers`` single-threaded worker processes (see
+    :func:`local_workers`). An unreachable scheduler is one
+    :class:`~blastvox.errors.WedgeError` line."""
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
@@ -50,12 +51,16 @@ def connect(scheduler: str | None, workers: int | None,
         with client:
             yield client
         return
-    count = workers or os.cpu_count() or 1
     with _workers_ignore_ctrl_c():
-        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
         yield client
+
+
+def local_workers(asked: int | None, shots: int) -> int:
+    """Workers of a local cluster: as asked, else one per CPU; never more than shots."""
+    return max(1, min(asked or os.cpu_count() or 1, shots))
 
 
 @contextlib.contextmanager

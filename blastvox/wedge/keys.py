@@ -27,6 +27,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from blastvox.errors import WedgeError
+from blastvox.scene_errors import toml_key
 
 #: Keys a wedge sets itself (each shot's outputs) or reads (the wedge table).
 RESERVED = ("output.model", "output.cache", "output.export", "wedge")
@@ -36,9 +37,10 @@ _KEY = re.compile(rf"(?:{_PART})(?:\.(?:{_PART})|\[\d+\])*")
 _TOKEN = re.compile(rf"({_PART})|\[(\d+)\]")
 
 
-def split_key(key: str) -> list[str]:
+def split_key(key: str, where: str = "--vary") -> list[str]:
     """``'charges[0].mass_kg'`` -> ``["charges", "0", "mass_kg"]``; a part with dots or
-    spaces is quoted as in TOML: ``'objects.0.material_map."Wheels.001"'``."""
+    spaces is quoted as in TOML: ``'objects.0.material_map."Wheels.001"'``. ``where``
+    names the option or scene key in the error."""
     text = key.strip()
     try:
         if _KEY.fullmatch(text):
@@ -46,13 +48,14 @@ def split_key(key: str) -> list[str]:
                     for part, index in _TOKEN.findall(text)]
     except ValueError:  # a bad escape inside quotes
         pass
-    raise WedgeError(f"--vary {key!r}: a KEY is a dotted path such as charges.0.mass_kg "
+    raise WedgeError(f"{where} {key!r}: a KEY is a dotted path such as charges.0.mass_kg "
                      f'(quote a part with dots: material_map."Wheels.001")')
 
 
 def join_key(parts: list[str]) -> str:
-    """The key of ``parts`` as :func:`split_key` reads it (quoted where needed)."""
-    return ".".join(p if re.fullmatch(r"[A-Za-z0-9_-]+", p) else json.dumps(p) for p in parts)
+    """The key of ``parts`` as :func:`split_key` reads it (quoted where needed, as the
+    scene's error messages spell keys)."""
+    return "".join(toml_key(p) for p in parts).removeprefix(".")
 
 
 def valid_keys(scene_model: type[BaseModel], data: Mapping[str, Any],
@@ -114,7 +117,7 @@ def _is_dict(annotation: Any) -> bool:
 def check_key(key: str, valid: list[str], where: str) -> str:
     """``key`` in its dotted form if it is in ``valid``; else a WedgeError naming it and
     the nearest valid keys (``where`` names the option or scene key)."""
-    dotted = join_key(split_key(key))
+    dotted = join_key(split_key(key, where))
     if dotted in valid:
         return dotted
     if any(dotted == r or dotted.startswith(r + ".") for r in RESERVED):

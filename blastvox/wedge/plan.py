@@ -60,8 +60,13 @@ class ShotSpec:
 
     def label(self) -> str:
         """``"shot 3: charges.0.mass_kg=50, seed=1"``."""
-        values = ", ".join(f"{k}={format_value(v)}" for k, v in self.params.items())
-        return f"shot {self.index}: {values}"
+        return shot_label(self.index, self.params)
+
+
+def shot_label(index: int, params: dict[str, Any]) -> str:
+    """``"shot 3: charges.0.mass_kg=50, seed=1"``: a shot's grid index and values."""
+    values = ", ".join(f"{k}={format_value(v)}" for k, v in params.items())
+    return f"shot {index}: {values}"
 
 
 @dataclass(frozen=True)
@@ -183,8 +188,7 @@ def _shot(index: int, axes: list[Axis], base: dict[str, Any], exports: list[str]
     combo = np.unravel_index(index, [len(a.values) for a in axes])
     params = {a.key: a.values[int(i)] for a, i in zip(axes, combo, strict=True)}
     data = with_values(base, params)
-    probe = ShotSpec(index, "", params, {}, "", "", preview)
-    source = f"{printable(scene_path)} ({probe.label()})"
+    source = f"{printable(scene_path)} ({shot_label(index, params)})"
     scene = scene_from_dict(_with_outputs(data, out / "_", exports), source, scene_path.parent)
     if not scene.charges:
         raise SceneError(f"{source}: charges: the shot has no [[charges]] to simulate")

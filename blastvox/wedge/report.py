@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from blastvox.io.atomic import atomic_path
+from blastvox.preview.sheet import GAP_PX, LABEL_TEXT, SHEET_BACKGROUND
 from blastvox.wedge.plan import Axis
 from blastvox.wedge.values import format_value
 
@@ -27,9 +28,6 @@ STAT_COLUMNS = ("pieces", "moving_pieces", "broken_links", "dust_voxels", "mass_
                 "chunky_mass_fraction")
 TIME_COLUMNS = ("voxelize", "simulate", "export", "preview")
 CAPTION_PX = 22
-GAP_PX = 4
-BACKGROUND = (20, 20, 22)
-CAPTION_TEXT = (245, 245, 240)
 FAILED_TEXT = (255, 120, 110)
 #: Shots the contact sheet shows (the first ones, in grid order): 100 strips of 180 px.
 MAX_SHEET_SHOTS = 100
@@ -85,13 +83,13 @@ def write_sheet(path: Path, results: list[dict[str, Any]], labels: list[str]) ->
     for result, strip, label in zip(results, strips, labels, strict=True):
         failed = strip is None
         text = f"{label}  FAILED: {result.get('error') or 'no preview'}" if failed else label
-        caption = Image.new("RGB", (width, CAPTION_PX), BACKGROUND)
+        caption = Image.new("RGB", (width, CAPTION_PX), SHEET_BACKGROUND)
         ImageDraw.Draw(caption).text((GAP_PX, 4), text[:200], font=font,
-                                     fill=FAILED_TEXT if failed else CAPTION_TEXT)
+                                     fill=FAILED_TEXT if failed else LABEL_TEXT)
         rows.append(np.asarray(caption))
         if strip is not None:
             padded = np.empty((strip.shape[0], width, 3), dtype=np.uint8)
-            padded[:] = BACKGROUND
+            padded[:] = SHEET_BACKGROUND
             padded[:, :strip.shape[1]] = strip
             rows.append(padded)
     sheet = np.concatenate(rows, axis=0)

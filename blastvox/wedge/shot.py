@@ -34,8 +34,6 @@ PREVIEW_SIZE = (320, 180)
 PREVIEW_FRAMES = 4
 #: Voxels of a piece that reads as a chunk of rubble rather than a loose voxel.
 CHUNKY_VOXELS = 8
-#: A piece "moved" when its centre of mass travelled further than this (m).
-MOVED_M = 1e-3
 
 
 def run_shot(spec: ShotSpec) -> dict[str, Any]:
@@ -119,12 +117,15 @@ def cached_result(spec: ShotSpec) -> dict[str, Any] | None:
 def cache_stats(cache: Any) -> dict[str, Any]:
     """What a wedge compares of a SimCache: pieces (all, moving), broken links, voxels
     turned to dust, the mass (kg) of the whole model and of what moved (voxels turned
-    to dust, and voxels whose final piece travelled more than :data:`MOVED_M`) with the
+    to dust, and voxels whose final piece travelled more than
+    :data:`blastvox.cache.MOVED_M`) with the
     moved fraction, and how the moving pieces are made: the fraction of them that are a
     single voxel, and the fraction of their mass in pieces of :data:`CHUNKY_VOXELS` or
     more voxels (rubble, not voxel soup)."""
+    from blastvox.cache import moved_pieces
+
     a, model = cache.arrays, cache.model.arrays
-    moving = np.linalg.norm(a["piece_position"][-1] - a["piece_position"][0], axis=-1) > MOVED_M
+    moving = moved_pieces(a)
     dust = a["voxel_destroyed_frame"] >= 0
     voxel_moved = moving[a["voxel_piece"]] | dust
     voxel_mass = model["voxel_mass"]
