@@ -531,6 +531,9 @@ def invalidate(stress: Stress, voxel_body: np.ndarray, link_voxels: np.ndarray,
 
 #: Contact decelerations below this (m/s^2, 20 g) are resting contact, not impacts.
 IMPACT_ACCELERATION = 20.0 * 9.81
+#: No impact below this velocity change (m/s): IMPACT_ACCELERATION over the shortest
+#: contact time (a one-voxel body of the fastest material, 2e-4 s).
+MIN_IMPACT_DV = IMPACT_ACCELERATION * 2e-4
 #: An impact within this angle's cosine (10 degrees) of one a body survived, with the
 #: same voxels, scales that solve (an elastic solve is linear in its load)...
 SAME_SIDE = math.cos(math.radians(10.0))
@@ -559,31 +562,40 @@ def impact_phase(model, state, stress: Stress, lin_before: np.ndarray,
 
     Reads bodies and voxels; writes links.alive, marks.broken, marks.dirty and
     counters.broken_links. Returns whether any link broke (the caller splits)."""
-    bodies = state.bodies
+    bodies, voxels = state.bodies, state.voxels
     n = len(lin_before)  # bodies split off since (by collisions) are not judged this step
     dp = bodies.lin[:n] - lin_before
+    dv = np.sqrt(np.einsum("ij,ij->i", dp, dp)) / np.where(bodies.mass[:n] > 0.0,
+                                                            bodies.mass[:n], np.inf) - sustained
+    # a loose prefilter of _impact's own (a few ulps wider: vector and scalar norms)
     candidates = np.flatnonzero(bodies.live[:n] & ~bodies.fixed[:n] & ~bodies.dust[:n]
-                                & (np.einsum("ij,ij->i", dp, dp) > 0.0))
+                                & (dv >= MIN_IMPACT_DV * (1.0 - 1e-9)))
     if not candidates.size:
         return False
     started = time.perf_counter()
+    # the candidates' live voxels, grouped by body once (a one-voxel body has no link)
+    owner = np.where(voxels.alive, voxels.body, -1)
+    in_candidate = np.zeros(len(bodies.live) + 1, dtype=bool)  # [-1]: no body
+    in_candidate[candidates] = True
+    held = np.flatnonzero(in_candidate[owner])  # voxel order, as flatnonzero per body
+    held = held[np.argsort(owner[held], kind="stable")]
+    bounds = np.searchsorted(owner[held], np.append(candidates, n))
     any_broken = False
-    for b in candidates:
-        any_broken |= _impact(model, state, stress, int(b), dp[b], sustained)
+    for i, b in enumerate(candidates):
+        members = held[bounds[i]:bounds[i + 1]]
+        if members.size >= 2:
+            any_broken |= _impact(model, state, stress, int(b), members, dp[b], sustained)
     stress.seconds += time.perf_counter() - started
     return any_broken
 
 
-def _impact(model, state, stress: Stress, b: int, dp: np.ndarray, sustained: float) -> bool:
-    """Impact fracture of body b under the contact impulse dp (3,) N s, world frame,
-    of which ``sustained`` m/s of velocity change held it up (not an impact)."""
+def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.ndarray,
+            sustained: float) -> bool:
+    """Impact fracture of body b (its live voxels ``members``) under the contact impulse
+    dp (3,) N s, world frame, of which ``sustained`` m/s of velocity change held it up."""
     bodies, voxels = state.bodies, state.voxels
     dv = float(np.linalg.norm(dp)) / bodies.mass[b] - sustained
-    # a prefilter: the shortest contact time (a one-voxel body of the fastest material)
-    if dv <= 0.0 or dv < IMPACT_ACCELERATION * 2e-4:
-        return False
-    members = np.flatnonzero((voxels.body == b) & voxels.alive)
-    if members.size < 2:
+    if dv <= 0.0 or dv < MIN_IMPACT_DV:
         return False
     rest_dir = bodies.rot[b].T @ (dp / np.linalg.norm(dp))
     along = model.voxels.centroid[members] @ rest_dir
