@@ -42,8 +42,10 @@ conform_offsets           (C+1,) i8       triangle ranges per conform voxel
 conform_triangles         (T, 3, 3) f8    m, outward triangles of cell and mesh
 conform_tag               (T,) u1         0..5: on cell face f; 6: on the original surface
 surface_triangles         (S, 3, 3) f8    optional, the source look (all five or none; see
-surface_uv                (S, 3, 2) f4    :mod:`blastvox.voxelize.look`): textured inputs'
-surface_texture           (S,) i4         triangles, their corners' UVs, texture or -1,
+surface_uv                (S, 3, 2) f4    :mod:`blastvox.voxelize.look`): textured or
+surface_normals           (S, 3, 3) f4    smooth inputs' triangles, their corners' UVs
+                                          and unit normals (the normals optional: older
+                                          files), texture or -1,
 texture_data              (B,) u1         the textures' PNG bytes and their ranges;
 texture_offsets           (K+1,) i8       ``meta["textures"]`` names the K textures
 material_*                (M, ...)        material table (see materials.material_table)
@@ -123,8 +125,10 @@ OPTIONAL_ARRAYS: dict[str, Spec] = {"voxel_chunk": (_I4, ("N",))}
 SURFACE_ARRAYS: dict[str, Spec] = {
     "surface_triangles": (_F8, ("S", 3, 3)), "surface_uv": (np.float32, ("S", 3, 2)),
     "surface_texture": (_I4, ("S",)), "texture_data": (_U1, ("B",)),
-    "texture_offsets": (_I8, ("K1",)),
+    "texture_offsets": (_I8, ("K1",)), "surface_normals": (np.float32, ("S", 3, 3)),
 }
+#: Look arrays a file with a look may lack (written before they existed).
+SURFACE_OPTIONAL = ("surface_normals",)
 
 #: The material table (blastvox.materials.material_table), one row per name in
 #: meta["materials"] (M): name -> (dtype, shape).
@@ -346,15 +350,17 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
 
 def _check_look(path: str | os.PathLike, a: Mapping[str, np.ndarray], meta: Mapping[str, Any],
                 prefix: str) -> None:
-    """The source look: all five arrays or none, sized by meta textures, indices and
-    byte ranges inside their tables, coordinates finite."""
-    present = [k for k in SURFACE_ARRAYS if k in a]
+    """The source look: all five arrays or none (and the optional normals), sized by
+    meta textures, indices and byte ranges inside their tables, coordinates finite,
+    normals of length 1 (or 0: none)."""
+    present = [k for k in SURFACE_ARRAYS if k in a and k not in SURFACE_OPTIONAL]
     if not present:
         if meta.get("textures"):
             fail(path, f"meta {prefix}textures names textures but the file has no "
                        f"'{prefix}texture_data'")
         return
-    check_layout(path, a, SURFACE_ARRAYS, prefix, "VoxelModel with a source look")
+    check_layout(path, a, SURFACE_ARRAYS, prefix, "VoxelModel with a source look",
+                 optional=SURFACE_OPTIONAL)
     textures = meta.get("textures")
     if not isinstance(textures, list) or not all(
             isinstance(t, dict) and isinstance(t.get("name"), str) for t in textures):
@@ -365,10 +371,23 @@ def _check_look(path: str | os.PathLike, a: Mapping[str, np.ndarray], meta: Mapp
     check_shapes(path, a, SURFACE_ARRAYS, dims, prefix, _MEANING)
     check_bound(path, prefix + "surface_triangles", a["surface_triangles"], COORD_LIMIT_M)
     check_finite(path, prefix + "surface_uv", a["surface_uv"])
+    if "surface_normals" in a:
+        _check_unit_or_zero(path, prefix + "surface_normals", a["surface_normals"])
     check_index(path, prefix + "surface_texture", a["surface_texture"], len(textures),
                 "texture", none=-1)
     check_offsets(path, prefix + "texture_offsets", a["texture_offsets"], dims["B"],
                   "texture bytes")
+
+
+def _check_unit_or_zero(path: str | os.PathLike, name: str, vectors: np.ndarray) -> None:
+    """Every vector (..., 3) of ``vectors`` has length 1 (within 1e-3) or 0."""
+    check_finite(path, name, vectors)
+    length = np.linalg.norm(vectors.reshape(-1, 3).astype(np.float64), axis=1)
+    bad = (np.abs(length - 1.0) > 1e-3) & (length > 1e-6)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        fail(path, f"array '{name}' holds a vector of length {length[i]:.6g} at "
+                   f"[{i // 3}, {i % 3}]; expected unit normals (or 0: none)")
 
 
 def _check_meta(path: str | os.PathLike, meta: Mapping[str, Any], prefix: str) -> list[str]:

@@ -14,8 +14,10 @@ Layout (written straight from numpy: one JSON document and one binary buffer):
   bound to its piece (JOINTS_0, WEIGHTS_0 = 1); importers make an armature and
   a mesh per skin instead of an object per piece;
 * piece p's mesh has one primitive per (material, surface) and per (material,
-  damage) present, indexed triangles with POSITION (min/max) and NORMAL (flat
-  face normals; vertices shared only where position and normal agree);
+  damage) present, indexed triangles with POSITION (min/max) and NORMAL (the
+  source's smooth normals on its surface, flat face normals elsewhere:
+  :mod:`blastvox.export.uv`; vertices shared only where position, normal and UV
+  agree);
 * materials ``<name>`` (``material_color``) and ``<name>_damage``
   (``material_damage_color``), pbrMetallicRoughness, metallic 0, roughness 0.8;
   ``shock_front`` (translucent, single-sided) for the shock spheres;

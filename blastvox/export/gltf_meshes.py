@@ -84,7 +84,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     group = np.cumsum(change) - 1  # primitive of each triangle
 
     corners = np.ascontiguousarray(pm.vertices[order], dtype=np.float32).reshape(-1, 3)
-    normals = np.repeat(np.asarray(pm.normals[order], dtype=np.float32), 3, axis=0)
+    normals = np.ascontiguousarray(uvs.normal[order], dtype=np.float32).reshape(-1, 3)
     texcoords = np.ascontiguousarray(uvs.uv[order].reshape(-1, 2), dtype=np.float32)
     texcoords[:, 1] = np.float32(1.0) - texcoords[:, 1]
     texcoords += np.float32(0.0)  # no -0

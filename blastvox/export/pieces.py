@@ -38,6 +38,7 @@ class PieceMeshes:
     voxel (T,): voxel each triangle belongs to; damage (T,): inside face.
     material (T,): material index (cache.model.meta["materials"]).
     rest (T, 3, 3): the same triangles where they sit in the intact model, model frame (m).
+    change (3, 3): the rotation from the model frame to the export frame.
     """
 
     offsets: np.ndarray
@@ -47,6 +48,7 @@ class PieceMeshes:
     damage: np.ndarray
     material: np.ndarray
     rest: np.ndarray
+    change: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -167,4 +169,4 @@ def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:
     return PieceMeshes(offsets=offsets.astype(np.int64), vertices=local, normals=normal,
                        voxel=all_voxel, damage=all_damage,
                        material=a["voxel_material"][all_voxel].astype(np.int64),
-                       rest=all_tris)
+                       rest=all_tris, change=change)

@@ -217,7 +217,7 @@ class _Writer:
         self.points = sc[new]
         self.point_offsets = np.searchsorted(sp[new], np.arange(p_count + 1))
         self.indices = (inverse - self.point_offsets[corner_piece]).astype(np.int32)
-        self.normals = np.repeat(m.normals.astype(np.float32), 3, axis=0)
+        self.normals = self.look.normal.reshape(-1, 3)  # smooth where the source is
         self.face_color = (np.where(m.damage[:, None], self.damage_colors[m.material],
                                     self.colors[m.material]) if t else
                            np.zeros((0, 3))).astype(np.float32)

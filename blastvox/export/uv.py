@@ -1,8 +1,8 @@
-"""Texture coordinates of the pieces' faces: the source look on the outside, box UVs inside.
+"""Texture coordinates and normals of the pieces' faces: the source look outside, box UVs inside.
 
-Every triangle of :func:`blastvox.export.pieces.piece_meshes` gets UVs at its three
-corners, computed in rest space (the intact model's frame), so they stay put as
-the pieces move:
+Every triangle of :func:`blastvox.export.pieces.piece_meshes` gets UVs and normals
+at its three corners, computed in rest space (the intact model's frame), so they
+stay put as the pieces move:
 
 * an exterior face of an input that had a texture (the VoxelModel's source look,
   :mod:`blastvox.voxelize.look`) takes the UVs of the source triangle nearest to
@@ -12,7 +12,12 @@ the pieces move:
 * every other face (fracture faces, untextured inputs, faces farther from the
   source surface than ``REACH`` voxel edges) gets box UVs: the two rest
   coordinates (m) across the axis its normal points along most, 1 UV unit per
-  metre, continuous across a piece's faces that share that axis; texture -1.
+  metre, continuous across a piece's faces that share that axis; texture -1;
+* an exterior face near the source surface takes the source's smooth corner
+  normals the same way (barycentric, renormalized), so a curved input shades
+  smoothly and a jittered or cube cell shades like the surface it stands for;
+  every other face, and one that would face away from its own normal, keeps its
+  flat face normal.
 
 UVs use the OpenGL convention (origin bottom left, v up), as USD's ``st``;
 glTF writers flip v.
@@ -48,30 +53,38 @@ def texture_names(cache: SimCache) -> list[str]:
 
 @dataclass(frozen=True)
 class FaceUVs:
-    """uv (T, 3, 2) float32 per triangle corner; texture (T,) int32 (-1: none)."""
+    """uv (T, 3, 2) float32 per triangle corner; texture (T,) int32 (-1: none);
+    normal (T, 3, 3) float32 unit corner normals, export frame (a zero-area
+    triangle's are 0)."""
 
     uv: np.ndarray
     texture: np.ndarray
+    normal: np.ndarray
 
 
 def face_uvs(cache: SimCache, meshes: PieceMeshes) -> FaceUVs:
-    """UVs and texture index of every triangle of ``meshes`` (see the module doc)."""
+    """UVs, texture index and corner normals of every triangle of ``meshes`` (see the
+    module doc)."""
     rest = meshes.rest
     uv = box_uvs(rest)
     texture = np.full(len(rest), -1, dtype=np.int32)
+    normal = np.repeat(meshes.normals[:, None, :], 3, axis=1)
     a = cache.model.arrays
-    if "surface_triangles" not in a or not len(rest):
-        return FaceUVs(uv=uv, texture=texture)
     outside = np.flatnonzero(~meshes.damage)
-    if outside.size:
+    if "surface_triangles" in a and outside.size:
         edge = np.cbrt(a["voxel_volume"][meshes.voxel[outside]])
         source, distance = nearest_triangles(a["surface_triangles"], rest[outside].mean(axis=1))
-        near = (distance <= REACH * edge) & (a["surface_texture"][source] >= 0)
+        near = distance <= REACH * edge
         faces, source = outside[near], source[near]
-        texture[faces] = a["surface_texture"][source]
-        uv[faces] = _interpolate(a["surface_triangles"][source], a["surface_uv"][source],
-                                 rest[faces])
-    return FaceUVs(uv=uv, texture=texture)
+        bary = _barycentric(a["surface_triangles"][source], rest[faces])
+        textured = a["surface_texture"][source] >= 0
+        texture[faces[textured]] = a["surface_texture"][source[textured]]
+        uv[faces[textured]] = np.einsum("tcj,tjd->tcd", bary[textured], a["surface_uv"][
+            source[textured]].astype(np.float64)).astype(np.float32)
+        if "surface_normals" in a:
+            normal[faces] = _smooth_normals(bary, a["surface_normals"][source],
+                                            meshes.change, normal[faces])
+    return FaceUVs(uv=uv, texture=texture, normal=normal.astype(np.float32))
 
 
 def box_uvs(triangles: np.ndarray) -> np.ndarray:
@@ -101,10 +114,27 @@ def nearest_triangles(triangles: np.ndarray, points: np.ndarray
     return candidates[rows, best], distance[rows, best]
 
 
-def _interpolate(source: np.ndarray, source_uv: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """UVs (T, 3, 2) of ``corners`` (T, 3, 3) by their barycentric coordinates in the
-    planes of ``source`` triangles (T, 3, 3) with corner UVs ``source_uv`` (T, 3, 2)."""
+def _barycentric(source: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (T, 3, 3) of ``corners`` (T, 3, 3) in the planes of the
+    ``source`` triangles (T, 3, 3): [t, c] weighs source t's three corners for corner c."""
     t = len(source)
+    if t == 0:
+        return np.zeros((0, 3, 3))
     bary = points_to_barycentric(np.repeat(source, 3, axis=0), corners.reshape(-1, 3))
-    bary = np.nan_to_num(bary.reshape(t, 3, 3))  # degenerate source: its first corner
-    return np.einsum("tcj,tjd->tcd", bary, source_uv.astype(np.float64)).astype(np.float32)
+    return np.nan_to_num(bary.reshape(t, 3, 3))  # degenerate source: all zero
+
+
+def _smooth_normals(bary: np.ndarray, source_normals: np.ndarray, change: np.ndarray,
+                    flat: np.ndarray) -> np.ndarray:
+    """Corner normals (T, 3, 3), export frame: the source's corner normals (T, 3, 3),
+    model frame, weighed by ``bary`` (T, 3, 3) clamped to 0 and up (the nearest point
+    of the source triangle), renormalized and turned by ``change``
+    (3, 3); ``flat`` (T, 3, 3) where that is not a unit vector or faces away from it."""
+    # clamped to the source triangle: a corner just past its edge (a face of a cell that
+    # straddles two source triangles) takes the edge's normal, not an extrapolation
+    inside = np.maximum(bary, 0.0)
+    mixed = np.einsum("tcj,tjd->tcd", inside, source_normals.astype(np.float64)) @ change.T
+    length = np.linalg.norm(mixed, axis=2, keepdims=True)
+    unit = np.divide(mixed, length, out=np.zeros_like(mixed), where=length > 1e-6)
+    keep = (length[..., 0] > 1e-6) & (np.einsum("tcj,tcj->tc", unit, flat) > 0.0)
+    return np.where(keep[..., None], unit, flat)

@@ -524,7 +524,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "materials": material_names,
     }
     surface, textures = look.arrays()
-    if textures:  # only a textured input adds the look (untextured models are unchanged)
+    if surface:  # only a textured or smooth input adds the look (others are unchanged)
         arrays.update(surface)
         meta["textures"] = textures
     _foundations(arrays, ground, up, cat["strength"], cat["anchored"].astype(bool))
