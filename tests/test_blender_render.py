@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
+from test_smooth_normals import _surface_errors
 
 from blastvox.cache import SimCache
 from blastvox.export.api import ExportOptions, export
@@ -228,3 +229,73 @@ def test_truck_renders_broken_and_textured_mid_shot(truck_shot: SimCache, tmp_pa
     # the truck's texture is mostly white and pale blue: light, not the flat grey steel
     r, g, b = report["frames"]["0"]["rgb"]
     assert b >= r - 0.02 and report["frames"]["0"]["luminance"] > 0.3
+
+
+@pytest.fixture(scope="module")
+def smooth_ball(tmp_path_factory: pytest.TempPathFactory) -> SimCache:
+    """A 1 m concrete icosphere (1,280 flat triangles), conform 0.25 m voxels: its
+    pieces' faces carry the sphere's smooth normals, and a few of its conform
+    triangles collapse to a line in float32."""
+    import trimesh
+
+    from blastvox.simulate.engine import simulate
+    from blastvox.simulate.settings import SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    tmp = tmp_path_factory.mktemp("ball")
+    trimesh.creation.icosphere(subdivisions=3, radius=1.0).apply_translation(
+        (0.0, 0.0, 1.0)).export(tmp / "ball.stl")
+    model = voxelize([ObjectRequest(mesh=tmp / "ball.stl", voxel_size=(0.25,) * 3,
+                                    shape="conform", material="concrete")],
+                     VoxelizeSettings(up_axis="Z"))
+    assert "surface_normals" in model.arrays
+    return simulate(model, SimSettings(duration=0.05, fps=20.0, charges=()))
+
+
+_CORNER_NORMALS = """
+import bpy, json, sys
+import numpy as np
+path = sys.argv[1]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+if path.endswith(".glb"):
+    bpy.ops.import_scene.gltf(filepath=path)
+else:
+    bpy.ops.wm.usd_import(filepath=path)
+bpy.context.scene.frame_set(0)
+graph = bpy.context.evaluated_depsgraph_get()
+points, normals = [], []
+for ob in bpy.context.scene.objects:
+    if ob.type != "MESH" or not ob.name.startswith("piece_"):
+        continue
+    mesh = ob.evaluated_get(graph).data
+    matrix = np.array(ob.matrix_world)
+    assert all(len(poly.loop_indices) == 3 for poly in mesh.polygons)
+    co = np.array([v.co for v in mesh.vertices]).reshape(-1, 3)
+    corner_vertex = np.array([c.vertex_index for c in mesh.loops], dtype=np.int64)
+    corner_normal = np.array([n.vector for n in mesh.corner_normals]).reshape(-1, 3)
+    points += (co[corner_vertex] @ matrix[:3, :3].T + matrix[:3, 3]).tolist()
+    normals += (corner_normal @ matrix[:3, :3].T).tolist()
+print(json.dumps({"points": points, "normals": normals}))
+"""
+
+
+@pytest.mark.parametrize("suffix", [".usdc", ".glb"])
+def test_a_smooth_asset_reaches_blender_with_its_normals(smooth_ball: SimCache, tmp_path: Path,
+                                                         suffix: str) -> None:
+    """Blender's shading normals at the sphere's corners (after import, at frame 0) are
+    the sphere's own within 1 degree: smooth, and on the right corners. When a
+    triangle that collapses in float32 was written, Blender's USD import dropped it,
+    kept none of the file's normals (the corner count no longer matched) and shaded
+    the conform cells' fans with normals averaged across their sharp cell edges:
+    black patches in the render."""
+    path = tmp_path / f"ball{suffix}"
+    export(smooth_ball, path, ExportOptions())
+    done = subprocess.run([str(BLENDER_PYTHON), "-c", _CORNER_NORMALS, str(path)],
+                          capture_output=True, text=True, timeout=TIMEOUT, check=False)
+    assert done.returncode == 0, done.stderr[-3000:]
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    points, normals = np.array(got["points"]), np.array(got["normals"])
+    # Blender is Z up, as the model: the importers turn the Y-up files back
+    errors = _surface_errors(points.reshape(-1, 3, 3), normals.reshape(-1, 3, 3),
+                             np.array([0.0, 0.0, 1.0]))
+    assert len(errors) > 1000 and errors.max() < 1.0

@@ -165,8 +165,24 @@ def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:
     normal = np.cross(local[:, 1] - local[:, 0], local[:, 2] - local[:, 0])
     length = np.linalg.norm(normal, axis=1, keepdims=True)
     normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    # a triangle whose corners meet in the files' float32 draws nothing, and importers
+    # drop it (Blender's USD import does), which would shift every per-corner value
+    # (normals, UVs) after it onto the wrong corners
+    keep = _drawable(local, length[:, 0])
+    all_tris, all_voxel, all_damage, tri_piece, local, normal = (
+        all_tris[keep], all_voxel[keep], all_damage[keep], tri_piece[keep], local[keep],
+        normal[keep])
     offsets = np.searchsorted(tri_piece, np.arange(cache.piece_count + 1))
     return PieceMeshes(offsets=offsets.astype(np.int64), vertices=local, normals=normal,
                        voxel=all_voxel, damage=all_damage,
                        material=a["voxel_material"][all_voxel].astype(np.int64),
                        rest=all_tris, change=change)
+
+
+def _drawable(local: np.ndarray, doubled_area: np.ndarray) -> np.ndarray:
+    """Triangles (T,) with a non-zero area and three distinct corners in float32 (the
+    precision the exports store): ``local`` (T, 3, 3) m, ``doubled_area`` (T,) m^2."""
+    f32 = local.astype(np.float32) + np.float32(0.0)
+    distinct = (np.any(f32[:, 0] != f32[:, 1], axis=1) & np.any(f32[:, 1] != f32[:, 2], axis=1)
+                & np.any(f32[:, 0] != f32[:, 2], axis=1))
+    return distinct & (doubled_area > 0.0)
