@@ -63,3 +63,21 @@ def positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarray,
     accel = g * np.asarray(gravity)[None, :]
     x = position[alive] + velocity[alive] * decay + accel * (s - decay) / k
     return alive, x
+
+
+def all_positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarray,
+                     system: np.ndarray, time: float, gravity: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Every particle at ``time``: (alive (P,) bool, positions (P, 3) m), an unborn one
+    at its birth position and a dead one where it died (the motion of
+    :func:`positions_at` at its age clamped to [0, lifetime]; the alive ones' positions
+    are the same numbers)."""
+    lifetime = np.array([SYSTEMS[n].lifetime for n in SYSTEM_NAMES])[system]
+    age = time - birth
+    alive = (age >= 0.0) & (age < lifetime)
+    s = np.clip(age, 0.0, lifetime)[:, None]
+    k = np.array([SYSTEMS[n].drag for n in SYSTEM_NAMES])[system][:, None]
+    g = np.array([SYSTEMS[n].gravity_scale for n in SYSTEM_NAMES])[system][:, None]
+    decay = -np.expm1(-k * s) / k  # (1 - e^-ks) / k
+    accel = g * np.asarray(gravity)[None, :]
+    return alive, position + velocity * decay + accel * (s - decay) / k

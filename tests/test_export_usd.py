@@ -319,48 +319,85 @@ def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
 
 # ----------------------------------------------------------------------------- dust, shock
 
+def _shown(points: UsdGeom.PointInstancer, f: int) -> np.ndarray:
+    """Which instances draw at frame f: those of the sprite (prototype 0), not of the
+    fixed layout's empty ``hidden`` prototype."""
+    return np.asarray(points.GetProtoIndicesAttr().Get(f)) == 0
+
+
 @pytest.mark.parametrize("up", ["Y", "Z"])
 def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
+    """The synthetic dust lives from VANISH_FRAME to the end: the fixed layout (every
+    particle at every frame, the unborn at their birth position and hidden, ids and
+    scales once, no velocities: a constant count blurs by its positions)."""
     from blastvox.particles import positions_at
 
     stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
     points = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
     assert points
+    assert [t.name for t in points.GetPrototypesRel().GetTargets()] == ["sprite", "hidden"]
+    assert not stage.GetPrimAtPath("/Shot/Particles/dust/Prototypes/hidden").GetChildren()
     c = frame_change("Z", up)
     g = c @ np.array([0.0, 0.0, -GRAVITY])
     q = len(synthetic.particle_birth)
+    assert np.array_equal(points.GetIdsAttr().Get(), np.arange(q))
+    assert points.GetIdsAttr().GetNumTimeSamples() == 0
+    assert np.allclose(points.GetScalesAttr().Get(), synthetic.particle_size[:, None])
+    assert not points.GetVelocitiesAttr().HasAuthoredValue()
     for f in range(F):
         got = np.asarray(points.GetPositionsAttr().Get(f))
-        ids = np.asarray(points.GetIdsAttr().Get(f))
-        if f < VANISH_FRAME:  # no particle yet: one instance of scale 0, invisible (an
-            assert len(got) == 1  # empty point cloud crashed Blender's Cycles)
-            assert np.asarray(points.GetScalesAttr().Get(f)).tolist() == [[0.0] * 3]
+        assert len(got) == q
+        if f < VANISH_FRAME:  # no particle yet: all hidden, the instancer invisible
+            assert not _shown(points, f).any()
             assert points.ComputeVisibility(f) == "invisible"
+            assert np.allclose(got, synthetic.particle_position @ c.T, atol=1e-5)  # at birth
             continue
         assert points.ComputeVisibility(f) == "inherited"
-        assert np.array_equal(ids, np.arange(q))
         alive, want = positions_at(synthetic.particle_birth, synthetic.particle_position @ c.T,
                                    synthetic.particle_velocity @ c.T, synthetic.particle_system,
                                    float(synthetic.frame_time[f]), g)
-        assert np.array_equal(alive, np.arange(q))
+        assert np.array_equal(alive, np.arange(q)) and _shown(points, f).all()
         assert np.allclose(got, want, atol=1e-5)
-        scales = np.asarray(points.GetScalesAttr().Get(f))
-        assert np.allclose(scales, synthetic.particle_size[:, None])  # sphere of diameter 1
-        assert np.asarray(points.GetProtoIndicesAttr().Get(f)).tolist() == [0] * q
 
 
 def test_dust_is_dropped_after_its_lifetime(synthetic, tmp_path):
-    from blastvox.particles import SYSTEMS
+    """Half the dust dies two frames into the shot, the other half is born at its last
+    frame: the alive-only layout (the live particles of each frame, with ids, scales
+    and velocities) is the smaller; between the two, one instance of scale 0 and the
+    instancer invisible."""
+    from blastvox.particles import SYSTEMS, positions_at
 
     life = SYSTEMS["dust"].lifetime
     arrays = dict(synthetic.arrays)
-    arrays["particle_birth"] = np.full(len(arrays["particle_birth"]), 0.05 - life)
+    q = len(arrays["particle_birth"])
+    early = np.arange(q) < q // 2
+    last = float(synthetic.frame_time[-1])
+    arrays["particle_birth"] = np.where(early, 0.05 - life, last)
     cache = SimCache(arrays=arrays, model=synthetic.model, meta=synthetic.meta)
     stage = _write(cache, tmp_path / "shot.usda")
     points = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
-    assert len(points.GetPositionsAttr().Get(0)) == len(cache.particle_birth)  # just alive
-    assert np.asarray(points.GetScalesAttr().Get(F - 1)).tolist() == [[0.0] * 3]  # expired
-    assert points.ComputeVisibility(F - 1) == "invisible"
+    assert [t.name for t in points.GetPrototypesRel().GetTargets()] == ["sprite"]
+    assert np.array_equal(points.GetIdsAttr().Get(0), np.flatnonzero(early))  # just alive
+    alive, want = positions_at(cache.particle_birth, cache.particle_position,
+                               cache.particle_velocity, cache.particle_system, 0.0,
+                               np.array([0.0, 0.0, -GRAVITY]))
+    assert np.array_equal(alive, np.flatnonzero(early))
+    assert np.allclose(np.asarray(points.GetPositionsAttr().Get(0)),
+                       want @ frame_change("Z", "Y").T, atol=1e-5)
+    assert len(points.GetVelocitiesAttr().Get(0)) == len(alive)  # the count changes
+    assert np.asarray(points.GetScalesAttr().Get(F - 2)).tolist() == [[0.0] * 3]  # none alive
+    assert points.ComputeVisibility(F - 2) == "invisible"
+    assert np.array_equal(points.GetIdsAttr().Get(F - 1), np.flatnonzero(~early))  # born
+    assert points.ComputeVisibility(F - 1) == "inherited"
+
+
+def test_each_particle_system_takes_the_smaller_layout():
+    from blastvox.export.usd_effects import _layout_of
+
+    assert _layout_of(100, [0, 100, 100, 100, 0]) == "fixed"    # all live the whole span
+    assert _layout_of(100, [0, 10, 10, 10, 10]) == "alive only"  # short-lived
+    assert _layout_of(100, [0, 0, 0]) == "alive only"
+    assert _layout_of(100, [50, 50, 0, 0, 0, 0]) == "fixed"     # the span is only 2 frames
 
 
 def test_no_dust_no_points_prim(synthetic, tmp_path):
@@ -379,7 +416,7 @@ def test_particles_have_their_materials(synthetic, tmp_path):
 
     stage = _write(synthetic, tmp_path / "shot.usda")
     instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
-    (sprite,) = instancer.GetPrototypesRel().GetTargets()
+    sprite = instancer.GetPrototypesRel().GetTargets()[0]
     ball = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath(sprite)).GetPointsAttr().Get())
     assert np.allclose(np.linalg.norm(ball, axis=1), 0.5)  # diameter 1: scale = width
     material, _ = UsdShade.MaterialBindingAPI(

@@ -42,14 +42,24 @@ FILMBACK_MM = (36.0, 24.0)
 
 def write_particles(w, shot: Sdf.PrimSpec) -> None:
     """One UsdGeomPointInstancer per particle system (dust, fire, smoke, fireball)
-    whose one prototype, a sphere of diameter 1 bound to the system's material, is
-    instanced at each live particle and scaled to its width. Time-sampled positions,
-    scales, velocities and ids come from the cache's particle births evaluated in
-    closed form (blastvox.particles). An instancer, not UsdGeomPoints: Blender 5.0
-    imports Points without their material (white balls), and an empty points array
-    crashed its Cycles. A frame without particles holds one instance of scale 0 and
-    makes the instancer invisible."""
-    from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
+    whose prototype, a sphere of diameter 1 bound to the system's material, is
+    instanced at each particle and scaled to its width. Positions come from the
+    cache's particle births evaluated in closed form (blastvox.particles), one time
+    sample per frame, in the cheaper of two layouts (see :func:`_layout_of`):
+
+    * **fixed**: every particle of the system at every frame (a constant count,
+      ids and scales written once), an unborn or dead one at its birth or death
+      position and pointed at the second prototype, ``hidden``, an empty Xform.
+      Positions alone carry the motion: with a constant count a renderer blurs by
+      interpolating them, so no velocities are written;
+    * **alive only**: the live particles of each frame with their ids, scales and
+      velocities (the count changes, so motion blur needs the velocities); a
+      frame without particles holds one instance of scale 0.
+
+    Either way the instancer is invisible at a frame without live particles. An
+    instancer, not UsdGeomPoints: Blender 5.0 imports Points without their material
+    (white balls), and an empty points array crashed its Cycles."""
+    from blastvox.particles import SYSTEM_NAMES, SYSTEMS, all_positions_at
 
     c = w.cache
     system = c.arrays.get("particle_system")
@@ -66,15 +76,67 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
         mine = np.flatnonzero(system == index)
         if not mine.size:
             continue
-        instancer = _particle_instancer(w, scope, name)
-        frames = [(t, *positions_at(birth[mine], x0[mine], v0[mine],
-                                    np.full(len(mine), index, dtype=np.uint8), t, g))
+        states = [all_positions_at(birth[mine], x0[mine], v0[mine],
+                                   np.full(len(mine), index, dtype=np.uint8), t, g)
                   for t in times]
+        fixed = _layout_of(len(mine), [int(alive.sum()) for alive, _ in states]) == "fixed"
+        instancer = _particle_instancer(w, scope, name, hidden=fixed)
+        if fixed:
+            _fixed_samples(w, instancer, mine, states, size)
+            continue
+        frames = [(t, np.flatnonzero(alive), x[alive])
+                  for t, (alive, x) in zip(times, states, strict=True)]
         _instance_samples(w, instancer, mine, frames, SYSTEMS[name], birth, v0, size, g)
 
-def _particle_instancer(w, scope: Sdf.PrimSpec, name: str) -> Sdf.PrimSpec:
+
+def _layout_of(count: int, alive: list[int]) -> str:
+    """"fixed" when ``count`` particles at every frame from the first with a live one to
+    the last (12 bytes of position each) cost no more than the live ones of each frame
+    (``alive``) with their velocities (24 bytes each), else "alive only"."""
+    live = np.flatnonzero(np.asarray(alive) > 0)
+    if not live.size:
+        return "alive only"
+    span = int(live[-1] - live[0] + 1)
+    return "fixed" if count * span <= 2 * sum(alive) else "alive only"
+
+
+def _fixed_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, states: list,
+                   size: np.ndarray) -> None:
+    """The fixed layout's samples (see :func:`write_particles`): ``states[f]`` is
+    (alive (P,) bool, positions (P, 3) m) of the system's P particles ``mine`` at frame
+    f; ``size`` (all particles,) m their widths."""
+    layer = w.layer
+    attr_spec(instancer, "ids", _T.Int64Array,
+              Vt.Int64Array.FromNumpy(np.ascontiguousarray(mine.astype(np.int64))))
+    attr_spec(instancer, "scales", _T.Float3Array,
+              vec3f(np.repeat(size[mine][:, None], 3, axis=1)))
+    specs = {key: attr_spec(instancer, key, kind) for key, kind in
+             (("positions", _T.Point3fArray), ("protoIndices", _T.IntArray),
+              ("extent", _T.Float3Array))}
+    visibility = attr_spec(instancer, "visibility", _T.Token)
+    width = size[mine][:, None]
+    previous_empty = None
+    for f, (alive, x) in enumerate(states):
+        empty = not alive.any()
+        if empty and previous_empty:
+            continue  # an empty frame after an empty frame adds nothing
+        if empty != previous_empty:
+            layer.SetTimeSample(visibility.path, float(f),
+                                "invisible" if empty else "inherited")
+        previous_empty = empty
+        shown = x[alive] if not empty else x
+        half = width[alive] / 2 if not empty else width / 2
+        box = np.stack([(shown - half).min(axis=0), (shown + half).max(axis=0)])
+        layer.SetTimeSample(specs["positions"].path, float(f), vec3f(x))
+        layer.SetTimeSample(specs["protoIndices"].path, float(f), Vt.IntArray.FromNumpy(
+            np.ascontiguousarray(np.where(alive, 0, 1).astype(np.int32))))
+        layer.SetTimeSample(specs["extent"].path, float(f), vec3f(box))
+
+
+def _particle_instancer(w, scope: Sdf.PrimSpec, name: str, hidden: bool) -> Sdf.PrimSpec:
     """Particles/<name> (PointInstancer) with Prototypes/sprite, a sphere of diameter 1
-    (an icosphere: 80 faces, smooth normals) bound to Materials/particle_<name>."""
+    (an icosphere: 80 faces, smooth normals) bound to Materials/particle_<name>, and
+    if ``hidden`` Prototypes/hidden, an empty Xform (prototype 1: nothing drawn)."""
     import trimesh
 
     instancer = prim_spec(scope, name, "PointInstancer")
@@ -93,7 +155,8 @@ def _particle_instancer(w, scope: Sdf.PrimSpec, name: str) -> Sdf.PrimSpec:
           Vt.Vec3fArray([Gf.Vec3f(*PARTICLE_COLORS[name])]), interpolation="constant")
     _bind(sprite, _particle_material(w, name))
     targets = Sdf.RelationshipSpec(instancer, "prototypes")
-    targets.targetPathList.explicitItems = [sprite.path]
+    targets.targetPathList.explicitItems = [sprite.path] + (
+        [prim_spec(prototypes, "hidden", "Xform").path] if hidden else [])
     return instancer
 
 def _instance_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, frames: list,
