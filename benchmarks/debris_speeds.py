@@ -6,7 +6,8 @@
    the blast moves them). The momentum bound (Ir - Is) / (rho t) is printed beside.
 2. Contact charges on a 2 x 2 m, 25 cm reinforced concrete slab, against the
    fastest debris measured off the far face by high-speed video (Hupfauf & Gebbeken
-   2022, Adv. Struct. Eng. 25(7), 1373-1385; Hupfauf 2024, PhD thesis, UniBw
+   2022, "Secondary debris resulting from concrete slabs subjected to contact
+   detonations", Adv. Struct. Eng. 25(7), 1373-1385; Hupfauf 2024, PhD thesis, UniBw
    Muenchen: v_max = 292 / T_W - 98 m/s, T_W = thickness cm / (TNT g)^(1/3); the
    speeds as read off the thesis's figures, to about 1 m/s, by the repository
    emmettl/bombcad, Fixtures/Hupfauf/slabs.json). The slab floats free (no ground,
