@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from blastvox.jit import kernel
+
 #: Default crease angle, degrees (Blender's auto smooth default).
 CREASE_DEGREES = 30.0
 
@@ -35,29 +37,38 @@ def corner_normals(vertices: np.ndarray, faces: np.ndarray,
     length = np.linalg.norm(scaled, axis=1)
     unit = np.divide(scaled, length[:, None], out=np.zeros_like(scaled),
                      where=length[:, None] > 0)
-    corner, neighbour = _corner_face_pairs(corner_point)
-    own = unit[corner // 3]
-    smooth = np.einsum("ij,ij->i", own, unit[neighbour]) >= math.cos(
-        math.radians(crease_degrees))
-    total = np.zeros((3 * n_faces, 3))
-    np.add.at(total, corner[smooth], scaled[neighbour[smooth]])
-    norm = np.linalg.norm(total, axis=1)
-    out = np.divide(total, norm[:, None], out=np.zeros_like(total), where=norm[:, None] > 0)
-    return out.reshape(n_faces, 3, 3)
-
-
-def _corner_face_pairs(corner_point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every (corner, face) pair that shares a point: corners (3F,) numbered 3 f + k,
-    ``corner_point`` (3F,) their points. Returns two (P,) int64 arrays."""
     order = np.argsort(corner_point, kind="stable")
     points = corner_point[order]
     start = np.flatnonzero(np.r_[True, points[1:] != points[:-1]])
-    size = np.diff(np.r_[start, len(points)])
-    # for each corner in a point's group, every member of the group
-    group_size = np.repeat(size, size)                 # (3F,) per sorted corner
-    group_start = np.repeat(start, size)
-    first = np.repeat(order, group_size)               # the corner
-    offset = np.arange(int(group_size.sum())) - np.repeat(
-        np.cumsum(group_size) - group_size, group_size)
-    second = order[np.repeat(group_start, group_size) + offset]  # a corner sharing it
-    return first, second // 3
+    out = np.zeros((3 * n_faces, 3))
+    _smooth_corners(order, np.r_[start, len(points)].astype(np.int64), scaled, unit,
+                    math.cos(math.radians(crease_degrees)), out)
+    return out.reshape(n_faces, 3, 3)
+
+
+@kernel
+def _smooth_corners(order, bounds, scaled, unit, cosine, out) -> None:
+    """For each corner (numbered 3 f + k), the unit sum of ``scaled`` (F, 3) over the
+    faces at its point whose ``unit`` normal is within ``cosine`` of its own face's;
+    ``order`` (3F,) the corners sorted by point, ``bounds`` (G+1,) each point's run
+    in it. Writes out (3F, 3); O(sum of valence^2) time, no pair arrays."""
+    for g in range(bounds.shape[0] - 1):
+        for i in range(bounds[g], bounds[g + 1]):
+            corner = order[i]
+            face = corner // 3
+            sx = 0.0
+            sy = 0.0
+            sz = 0.0
+            for j in range(bounds[g], bounds[g + 1]):
+                other = order[j] // 3
+                dot = (unit[face, 0] * unit[other, 0] + unit[face, 1] * unit[other, 1]
+                       + unit[face, 2] * unit[other, 2])
+                if dot >= cosine:
+                    sx += scaled[other, 0]
+                    sy += scaled[other, 1]
+                    sz += scaled[other, 2]
+            norm = math.sqrt(sx * sx + sy * sy + sz * sz)
+            if norm > 0.0:
+                out[corner, 0] = sx / norm
+                out[corner, 1] = sy / norm
+                out[corner, 2] = sz / norm
