@@ -299,3 +299,29 @@ def test_a_smooth_asset_reaches_blender_with_its_normals(smooth_ball: SimCache, 
     errors = _surface_errors(points.reshape(-1, 3, 3), normals.reshape(-1, 3, 3),
                              np.array([0.0, 0.0, 1.0]))
     assert len(errors) > 1000 and errors.max() < 1.0
+
+
+@pytest.mark.parametrize("suffix", [".usdc", ".glb"])
+def test_a_vertex_coloured_ply_renders_in_its_colours(tmp_path: Path, suffix: str) -> None:
+    """A PLY ball red above its equator and blue below (per vertex): its colours,
+    baked into a texture, render red on top and blue underneath."""
+    from test_vertex_colors import colored_ball
+
+    from blastvox.simulate.engine import simulate
+    from blastvox.simulate.settings import SimSettings
+    from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+
+    model = voxelize([ObjectRequest(mesh=colored_ball(tmp_path / "ball.ply"),
+                                    voxel_size=(0.25,) * 3, shape="conform",
+                                    material="concrete")], VoxelizeSettings(up_axis="Z"))
+    cache = simulate(model, SimSettings(duration=0.05, fps=20.0, charges=()))
+    path = tmp_path / f"ball{suffix}"
+    export(cache, path, ExportOptions())
+    got = render(path, tmp_path / "frames", [0], size="160x160")["frames"]["0"]
+    image = np.asarray(Image.open(got["png"]).convert("RGBA"), dtype=np.float64) / 255.0
+    rows = np.flatnonzero((image[..., 3] > 0.5).any(axis=1))
+    top, bottom = rows[: len(rows) // 3], rows[-(len(rows) // 3):]
+    upper = image[top][image[top][..., 3] > 0.5][:, :3].mean(axis=0)
+    lower = image[bottom][image[bottom][..., 3] > 0.5][:, :3].mean(axis=0)
+    assert upper[0] > 2 * upper[2], upper  # red on top
+    assert lower[2] > 2 * lower[0], lower  # blue underneath

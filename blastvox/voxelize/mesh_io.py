@@ -3,8 +3,10 @@
 Surface formats (OBJ, STL, PLY, OFF, glTF/GLB, ...) go through trimesh; scene
 graphs are flattened with their node transforms, one part per node. Volume
 formats that meshio reads (.vtu, .vtk, .msh, ... with tetrahedra or hexahedra)
-become their boundary surface. Every failure is a :class:`MeshError` naming the
-file and the problem.
+become their boundary surface. A part keeps its base colour texture and UVs, or,
+coloured per vertex or per face, a texture baked from its colours
+(:mod:`blastvox.voxelize.vertex_colors`). Every failure is a :class:`MeshError`
+naming the file and the problem.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import trimesh
 from blastvox.bounds import printable, regular_file
 from blastvox.errors import InputError, MeshError
 from blastvox.geometry.voxel_faces import VTK_CELL_FACES
+from blastvox.voxelize import vertex_colors
 
 #: Suffixes read through meshio as volume meshes rather than through trimesh.
 VOLUME_SUFFIXES = {".vtu", ".vtk", ".msh", ".mesh", ".xdmf", ".med", ".inp", ".vol"}
@@ -179,9 +182,27 @@ def _load_surface(path: Path, data: bytes) -> list[Part]:
         mesh.apply_transform(transform)
         material = getattr(getattr(geom.visual, "material", None), "name", None)
         uv, texture = _texture(geom, encoded)
+        if texture is None:
+            mesh, uv, texture = _baked_colors(geom, mesh)
         parts.append(Part(mesh=mesh, name=printable(str(name)), material=material,
                           source=path, uv=uv, texture=texture))
     return parts
+
+
+def _baked_colors(geom: trimesh.Trimesh, mesh: trimesh.Trimesh
+                  ) -> tuple[trimesh.Trimesh, np.ndarray | None, bytes | None]:
+    """A part coloured per vertex or per face: its colours baked into a texture
+    (:mod:`blastvox.voxelize.vertex_colors`), with ``mesh`` split into three vertices per
+    triangle so that each corner has its own UV (the solid is merged again for the
+    inside test). Unchanged (mesh, None, None) without colours."""
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    corners = vertex_colors.corner_colors(geom.visual, faces)
+    if corners is None:
+        return mesh, None, None
+    uv, png = vertex_colors.bake(corners)
+    split = trimesh.Trimesh(vertices=np.asarray(mesh.vertices)[faces].reshape(-1, 3),
+                            faces=np.arange(3 * len(faces)).reshape(-1, 3), process=False)
+    return split, uv.reshape(-1, 2), png
 
 
 #: trimesh names the node of each primitive of a multi-primitive glTF mesh
