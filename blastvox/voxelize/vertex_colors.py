@@ -26,6 +26,8 @@ MARGIN = 1.5
 #: Largest atlas side in pixels; beyond it cells shrink (at least MIN_CELL).
 MAX_SIDE = 4096
 MIN_CELL = 4
+#: Triangles whose texels are blended at once (bounds the float scratch to ~16 MB).
+BLOCK = 1 << 14
 
 
 def corner_colors(visual, faces: np.ndarray) -> np.ndarray | None:
@@ -68,12 +70,13 @@ def bake(corners: np.ndarray) -> tuple[np.ndarray, bytes]:
     weights = np.stack(np.broadcast_arrays(1.0 - u - v, u, v), axis=-1)  # (cell, cell, 3)
     weights = np.maximum(weights, 0.0)
     weights /= weights.sum(axis=-1, keepdims=True)
-    texels = np.einsum("yxk,fkc->fyxc", weights, corners.astype(np.float64))
-    atlas = np.zeros((rows * columns, cell, cell, 4))
-    atlas[:count] = texels
-    atlas = atlas.reshape(rows, columns, cell, cell, 4).transpose(0, 2, 1, 3, 4).reshape(
+    cells = np.zeros((rows * columns, cell, cell, 4), dtype=np.uint8)
+    for start in range(0, count, BLOCK):  # in blocks: float texels of one block at a time
+        block = corners[start:start + BLOCK].astype(np.float32)
+        texels = np.einsum("yxk,fkc->fyxc", weights.astype(np.float32), block)
+        cells[start:start + len(block)] = np.clip(np.rint(texels), 0, 255).astype(np.uint8)
+    pixels = cells.reshape(rows, columns, cell, cell, 4).transpose(0, 2, 1, 3, 4).reshape(
         height, width, 4)
-    pixels = np.clip(np.rint(atlas), 0, 255).astype(np.uint8)
     index = np.arange(count)
     origin = np.stack([(index % columns) * cell, (index // columns) * cell], axis=1)
     xy = origin[:, None, :] + points[None, :, :]                          # (F, 3, 2) pixels
