@@ -53,17 +53,8 @@ def positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarray,
 
     gravity: (3,) m/s^2 in the same frame as the positions.
     """
-    lifetime = np.array([SYSTEMS[n].lifetime for n in SYSTEM_NAMES])[system]
-    age = time - birth
-    alive = np.flatnonzero((age >= 0.0) & (age < lifetime))
-    s = age[alive][:, None]
-    k = np.array([SYSTEMS[n].drag for n in SYSTEM_NAMES])[system[alive]][:, None]
-    g = np.array([SYSTEMS[n].gravity_scale for n in SYSTEM_NAMES])[system[alive]][:, None]
-    decay = -np.expm1(-k * s) / k  # (1 - e^-ks) / k
-    accel = g * np.asarray(gravity)[None, :]
-    x = position[alive] + velocity[alive] * decay + accel * (s - decay) / k
-    return alive, x
-
+    alive, x = all_positions_at(birth, position, velocity, system, time, gravity)
+    return np.flatnonzero(alive), x[alive]
 
 def all_positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarray,
                      system: np.ndarray, time: float, gravity: np.ndarray

@@ -53,9 +53,9 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
 
     Primitives are groups of (piece, glTF material): the model material and damage,
     or the source look's texture; within a group, corners with the same float32
-    position, normal and UV share a vertex (first-use order). Zero-area triangles
-    (no normal) are left out. TEXCOORD_0 holds the UVs of :mod:`blastvox.export.uv`
-    with v flipped (glTF's origin is the image's top left).
+    position, normal and UV share a vertex (first-use order). TEXCOORD_0 holds the
+    UVs of :mod:`blastvox.export.uv` with v flipped (glTF's origin is the image's top
+    left).
     """
     uvs = face_uvs(cache, pm)
     n_pieces = cache.piece_count
@@ -69,14 +69,13 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
             lookup[m, int(d)] = i
     textured = np.asarray(texture_material + [0], dtype=np.int64)[uvs.texture]
     gmat = np.where(uvs.texture >= 0, textured, lookup[material, damage.astype(np.int64)])
-    # zero-area triangles have no normal (a zero NORMAL is invalid glTF) and draw nothing
-    solid = np.flatnonzero(np.any(pm.normals != 0, axis=1))
-    n_tri = len(solid)
+    # piece_meshes left out the zero-area triangles (a zero NORMAL is invalid glTF)
+    n_tri = len(pm.normals)
     if n_tri == 0:
         return [], piece_mesh
     skinned = skin_of is not None
     owner = skin_of[tri_piece] if skinned else tri_piece  # a mesh per skin or per piece
-    order = solid[np.lexsort((solid, tri_piece[solid], gmat[solid], owner[solid]))]
+    order = np.lexsort((np.arange(n_tri), tri_piece, gmat, owner))
     tri_piece, gmat, owner = tri_piece[order], gmat[order], owner[order]
     key = np.stack([owner, gmat], axis=1)
     change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]

@@ -113,17 +113,9 @@ def _fixed_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, states: list,
     specs = {key: attr_spec(instancer, key, kind) for key, kind in
              (("positions", _T.Point3fArray), ("protoIndices", _T.IntArray),
               ("extent", _T.Float3Array))}
-    visibility = attr_spec(instancer, "visibility", _T.Token)
     width = size[mine][:, None]
-    previous_empty = None
-    for f, (alive, x) in enumerate(states):
-        empty = not alive.any()
-        if empty and previous_empty:
-            continue  # an empty frame after an empty frame adds nothing
-        if empty != previous_empty:
-            layer.SetTimeSample(visibility.path, float(f),
-                                "invisible" if empty else "inherited")
-        previous_empty = empty
+    for f, empty in _sampled_frames(w, instancer, [not alive.any() for alive, _ in states]):
+        alive, x = states[f]
         shown = x[alive] if not empty else x
         half = width[alive] / 2 if not empty else width / 2
         box = np.stack([(shown - half).min(axis=0), (shown + half).max(axis=0)])
@@ -131,6 +123,22 @@ def _fixed_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, states: list,
         layer.SetTimeSample(specs["protoIndices"].path, float(f), Vt.IntArray.FromNumpy(
             np.ascontiguousarray(np.where(alive, 0, 1).astype(np.int32))))
         layer.SetTimeSample(specs["extent"].path, float(f), vec3f(box))
+
+
+def _sampled_frames(w, instancer: Sdf.PrimSpec, empty: list[bool]):
+    """Yield (frame, empty) for the frames an instancer is sampled at (``empty`` (F,):
+    no live particle there): every frame but an empty one after an empty one, which
+    would repeat it. Writes the instancer's visibility, "invisible" while empty."""
+    visibility = attr_spec(instancer, "visibility", _T.Token)
+    previous = None
+    for f, now in enumerate(empty):
+        if now and previous:
+            continue
+        if now != previous:
+            w.layer.SetTimeSample(visibility.path, float(f),
+                                  "invisible" if now else "inherited")
+        previous = now
+        yield f, now
 
 
 def _particle_instancer(w, scope: Sdf.PrimSpec, name: str, hidden: bool) -> Sdf.PrimSpec:
@@ -171,17 +179,9 @@ def _instance_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, frames: list
              (("positions", _T.Point3fArray), ("scales", _T.Float3Array),
               ("velocities", _T.Vector3fArray), ("ids", _T.Int64Array),
               ("protoIndices", _T.IntArray), ("extent", _T.Float3Array))}
-    visibility = attr_spec(instancer, "visibility", _T.Token)
     first = next((x[:1] for _, alive, x in frames if alive.size), np.zeros((1, 3)))
-    previous_empty = None
-    for f, (t, alive, x) in enumerate(frames):
-        empty = not alive.size
-        if empty and previous_empty:
-            continue  # an empty frame after an empty frame adds nothing
-        if empty != previous_empty:
-            layer.SetTimeSample(visibility.path, float(f),
-                                "invisible" if empty else "inherited")
-        previous_empty = empty
+    for f, empty in _sampled_frames(w, instancer, [not alive.size for _, alive, _ in frames]):
+        t, alive, x = frames[f]
         if empty:
             x, vel, w = first, np.zeros((1, 3)), np.zeros(1, dtype=np.float32)
             ids = np.array([-1], dtype=np.int64)

@@ -127,9 +127,9 @@ def _barycentric(source: np.ndarray, corners: np.ndarray) -> np.ndarray:
 def _smooth_normals(bary: np.ndarray, source_normals: np.ndarray, change: np.ndarray,
                     flat: np.ndarray) -> np.ndarray:
     """Corner normals (T, 3, 3), export frame: the source's corner normals (T, 3, 3),
-    model frame, weighed by ``bary`` (T, 3, 3) clamped to 0 and up (the nearest point
-    of the source triangle), renormalized and turned by ``change``
-    (3, 3); ``flat`` (T, 3, 3) where that is not a unit vector or faces away from it."""
+    model frame, weighed by ``bary`` (T, 3, 3) clamped at 0, renormalized and turned by
+    ``change`` (3, 3); ``flat`` (T, 3, 3) where that is not a unit vector or faces away
+    from it."""
     # clamped to the source triangle: a corner just past its edge (a face of a cell that
     # straddles two source triangles) takes the edge's normal, not an extrapolation
     inside = np.maximum(bary, 0.0)
