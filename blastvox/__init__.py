@@ -3,6 +3,23 @@
 Stages: :mod:`blastvox.voxelize` (meshes -> VoxelModel), :mod:`blastvox.simulate`
 (VoxelModel + scene -> SimCache), :mod:`blastvox.export` (SimCache -> USD/glTF).
 Importing this package is cheap; heavy modules are imported by the stages.
+
+Importing it before numpy also keeps numpy off its AVX-512 loops
+(``NPY_DISABLE_CPU_FEATURES``, unless already set): their exp, log, power and
+trigonometric functions round differently from the AVX2 ones, and a shot's
+chaotic fracture turns one ulp into different pieces, so a cache baked on an
+AVX-512 machine would not match a golden file baked on another machine.
 """
 
+import os as _os
+import sys as _sys
+
 __version__ = "0.1.0"
+
+#: numpy's AVX-512 dispatch targets: numpy >= 2.4 names and older names (numpy ignores
+#: names it does not know)
+AVX512_FEATURES = ("X86_V4 AVX512F AVX512CD AVX512_KNL AVX512_KNM AVX512_SKX AVX512_CLX "
+                   "AVX512_CNL AVX512_ICL AVX512_SPR")
+
+if "numpy" not in _sys.modules:
+    _os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", AVX512_FEATURES)

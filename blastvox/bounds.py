@@ -218,6 +218,10 @@ STRENGTH_SCALE = Bound(0.0, 1e6, lo_open=True)
 CHUNK_SIZE = Bound(0.0, 1e4, unit="m")
 #: factor on the yields of links between two touching parts of one input
 PART_BOND = Bound(0.0, 1e6, lo_open=True)
+#: thickness (m) of an open part voxelized as a sheet (blastvox.voxelize.sheets)
+SHEET_THICKNESS = Bound(0.0, 100.0, lo_open=True, unit="m")
+#: its default: window glass is 4-10 mm
+DEFAULT_SHEET_THICKNESS_M = 0.01
 CHARGE_KG = Bound(MIN_CHARGE_KG, MAX_CHARGE_KG, unit="kg")
 CHARGE_TIME_S = Bound(0.0, MAX_TIME_S, unit="s")
 DISTANCE_M = Bound(0.0, MAX_DISTANCE_M, unit="m")

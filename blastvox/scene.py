@@ -145,6 +145,7 @@ Length = Annotated[float, limits.LENGTH.constraints()]
 StrengthScale = Annotated[float, limits.STRENGTH_SCALE.constraints()]
 ChunkSize = Annotated[float, limits.CHUNK_SIZE.constraints()]
 PartBond = Annotated[float, limits.PART_BOND.constraints()]
+SheetThickness = Annotated[float, limits.SHEET_THICKNESS.constraints()]
 _CHUNK = "Chunk size instead of the material's: 0 (no chunks) or one voxel to the object's size."
 # The simulation's settings and budgets (simulation.*, particles.*, charges' mass and
 # time) are bounded where they are used: blastvox.simulate.settings.check_settings names
@@ -287,6 +288,10 @@ class SceneObject(_Model):
         "Factor on the strength of the links between two parts of the mesh that touch "
         "(a glTF's nodes and primitives, an OBJ's objects): 1 welds them like one solid; "
         "0.2 holds a tyre or a window in place by contact and lets it break off first."))
+    sheet_thickness: SheetThickness = Field(limits.DEFAULT_SHEET_THICKNESS_M, description=(
+        "Thickness in metres of the mesh's parts that are open surfaces (a window pane, "
+        "a sign) beside closed ones: each becomes a sheet one voxel deep whose mass and "
+        "link strength are those of a pane this thick."))
     anchored: Annotated[bool, Field(strict=True)] = Field(True, description=(
         "Voxels touching the ground are foundations that hold the object until the "
         "blast tears them off; false lets the object stand on the ground as a free "

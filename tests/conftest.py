@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+import blastvox  # noqa: F401  before numpy: the same numpy loops on every CPU (its docstring)
+
 DATA = Path(__file__).parent / "data"
 
 

@@ -29,7 +29,7 @@ def house() -> SimCache:
     return SimCache.load(GOLDEN / "house.sim.npz")
 
 
-@pytest.fixture(scope="module", params=[256, 10], ids=["one_skin", "skins_of_10"])
+@pytest.fixture(scope="module", params=[512, 10], ids=["one_skin", "skins_of_10"])
 def files(house: SimCache, request: pytest.FixtureRequest,
           tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple]:
     """Both layouts of the house; skinned with the default skin size (one skin for its

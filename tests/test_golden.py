@@ -72,3 +72,21 @@ def test_shot_matches_its_goldens(tmp_path: Path, shot: str) -> None:
         else:
             np.testing.assert_array_equal(a[name], b[name], err_msg=name)
 
+
+
+def test_blastvox_keeps_numpy_off_its_avx512_loops() -> None:
+    """The goldens were baked on an AVX2 machine; numpy's AVX-512 exp, log and power
+    round differently, which changed the logo's and building's pieces on an AVX-512
+    Xeon. Importing blastvox first disables those dispatch targets (any machine)."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import blastvox, numpy\n"
+            "from numpy._core import _multiarray_umath as m\n"
+            "print([t for t in m.__cpu_dispatch__ if m.__cpu_features__.get(t)])\n")
+    env = {k: v for k, v in os.environ.items() if k != "NPY_DISABLE_CPU_FEATURES"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120, check=True)
+    enabled = done.stdout.strip()
+    assert "AVX512" not in enabled and "X86_V4" not in enabled, enabled

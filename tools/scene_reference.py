@@ -51,6 +51,7 @@ UNITS: dict[str, str] = {
     "objects.jitter": "voxel edges",
     "objects.chunk_size": "m",
     "objects.part_bond": "-",
+    "objects.sheet_thickness": "m",
     "objects.transform.translate": "m",
     "objects.transform.rotate_deg": "degrees",
     "objects.transform.scale": "-",

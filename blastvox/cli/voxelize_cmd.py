@@ -8,6 +8,7 @@ from pathlib import Path
 
 import typer
 
+from blastvox.bounds import DEFAULT_SHEET_THICKNESS_M
 from blastvox.cli.options import UpAxis
 from blastvox.errors import BlastvoxError, SceneError
 
@@ -73,6 +74,10 @@ def voxelize(
                                     "links between touching parts of a mesh (glTF nodes, OBJ "
                                     "objects): 1 (default) welds them; 0.2 lets a tyre or "
                                     "window break off first."),
+    sheet_thickness: float = typer.Option(None, "--sheet-thickness", help="Thickness in "
+                                          "metres of the parts that are open surfaces (a "
+                                          "window pane), voxelized as sheets one voxel deep "
+                                          f"(default {DEFAULT_SHEET_THICKNESS_M:g})."),
     anchored: bool = typer.Option(True, "--anchor/--no-anchor", help="Voxels touching the "
                                   "ground are foundations (default); --no-anchor: the "
                                   "object stands on the ground as a free body."),
@@ -112,6 +117,7 @@ def voxelize(
         MAX_VOXELS,
         PART_BOND,
         RESOLUTION,
+        SHEET_THICKNESS,
         check_seed,
         printable,
     )
@@ -123,6 +129,8 @@ def voxelize(
         CHUNK_SIZE.at(chunk_size, f"{where}: --chunk-size")
     if part_bond is not None:
         PART_BOND.at(part_bond, f"{where}: --part-bond")
+    if sheet_thickness is not None:
+        SHEET_THICKNESS.at(sheet_thickness, f"{where}: --sheet-thickness")
     size = _parse_size(voxel_size, where) if voxel_size is not None else None
     if resolution is not None:
         RESOLUTION.at(resolution, f"{where}: --resolution")
@@ -137,7 +145,8 @@ def voxelize(
                       ("--material", None if material == "concrete" else material),
                       ("--shape", None if shape == Shape.cube else shape),
                       ("--jitter", jitter or None), ("--chunk-size", chunk_size),
-                      ("--part-bond", part_bond), ("--no-anchor", None if anchored else True))
+                      ("--part-bond", part_bond), ("--no-anchor", None if anchored else True),
+                      ("--sheet-thickness", sheet_thickness))
         given = [flag for flag, value in mesh_flags if value is not None]
         if given:
             raise BlastvoxError(f"{where}: {given[0]} applies to MESH arguments; with --scene "
@@ -174,7 +183,8 @@ def voxelize(
                                   shape=shape.value, jitter=jitter, material=material,
                                   chunk_size=chunk_size,
                                   part_bond=1.0 if part_bond is None else part_bond,
-                                  anchored=anchored)
+                                  anchored=anchored, **({} if sheet_thickness is None else
+                                                        {"sheet_thickness": sheet_thickness}))
                     for m in meshes]
         settings = VoxelizeSettings(up_axis=up_axis.value if up_axis else "Y",
                                     ground=ground_value,
@@ -220,6 +230,7 @@ def _recorded(requests, settings, scene) -> dict:
             "voxel_size": list(r.voxel_size) if r.voxel_size else None,
             "resolution": r.resolution, "shape": r.shape, "jitter": r.jitter,
             "chunk_size": r.chunk_size, "part_bond": r.part_bond, "anchored": r.anchored,
+            "sheet_thickness": r.sheet_thickness,
             "material": r.material, "material_map": dict(r.material_map),
             "transform": r.transform.tolist() if r.transform is not None else None,
             "rules": [{"kind": x.kind, "a": list(x.a), "b": x.b if isinstance(x.b, float)

@@ -8,7 +8,7 @@ Layout (written straight from numpy: one JSON document and one binary buffer):
   mass_kg), the camera and, with ``ExportOptions.shock``, one node per charge,
   ``shock_00``...;
 * with ``layout="skinned"`` the piece nodes carry no mesh: they are the joints of
-  skins of up to 256 pieces (``gltf_meshes.SKIN_JOINTS``) of one object each (``skin_NNN``
+  skins of up to 512 pieces (``gltf_meshes.SKIN_JOINTS``) of one object each (``skin_NNN``
   nodes under the object node hold their pieces), and one mesh per skin on a
   root node holds its pieces' triangles, a primitive per material, each vertex
   bound to its piece (JOINTS_0, WEIGHTS_0 = 1); importers make an armature and

@@ -27,15 +27,16 @@ from blastvox.export.pieces import PieceMeshes, object_groups
 from blastvox.export.uv import face_uvs
 
 TRIANGLES = 4
-SKIN_JOINTS = 256  # pieces per skin in the skinned layout
+SKIN_JOINTS = 512  # pieces per skin: Blender imports 512 to 1,024 fastest (docs/benchmarks.md)
 U16_VERTEX_LIMIT = 65535  # a primitive with fewer vertices uses 16-bit indices (65535 = restart)
 
 
 def _skin_groups(objects: list[str]) -> list[list[int]]:
     """The joints (piece indices) of each skin: each object's pieces in runs of at most
-    SKIN_JOINTS. Blender's importer gives each skin an armature, and adding an F-curve
-    to an action costs time in proportion to those it already holds: small skins keep
-    the import linear in the number of pieces."""
+    SKIN_JOINTS. Blender's importer gives each skin an armature and an action. Adding an
+    F-curve to an action costs time in proportion to those it already holds, so big
+    skins are slow; each armature's mode switches re-evaluate every bone already in the
+    scene, so many small skins are slow too."""
     out = []
     for pieces in object_groups(objects).values():
         out += [pieces[i:i + SKIN_JOINTS] for i in range(0, len(pieces), SKIN_JOINTS)]

@@ -4,7 +4,8 @@ One input file gives one lattice. Each solid part of the file gets a
 ray-averaged winding number per cell; a cell whose centre is inside some part
 is occupied and takes that part (the later part wins where parts overlap). In
 conform mode every cell the surface passes through is a candidate as well; the
-conform clip decides later whether it keeps any volume.
+conform clip decides later whether it keeps any volume. A part too open to have an
+inside, beside parts that have one, becomes a sheet (:mod:`blastvox.voxelize.sheets`).
 """
 
 from __future__ import annotations
@@ -42,13 +43,16 @@ class CellSet:
 
     ijk: (K, 3) int64 lattice indices in C order; part: (K,) index into the
     solids; inside: (K,) centre inside a solid; touched: (K,) the surface passes
-    through the cell (conform candidates).
+    through the cell (conform candidates); sheet: (K,) a sheet part's cell (a whole
+    cell, not a conform candidate); sheet_parts: indices of the solids that are sheets.
     """
 
     ijk: np.ndarray
     part: np.ndarray
     inside: np.ndarray
     touched: np.ndarray
+    sheet: np.ndarray
+    sheet_parts: list[int]
 
 
 def part_label(part: Part) -> str:
@@ -83,36 +87,54 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
     owner = np.full(grid.shape, -1, dtype=np.int32)
     occupied = np.zeros(grid.shape, dtype=bool)
     touched = np.zeros(grid.shape, dtype=bool)
+    sheets: list[tuple[int, np.ndarray]] = []
     kept = 0
     for index, solid in enumerate(solids):
         winding = winding_numbers(solid.mesh.triangles, grid.origin, grid.spacing, grid.shape)
         try:
             inside = check_inside_defined(solid.label, winding, solid.report)
-        except MeshError as exc:
+        except MeshError:
             if len(solids) == 1:
                 raise
-            warn(f"skipped {exc}")
+            mark = _touched_cells(solid, grid, grow=-1e-6)  # an edge on a cell face: not in
+            warn(f"{solid.label}: an open surface ({solid.report.open_edges} open edges): "
+                 f"voxelized as a sheet one voxel deep ({int(mark.sum()):,} cells)")
+            sheets.append((index, mark))
             continue
         kept += 1
         occupied |= inside
         owner[inside] = index
         if conform:
-            mark = np.zeros(grid.shape, dtype=bool)
-            _mark_touched(np.ascontiguousarray(solid.mesh.triangles), grid.origin, grid.spacing,
-                          np.asarray(grid.shape, dtype=np.int64), mark)
+            mark = _touched_cells(solid, grid)
             touched |= mark
             closer = mark & ~inside & (winding > best)
             owner[closer & (owner < 0)] = index
         best = np.maximum(best, winding)
     if kept == 0:
         raise MeshError(f"{printable(solids[0].part.source)}: no part encloses a volume")
+    sheet = np.zeros(grid.shape, dtype=bool)
+    for index, mark in sheets:  # a pane owns its cells, inside another part or not
+        sheet |= mark
+        owner[mark] = index
+    occupied |= sheet
+    touched &= ~sheet
     chosen = occupied | touched
     ijk = np.argwhere(chosen)
     part = owner[chosen]
     # a touched cell outside every part: give it the part whose surface touched it first
     part = np.where(part < 0, 0, part)
     return CellSet(ijk=ijk.astype(np.int64), part=part.astype(np.int64),
-                   inside=occupied[chosen], touched=touched[chosen])
+                   inside=occupied[chosen], touched=touched[chosen], sheet=sheet[chosen],
+                   sheet_parts=[index for index, _ in sheets])
+
+
+def _touched_cells(solid: Solid, grid: Grid, grow: float = 1e-9) -> np.ndarray:
+    """Boolean grid of the cells ``solid``'s triangles pass through (``grow``: see
+    :func:`_mark_touched`)."""
+    mark = np.zeros(grid.shape, dtype=bool)
+    _mark_touched(np.ascontiguousarray(solid.mesh.triangles), grid.origin, grid.spacing,
+                  np.asarray(grid.shape, dtype=np.int64), mark, grow)
+    return mark
 
 
 @kernel
@@ -144,9 +166,11 @@ def _tri_box_overlap(v0, v1, v2, half) -> bool:
 
 
 @kernel
-def _mark_touched(tri, origin, spacing, shape, mark):
-    """Mark cells that a triangle overlaps (exact separating-axis test per cell)."""
-    half = 0.5 * spacing * (1.0 + 1e-9)
+def _mark_touched(tri, origin, spacing, shape, mark, grow=1e-9):
+    """Mark cells that a triangle overlaps (exact separating-axis test per cell, each
+    cell grown by the relative ``grow``: > 0 counts a triangle on a cell face, < 0
+    does not)."""
+    half = 0.5 * spacing * (1.0 + grow)
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
     centre = np.empty(3)

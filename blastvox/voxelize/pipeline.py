@@ -32,6 +32,7 @@ from blastvox.voxelize.look import LookBuilder
 from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
 from blastvox.voxelize.mesh_io import check_readable, load_parts, missing_textures
 from blastvox.voxelize.regions import RegionRule
+from blastvox.voxelize.sheets import DEFAULT_SHEET_THICKNESS_M, sheet_volumes, thin_links
 from blastvox.voxelize.slivers import MIN_CONFORM_FRACTION, Cells, merge_slivers
 from blastvox.voxelize.topology import (
     face_neighbours,
@@ -76,6 +77,8 @@ class ObjectRequest:
     part_bond: float = 1.0
     #: voxels touching the ground are foundations (False: a free body standing on it)
     anchored: bool = True
+    #: m, thickness of the parts too open to fill, voxelized as sheets (a window pane)
+    sheet_thickness: float = DEFAULT_SHEET_THICKNESS_M
     #: how the model's metadata names the mesh (objects[i].source): the path as written
     #: in the scene file, relative to it; default ``mesh`` as given.
     source: str | None = None
@@ -212,7 +215,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
         raise MeshError(f"{label} gives voxels of {_fmt_size(spacing)} m: the mesh is flat "
                         f"or a point")
     chunks.check_request(request, spacing, bounds)
-    volume = float(sum(abs(float(s.mesh.volume)) for s in solids))
+    with np.errstate(all="ignore"):  # an open part (a sheet) has no volume
+        volume = float(sum(abs(float(s.mesh.volume)) for s in solids))
     budget.check_lattice(label, bounds, spacing, volume if np.isfinite(volume) else 0.0,
                          budget_left, settings.max_voxels, settings.budget_hint)
     grid = fit_grid(bounds, spacing, up)
@@ -226,11 +230,17 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
         chosen.ijk, grid, request.jitter, settings.seed, index, up)
     volume, centroid, inertia = hex_mass_properties(positions, voxel_vertices)
     cell_volume = volume.copy()
+    if chosen.sheet_parts:
+        volume = sheet_volumes(cell_volume, chosen.part, {
+            i: float(solids[i].mesh.area) for i in chosen.sheet_parts},
+            request.sheet_thickness)
+        inertia *= (volume / cell_volume)[:, None, None]
     keep = chosen.inside.copy()
     conform_data = (np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros((0, 3, 3)),
                     np.zeros(0, np.uint8))
     if conform:
-        keep, conform_data = _clip_conform(solids, chosen, positions, voxel_vertices, volume,
+        closed = [s for i, s in enumerate(solids) if i not in chosen.sheet_parts]
+        keep, conform_data = _clip_conform(closed, chosen, positions, voxel_vertices, volume,
                                            progress)
         if conform_data[0].size:
             cv, cc, ci = soup_mass_properties(conform_data[2], conform_data[1])
@@ -259,6 +269,10 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     _link(lat)
     if conform:
         _merge_slivers(lat, cell_volume[keep], settings.min_conform_fraction, source, warn)
+    if chosen.sheet_parts:
+        lat.link_area = thin_links(lat.link_voxels, lat.link_area,
+                                   np.isin(lat.part, chosen.sheet_parts),
+                                   request.sheet_thickness)
     _boundary(lat)
     return lat
 

@@ -49,6 +49,7 @@ def requests_from_scene(scene: Any) -> list[ObjectRequest]:
             voxel_size=tuple(obj.voxel_size) if obj.voxel_size is not None else None,
             resolution=obj.resolution, shape=obj.shape, jitter=obj.jitter,
             chunk_size=obj.chunk_size, part_bond=obj.part_bond, anchored=obj.anchored,
+            sheet_thickness=obj.sheet_thickness,
             material=obj.material, material_map=dict(obj.material_map),
             transform=None if np.allclose(matrix, np.eye(4)) else matrix,
             rules=[rule_from_scene(r) for r in obj.rules]))
