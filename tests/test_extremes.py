@@ -641,7 +641,8 @@ def test_a_million_voxels():
 
 
 MOTION = re.compile(r"^dt ([\d.e-]+) s lets fragments move ([\d.]+) voxels per step "
-                    r"\(limit 0\.5\), so collisions can be missed; use --dt ([\d.e-]+) or "
+                    r"\(limit 0\.5; the fastest: [\d.e+-]+ kg at [\d.e+-]+ m/s\), so collisions "
+                    r"can be missed; use --dt ([\d.e-]+) or "
                     r"smaller \(scene: \[simulation\] dt\)$")
 SPIN = re.compile(r"^dt ([\d.e-]+) s lets fragments spin ([\d.]+) rad per step "
                   r"\(limit 40\), so their rotation no longer conserves energy; use --dt "

@@ -100,10 +100,13 @@ def suggested_dt(dt: float, measured: float, limit: float) -> float:
     return math.floor(target / scale * (1 + 1e-12)) * scale
 
 
-def motion_message(dt: float, measured: float) -> str:
-    """The warning for fragments that move ``measured`` voxels per step of ``dt`` s."""
+def motion_message(dt: float, measured: float, mass: float, speed: float) -> str:
+    """The warning for fragments that move ``measured`` voxels per step of ``dt`` s; the
+    one that moved most weighs ``mass`` kg and flew at ``speed`` m/s (so an artist can
+    judge whether a few light shards are worth a shorter step)."""
     return (f"dt {dt:.3g} s lets fragments move {measured:.2f} voxels per step (limit "
-            f"{MOTION_LIMIT_VOXELS:g}), so collisions can be missed; use --dt "
+            f"{MOTION_LIMIT_VOXELS:g}; the fastest: {mass:.3g} kg at {speed:.3g} m/s), so "
+            f"collisions can be missed; use --dt "
             f"{suggested_dt(dt, measured, MOTION_LIMIT_VOXELS):.2g} or smaller "
             f"(scene: [simulation] dt)")
 
@@ -132,6 +135,7 @@ class LimitMonitor:
         self.size = voxel_size(sm.voxels.contact_radius)
         self.collisions = settings.collisions
         self.motion = 0.0  # worst voxels per step seen
+        self.fastest = (0.0, 0.0)  # that fragment's mass (kg) and speed (m/s)
         self.spin = 0.0  # worst rad per step seen
         self.depth = 0.0  # deepest penetration seen, voxels
         self._rot = np.zeros((0, 3, 3))
@@ -163,13 +167,16 @@ class LimitMonitor:
         speed = np.linalg.norm(state.bodies.lin[moving], axis=1) / state.bodies.mass[moving]
         motion = motion_per_step(speed, np.linalg.norm(omega, axis=1),
                                  state.bodies.radius[moving], self.dt, self.size)
-        self.motion = max(self.motion, float(motion.max()))
+        worst = int(np.argmax(motion))
+        if motion[worst] > self.motion:
+            self.motion = float(motion[worst])
+            self.fastest = (float(state.bodies.mass[moving[worst]]), float(speed[worst]))
 
     def messages(self) -> list[str]:
         """One message per limit the run passed (empty when it honoured them all)."""
         out = []
         if self.motion > MOTION_LIMIT_VOXELS:
-            out.append(motion_message(self.dt, self.motion))
+            out.append(motion_message(self.dt, self.motion, *self.fastest))
         if self.spin > SPIN_LIMIT_RAD:
             out.append(spin_message(self.dt, self.spin))
         if self.depth > PENETRATION_LIMIT_VOXELS and self.motion <= MOTION_LIMIT_VOXELS:

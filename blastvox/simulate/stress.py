@@ -458,19 +458,33 @@ def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
                   wave_speed=speed[material], solved=np.zeros(capacity, dtype=bool))
 
 
-def node_key(stress: Stress, voxel_body: np.ndarray, fixed: np.ndarray,
-             voxel_in: np.ndarray) -> np.ndarray:
+def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
+             fixed: np.ndarray, voxel_in: np.ndarray) -> np.ndarray:
     """Each voxel's node key (N, 5) for :func:`coarse_graph`: body, foundation flag
-    and chunk (when the model has chunks and the solve has at most
-    :data:`TARGET_NODES` of them), else the grid cell of :func:`cell_size`."""
+    and chunk (N,) (when the model has chunks and the solve has at most
+    :data:`TARGET_NODES` of them), else the grid cell (N, 3) of :func:`cell_size`."""
     count = int(np.count_nonzero(voxel_in))
     head = [voxel_body[:, None], fixed[:, None].astype(np.int64)]
-    if stress.chunk is not None:
-        chunks = np.unique(stress.chunk[voxel_in]).size
+    if chunk is not None:
+        chunks = np.unique(chunk[voxel_in]).size
         if chunks <= TARGET_NODES:
             zeros = np.zeros((len(voxel_body), 2), dtype=np.int64)
-            return np.concatenate(head + [stress.chunk[:, None], zeros], axis=1)
-    return np.concatenate(head + [stress.cell // cell_size(count)], axis=1)
+            return np.concatenate(head + [chunk[:, None], zeros], axis=1)
+    return np.concatenate(head + [cell // cell_size(count)], axis=1)
+
+
+def links_among(model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The links with both ends among ``members`` (ascending voxel ids): their ids
+    (K,), ascending, and their ends renumbered as places in ``members`` (K, 2). A
+    small body's solve then costs what it holds, not what the model holds."""
+    offsets, ids = model.voxels.link_offsets, model.voxels.link_ids
+    starts, counts = offsets[members], offsets[members + 1] - offsets[members]
+    first = np.repeat(starts - np.cumsum(counts) + counts, counts)
+    links = np.unique(ids[first + np.arange(int(counts.sum()))])
+    ends = model.links.voxels[links]
+    place = np.minimum(np.searchsorted(members, ends), len(members) - 1)
+    within = (members[place] == ends).all(axis=1)
+    return links[within], place[within]
 
 
 def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
@@ -495,7 +509,7 @@ def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
     target[:n] = todo
     voxel_in = voxels.alive & target[voxels.body]
     fixed = voxels.foundation & voxels.alive
-    key = node_key(stress, voxels.body, fixed, voxel_in)
+    key = node_key(stress.cell, stress.chunk, voxels.body, fixed, voxel_in)
     solution = solve(stress.springs, model.links.voxels, voxel_in, fixed, state.links.alive,
                      key, model.voxels.mass, model.voxels.centroid, gravity)
     stress.solves += 1
@@ -610,16 +624,17 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     if (known is not None and known[0] == members.size and float(known[1] @ rest_dir) >= SAME_SIDE
             and known[3] * acceleration / known[2] < RESOLVE_UTILIZATION):
         return False
-    voxel_in = np.zeros(len(voxels.body), dtype=bool)
-    voxel_in[members] = True
-    fixed = np.zeros_like(voxel_in)
-    fixed[members[along <= along.min() + 0.5 * size]] = True
-    key = node_key(stress, voxels.body, fixed, voxel_in)
-    solution = solve(stress.springs, model.links.voxels, voxel_in, fixed, state.links.alive,
-                     key, model.voxels.mass, model.voxels.centroid,
+    links, ends = links_among(model, members)  # the body alone, renumbered
+    voxel_in = np.ones(members.size, dtype=bool)
+    fixed = along <= along.min() + 0.5 * size
+    chunk = None if stress.chunk is None else stress.chunk[members]
+    key = node_key(stress.cell[members], chunk, voxels.body[members], fixed, voxel_in)
+    springs = LinkSprings(*(column[links] for column in stress.springs))
+    solution = solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
+                     model.voxels.mass[members], model.voxels.centroid[members],
                      -acceleration * rest_dir)
     stress.solves += 1
-    broken = solution.links[solution.stress[:, 3] > 1.0]
+    broken = links[solution.links[solution.stress[:, 3] > 1.0]]
     if not broken.size:
         if known is None or acceleration > known[2]:
             peak = float(solution.stress[:, 3].max(initial=0.0))
