@@ -290,7 +290,9 @@ def separate(bodies, rows, count, ends, ids, bw, rw, params) -> None:
     :class:`~blastvox.simulate.ground.SolverParams`."""
     dt, frame = params.dt, rows.frame
     pseudo = np.zeros((ids.shape[0], 23))
-    pseudo[:, 12:22] = bw[:, 12:22]
+    for e in range(ids.shape[0]):  # loops, not slice copies: numba compiles a slice
+        for j in range(12, 22):  # copy's shape-mismatch message (strings, seconds)
+            pseudo[e, j] = bw[e, j]
     target = np.zeros((count, 4))
     acc = np.zeros((count, 4))
     for r in range(count):

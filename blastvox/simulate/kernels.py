@@ -476,7 +476,8 @@ def solve_contacts(bodies, memory, count, params) -> None:
             bw[e, a] = bodies.lin[b, a] * bw[e, 12]
             bw[e, 3 + a] = (bw[e, 13 + 3 * a] * ang[0] + bw[e, 14 + 3 * a] * ang[1]
                             + bw[e, 15 + 3 * a] * ang[2])
-        bw[e, 6:12] = bw[e, 0:6]
+        for j in range(6):  # not a slice copy (see integrate.separate)
+            bw[e, 6 + j] = bw[e, j]
     rw = np.zeros((count, RW_WIDTH))
     bounce = np.zeros(count, dtype=np.bool_)
     deepest = 0.0
