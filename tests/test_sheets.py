@@ -27,13 +27,13 @@ PANE_AREA = 1.0  # m², the pane is 1 x 1 m
 GLASS_DENSITY = 2500.0  # kg/m³, the library's glass
 
 
-def _box_and_pane(path: Path) -> Path:
+def _box_and_pane(path: Path, y: float = 0.03) -> Path:
     """A 2 x 1 x 0.5 m box on z = 0 and, standing on its top, a 1 x 1 m pane in the
-    plane y = 0.03 (inside a cell of a 0.1 or 0.05 m lattice, not on a cell face)."""
+    plane y (0.03: inside a cell of a 0.1 or 0.05 m lattice; 0: on a cell face)."""
     box = trimesh.creation.box(extents=(2.0, 1.0, 0.5))
     box.apply_translation((0.0, 0.0, 0.25))
-    pane = trimesh.Trimesh(vertices=[[-0.5, 0.03, 0.5], [0.5, 0.03, 0.5], [0.5, 0.03, 1.5],
-                                     [-0.5, 0.03, 1.5]], faces=[[0, 1, 2], [0, 2, 3]])
+    pane = trimesh.Trimesh(vertices=[[-0.5, y, 0.5], [0.5, y, 0.5], [0.5, y, 1.5],
+                                     [-0.5, y, 1.5]], faces=[[0, 1, 2], [0, 2, 3]])
     box.visual = trimesh.visual.TextureVisuals(
         material=trimesh.visual.material.PBRMaterial(name="body"))
     pane.visual = trimesh.visual.TextureVisuals(
@@ -84,6 +84,18 @@ def test_a_pane_is_one_voxel_deep_and_weighs_what_the_pane_does(mesh: Path,
     # the box keeps its volume (the pane stands on it, it takes none of its cells)
     box = np.setdiff1d(np.arange(len(a["voxel_mass"])), pane)
     np.testing.assert_allclose(a["voxel_volume"][box].sum(), 2.0 * 1.0 * 0.5, rtol=1e-9)
+
+
+def test_a_pane_in_a_cell_face_is_still_one_voxel_deep(tmp_path: Path) -> None:
+    """A pane (and the box top its edge stands on) lying exactly in cell faces takes the
+    cells on one side: 10 x 10 voxels, not 10 x 10 x 2, and not none."""
+    path = _box_and_pane(tmp_path / "face_pane.glb", y=0.0)
+    model = _model(path, 0.1)
+    pane = _pane_voxels(model)
+    assert len(pane) == 100
+    assert np.unique(np.round(model.arrays["voxel_centroid"][pane, 1], 6)).size == 1
+    np.testing.assert_allclose(model.arrays["voxel_mass"][pane].sum(),
+                               PANE_AREA * THICKNESS * GLASS_DENSITY, rtol=1e-9)
 
 
 def test_links_through_a_pane_carry_its_section(mesh: Path) -> None:

@@ -96,7 +96,7 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
         except MeshError:
             if len(solids) == 1:
                 raise
-            mark = _touched_cells(solid, grid, grow=-1e-6)  # an edge on a cell face: not in
+            mark = _touched_cells(solid, grid, sheet=True)
             warn(f"{solid.label}: an open surface ({solid.report.open_edges} open edges): "
                  f"voxelized as a sheet one voxel deep ({int(mark.sum()):,} cells)")
             sheets.append((index, mark))
@@ -128,11 +128,20 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
                    sheet_parts=[index for index, _ in sheets])
 
 
-def _touched_cells(solid: Solid, grid: Grid, grow: float = 1e-9) -> np.ndarray:
-    """Boolean grid of the cells ``solid``'s triangles pass through (``grow``: see
-    :func:`_mark_touched`)."""
+def _touched_cells(solid: Solid, grid: Grid, sheet: bool = False) -> np.ndarray:
+    """Boolean grid of the cells ``solid``'s triangles pass through. For a ``sheet``
+    only cells it passes through with some area count: each triangle is moved by
+    1e-5 of a cell along its normal and tested against cells shrunk by 1e-6, so a
+    pane lying in a cell face takes the cells on one side (one voxel deep, not two)
+    and an edge lying in a face takes no cell."""
+    triangles = np.asarray(solid.mesh.triangles, dtype=np.float64)
+    grow = 1e-9
+    if sheet:
+        normals = np.asarray(solid.mesh.face_normals, dtype=np.float64)
+        triangles = triangles + 1e-5 * float(grid.spacing.min()) * normals[:, None, :]
+        grow = -1e-6
     mark = np.zeros(grid.shape, dtype=bool)
-    _mark_touched(np.ascontiguousarray(solid.mesh.triangles), grid.origin, grid.spacing,
+    _mark_touched(np.ascontiguousarray(triangles), grid.origin, grid.spacing,
                   np.asarray(grid.shape, dtype=np.int64), mark, grow)
     return mark
 
@@ -166,10 +175,10 @@ def _tri_box_overlap(v0, v1, v2, half) -> bool:
 
 
 @kernel
-def _mark_touched(tri, origin, spacing, shape, mark, grow=1e-9):
+def _mark_touched(tri, origin, spacing, shape, mark, grow):
     """Mark cells that a triangle overlaps (exact separating-axis test per cell, each
-    cell grown by the relative ``grow``: > 0 counts a triangle on a cell face, < 0
-    does not)."""
+    cell grown by the relative ``grow``: > 0 counts a triangle lying in a cell face,
+    < 0 does not)."""
     half = 0.5 * spacing * (1.0 + grow)
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
