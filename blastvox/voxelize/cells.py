@@ -43,15 +43,14 @@ class CellSet:
 
     ijk: (K, 3) int64 lattice indices in C order; part: (K,) index into the
     solids; inside: (K,) centre inside a solid; touched: (K,) the surface passes
-    through the cell (conform candidates); sheet: (K,) a sheet part's cell (a whole
-    cell, not a conform candidate); sheet_parts: indices of the solids that are sheets.
+    through the cell (conform candidates; never a sheet's cell, which is whole);
+    sheet_parts: indices of the solids that are sheets.
     """
 
     ijk: np.ndarray
     part: np.ndarray
     inside: np.ndarray
     touched: np.ndarray
-    sheet: np.ndarray
     sheet_parts: list[int]
 
 
@@ -124,7 +123,7 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
     # a touched cell outside every part: give it the part whose surface touched it first
     part = np.where(part < 0, 0, part)
     return CellSet(ijk=ijk.astype(np.int64), part=part.astype(np.int64),
-                   inside=occupied[chosen], touched=touched[chosen], sheet=sheet[chosen],
+                   inside=occupied[chosen], touched=touched[chosen],
                    sheet_parts=[index for index, _ in sheets])
 
 
