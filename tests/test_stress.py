@@ -231,3 +231,28 @@ def test_brick_roof_over_a_3_6_m_span_cracks_under_its_own_weight(tmp_path):
             assert run.stress.broken > 0, (run.stress.broken, sag)
         else:
             assert run.stress.broken == 0 and sag < 0.02, (run.stress.broken, sag)
+
+
+def test_small_graph_components_are_numbered_as_scipy_numbers_them() -> None:
+    """stress.components labels small graphs with NumPy; the solve's node order (and so
+    its floating-point sums) depends on the numbering, which must be SciPy's."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    @settings(max_examples=300, deadline=None)
+    @given(st.integers(1, 40).flatmap(lambda m: st.tuples(
+        st.just(m), st.lists(st.tuples(st.integers(0, m - 1), st.integers(0, m - 1)),
+                             max_size=3 * m))))
+    def check(case: tuple[int, list[tuple[int, int]]]) -> None:
+        m, edges = case
+        a = np.array([e[0] for e in edges], dtype=np.int64)
+        b = np.array([e[1] for e in edges], dtype=np.int64)
+        want = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(m, m)),
+                                    directed=False)
+        got = stress.components(m, a, b)
+        assert got[0] == want[0]
+        np.testing.assert_array_equal(got[1], want[1])
+
+    check()

@@ -165,9 +165,6 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
     """Group the voxels flagged in voxel_in (N,) into nodes by ``voxel_key`` (N, 5)
     int64 (body, foundation flag, cell i, j, k) and connectivity, and the alive links
     between nodes into interfaces. mass (N,) kg and centroid (N, 3) m of the voxels."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     n = len(voxel_in)
     inside = np.flatnonzero(voxel_in)
     local = np.full(n, -1, dtype=np.int64)
@@ -176,10 +173,7 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
     alive = np.flatnonzero(link_alive & ends_in)
     a, b = link_voxels[alive, 0], link_voxels[alive, 1]
     same = (voxel_key[a] == voxel_key[b]).all(axis=1)
-    m = len(inside)
-    graph = coo_matrix((np.ones(int(same.sum())), (local[a[same]], local[b[same]])),
-                       shape=(m, m))
-    count, labels = connected_components(graph, directed=False)
+    count, labels = components(len(inside), local[a[same]], local[b[same]])
     node = np.full(n, -1, dtype=np.int64)
     node[inside] = labels
     node_mass = np.bincount(labels, weights=mass[inside], minlength=count)
@@ -199,6 +193,35 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
         springs, across, interface, sign, len(pairs), pair, node_com)
     return Graph(node, node_mass, node_com, node_fixed, pair, centre, direction, area, length,
                  trans, rot, across, interface, sign)
+
+
+#: Graphs up to this many nodes are labelled with NumPy (SciPy's call costs more)
+SMALL_GRAPH = 512
+
+
+def components(m: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of m nodes joined by edges (a[i], b[i]): their count and
+    each node's label (m,), numbered in the order of each component's smallest node,
+    as scipy.sparse.csgraph.connected_components numbers them. Small graphs (an
+    impact's few voxels) by minimum-label propagation with pointer jumping."""
+    if m > SMALL_GRAPH:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(m, m))
+        return connected_components(graph, directed=False)
+    label = np.arange(m)
+    while True:
+        low = np.minimum(label[a], label[b])
+        lower = label.copy()
+        np.minimum.at(lower, a, low)
+        np.minimum.at(lower, b, low)
+        lower = lower[lower]  # each label is a node of its component: jump to its label
+        if np.array_equal(lower, label):
+            break
+        label = lower
+    roots, labels = np.unique(label, return_inverse=True)
+    return len(roots), labels.astype(np.int32)
 
 
 def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
