@@ -16,10 +16,9 @@ import sys as _sys
 
 __version__ = "0.1.0"
 
-#: numpy's AVX-512 dispatch targets: numpy >= 2.4 names and older names (numpy ignores
-#: names it does not know)
-AVX512_FEATURES = ("X86_V4 AVX512F AVX512CD AVX512_KNL AVX512_KNM AVX512_SKX AVX512_CLX "
-                   "AVX512_CNL AVX512_ICL AVX512_SPR")
+#: numpy's AVX-512 dispatch targets, as numpy >= 2.4 names them (a name numpy does not
+#: dispatch would be an ImportWarning, hence pyproject's numpy >= 2.4)
+AVX512_FEATURES = "X86_V4 AVX512_ICL AVX512_SPR"
 
 if "numpy" not in _sys.modules:
     _os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", AVX512_FEATURES)

@@ -86,7 +86,8 @@ def test_blastvox_keeps_numpy_off_its_avx512_loops() -> None:
             "from numpy._core import _multiarray_umath as m\n"
             "print([t for t in m.__cpu_dispatch__ if m.__cpu_features__.get(t)])\n")
     env = {k: v for k, v in os.environ.items() if k != "NPY_DISABLE_CPU_FEATURES"}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env=env, timeout=120, check=True)
+    # -W error: a name numpy does not dispatch would be an ImportWarning
+    done = subprocess.run([sys.executable, "-W", "error", "-c", code], capture_output=True,
+                          text=True, env=env, timeout=120, check=True)
     enabled = done.stdout.strip()
     assert "AVX512" not in enabled and "X86_V4" not in enabled, enabled
