@@ -197,3 +197,23 @@ def test_a_soup_part_is_still_skipped_and_its_material_map_entry_said(tmp_path: 
     assert any("skipped" in s and "triangle soup" in s for s in said), said
     assert any("entry 'junk' matches only parts that were skipped" in s for s in said), said
     assert model.meta["materials"] == ["concrete"]
+
+
+def test_a_file_of_open_parts_only_is_refused_in_one_line(tmp_path: Path) -> None:
+    """Two panes and no closed part: nothing to hang the sheets on. One error line,
+    no sheet warnings before it, no output."""
+    scene = trimesh.Scene()
+    for k, y in enumerate((0.03, 0.53)):
+        pane = trimesh.Trimesh(vertices=[[0, y, 0], [1, y, 0], [1, y, 1], [0, y, 1]],
+                               faces=[[0, 1, 2], [0, 2, 3]])
+        scene.add_geometry(pane, node_name=f"pane{k}", geom_name=f"pane{k}")
+    path = tmp_path / "panes.glb"
+    scene.export(path)
+    out = tmp_path / "m.npz"
+    done = subprocess.run([sys.executable, "-m", "blastvox", "voxelize", str(path), "-o",
+                           str(out), "--voxel-size", "0.1"], capture_output=True, text=True,
+                          timeout=600, check=False)
+    assert done.returncode == 1 and not out.exists()
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert "panes.glb: no part encloses a volume" in lines[0] and "sheets" in lines[0]

@@ -95,10 +95,7 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
         except MeshError:
             if len(solids) == 1:
                 raise
-            mark = _touched_cells(solid, grid, sheet=True)
-            warn(f"{solid.label}: an open surface ({solid.report.open_edges} open edges): "
-                 f"voxelized as a sheet one voxel deep ({int(mark.sum()):,} cells)")
-            sheets.append((index, mark))
+            sheets.append((index, _touched_cells(solid, grid, sheet=True)))
             continue
         kept += 1
         occupied |= inside
@@ -110,7 +107,11 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
             owner[closer & (owner < 0)] = index
         best = np.maximum(best, winding)
     if kept == 0:
-        raise MeshError(f"{printable(solids[0].part.source)}: no part encloses a volume")
+        raise MeshError(f"{printable(solids[0].part.source)}: no part encloses a volume "
+                        f"(open surfaces become sheets only beside a closed part)")
+    for index, mark in sheets:
+        warn(f"{solids[index].label}: an open surface ({solids[index].report.open_edges} open "
+             f"edges): voxelized as a sheet one voxel deep ({int(mark.sum()):,} cells)")
     sheet = np.zeros(grid.shape, dtype=bool)
     for index, mark in sheets:  # a pane owns its cells, inside another part or not
         sheet |= mark
