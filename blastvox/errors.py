@@ -48,7 +48,16 @@ class WedgeError(BlastvoxError):
     budget, or a Dask scheduler that cannot be reached."""
 
 
-class SimulationLimitWarning(UserWarning):
+class BlastvoxWarning(UserWarning):
+    """A warning the CLI prints as one ``blastvox: warning: <message>`` line."""
+
+
+class ExportWarning(BlastvoxWarning):
+    """An export that is valid but that its client will handle badly (Blender's glTF
+    import of thousands of nodes)."""
+
+
+class SimulationLimitWarning(BlastvoxWarning):
     """A run's settings go beyond what the simulator can honour (see blastvox.simulate.limits).
 
     Issued once per limit and run; the CLI prints it as ``blastvox: warning: <message>``.

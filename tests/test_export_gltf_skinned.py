@@ -130,3 +130,38 @@ def test_layouts_belong_to_their_format(house: SimCache, tmp_path: Path) -> None
     with pytest.raises(BlastvoxError, match=r"instancer is USD only"):
         export(house, tmp_path / "shot.glb", ExportOptions(layout="instancer"))
     assert not list(tmp_path.iterdir())
+
+
+def test_many_nodes_warn_and_point_to_the_skinned_layout(house: SimCache, tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch
+                                                         ) -> None:
+    """Above GLTF_NODE_WARNING pieces a node-per-piece glTF warns (Blender imports it in
+    minutes); the skinned layout and USD do not. The house (72 pieces) with the
+    threshold lowered to 50 stands in for a 17k-piece shot."""
+    import io
+    import warnings
+
+    from rich.console import Console
+
+    from blastvox.cli.console import limit_warnings
+    from blastvox.errors import ExportWarning
+    from blastvox.export import api
+
+    monkeypatch.setattr(api, "GLTF_NODE_WARNING", 50)
+    with pytest.warns(ExportWarning, match=r"72 pieces, a glTF node each.*--layout skinned"):
+        export(house, tmp_path / "nodes.glb", ExportOptions())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ExportWarning)
+        export(house, tmp_path / "skinned.glb", ExportOptions(layout="skinned"))
+        export(house, tmp_path / "shot.usda", ExportOptions())
+    monkeypatch.setattr(api, "GLTF_NODE_WARNING", 72)  # the threshold itself is fine
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ExportWarning)
+        export(house, tmp_path / "nodes72.glb", ExportOptions())
+    monkeypatch.setattr(api, "GLTF_NODE_WARNING", 50)
+    text = io.StringIO()
+    with limit_warnings(Console(file=text, width=10_000)):  # how the CLI prints it
+        export(house, tmp_path / "cli.glb", ExportOptions())
+    lines = text.getvalue().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("blastvox: warning: "), lines
+    assert "cli.glb: 72 pieces" in lines[0]

@@ -20,25 +20,26 @@ def err_console() -> Any:
 
 @contextmanager
 def limit_warnings(console: Any) -> Iterator[None]:
-    """Print each :class:`~blastvox.errors.SimulationLimitWarning` raised inside as one
-    ``blastvox: warning: <message>`` line on ``console`` (stderr), each message once;
-    other warnings go to Python's usual handler."""
+    """Print each :class:`~blastvox.errors.BlastvoxWarning` (a simulation limit, an
+    export a client handles badly) raised inside as one ``blastvox: warning:
+    <message>`` line on ``console`` (stderr), each message once; other warnings go
+    to Python's usual handler."""
     import warnings
 
-    from blastvox.errors import SimulationLimitWarning
+    from blastvox.errors import BlastvoxWarning
 
     seen: set[str] = set()
     show = warnings.showwarning
 
     def showwarning(message, category, filename, lineno, file=None, line=None) -> None:
-        if not issubclass(category, SimulationLimitWarning):
+        if not issubclass(category, BlastvoxWarning):
             show(message, category, filename, lineno, file, line)
         elif str(message) not in seen:
             seen.add(str(message))
             console.print(f"blastvox: warning: {message}", markup=False, highlight=False)
 
     with warnings.catch_warnings():
-        warnings.simplefilter("always", SimulationLimitWarning)
+        warnings.simplefilter("always", BlastvoxWarning)
         warnings.showwarning = showwarning
         yield
 

@@ -19,6 +19,9 @@ __all__ = ["ExportOptions", "GLTF_SUFFIXES", "USD_SUFFIXES", "export"]
 
 USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
 GLTF_SUFFIXES = (".gltf", ".glb")
+#: pieces above which a node-per-piece glTF warns: Blender's importer slows down with
+#: the square of the node count (docs/benchmarks.md, "Export at scale")
+GLTF_NODE_WARNING = 2000
 
 
 def export(cache: SimCache, path: str | Path, options: ExportOptions | None = None) -> None:
@@ -44,6 +47,15 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
         if options.layout == "instancer":
             raise BlastvoxError(f"{path}: --layout instancer is USD only; glTF takes xforms "
                                 f"(a node per piece) or skinned (one mesh, a joint per piece)")
+        if options.layout == "xforms" and cache.piece_count > GLTF_NODE_WARNING:
+            import warnings
+
+            from blastvox.errors import ExportWarning
+
+            warnings.warn(f"{path}: {cache.piece_count:,} pieces, a glTF node each: Blender's "
+                          f"importer slows down with the square of the node count (17,684 "
+                          f"nodes: over 150 s); --layout skinned (17,684 pieces: about 35 s) "
+                          f"or a .usdc (13 s) imports faster", ExportWarning, stacklevel=2)
         from blastvox.export.gltf import write_gltf
 
         write_gltf(cache, path, options)
