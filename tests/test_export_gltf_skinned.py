@@ -143,7 +143,7 @@ def test_many_nodes_warn_and_point_to_the_skinned_layout(house: SimCache, tmp_pa
 
     from rich.console import Console
 
-    from blastvox.cli.console import limit_warnings
+    from blastvox.cli.console import cli_warnings
     from blastvox.errors import ExportWarning
     from blastvox.export import api
 
@@ -160,7 +160,7 @@ def test_many_nodes_warn_and_point_to_the_skinned_layout(house: SimCache, tmp_pa
         export(house, tmp_path / "nodes72.glb", ExportOptions())
     monkeypatch.setattr(api, "GLTF_NODE_WARNING", 50)
     text = io.StringIO()
-    with limit_warnings(Console(file=text, width=10_000)):  # how the CLI prints it
+    with cli_warnings(Console(file=text, width=10_000)):  # how the CLI prints it
         export(house, tmp_path / "cli.glb", ExportOptions())
     lines = text.getvalue().splitlines()
     assert len(lines) == 1 and lines[0].startswith("blastvox: warning: "), lines

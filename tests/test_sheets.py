@@ -27,6 +27,17 @@ PANE_AREA = 1.0  # m², the pane is 1 x 1 m
 GLASS_DENSITY = 2500.0  # kg/m³, the library's glass
 
 
+def _glb(path: Path, parts: dict[str, tuple[trimesh.Trimesh, str]]) -> Path:
+    """Write ``parts`` (node name -> (mesh, glTF material name)) as one glTF file."""
+    scene = trimesh.Scene()
+    for name, (mesh, material) in parts.items():
+        mesh.visual = trimesh.visual.TextureVisuals(
+            material=trimesh.visual.material.PBRMaterial(name=material))
+        scene.add_geometry(mesh, node_name=name, geom_name=name)
+    scene.export(path)
+    return path
+
+
 def _box_and_pane(path: Path, y: float = 0.03) -> Path:
     """A 2 x 1 x 0.5 m box on z = 0 and, standing on its top, a 1 x 1 m pane in the
     plane y (0.03: inside a cell of a 0.1 or 0.05 m lattice; 0: on a cell face)."""
@@ -34,15 +45,7 @@ def _box_and_pane(path: Path, y: float = 0.03) -> Path:
     box.apply_translation((0.0, 0.0, 0.25))
     pane = trimesh.Trimesh(vertices=[[-0.5, y, 0.5], [0.5, y, 0.5], [0.5, y, 1.5],
                                      [-0.5, y, 1.5]], faces=[[0, 1, 2], [0, 2, 3]])
-    box.visual = trimesh.visual.TextureVisuals(
-        material=trimesh.visual.material.PBRMaterial(name="body"))
-    pane.visual = trimesh.visual.TextureVisuals(
-        material=trimesh.visual.material.PBRMaterial(name="pane"))
-    scene = trimesh.Scene()
-    scene.add_geometry(box, node_name="box", geom_name="box")
-    scene.add_geometry(pane, node_name="pane", geom_name="pane")
-    scene.export(path)
-    return path
+    return _glb(path, {"box": (box, "body"), "pane": (pane, "pane")})
 
 
 @pytest.fixture(scope="module")
@@ -181,15 +184,7 @@ def test_a_soup_part_is_still_skipped_and_its_material_map_entry_said(tmp_path: 
     corners = rng.uniform(-0.4, 0.4, size=(30, 3, 3))
     soup = trimesh.Trimesh(vertices=corners.reshape(-1, 3),
                            faces=np.arange(90).reshape(-1, 3), process=False)
-    box.visual = trimesh.visual.TextureVisuals(
-        material=trimesh.visual.material.PBRMaterial(name="body"))
-    soup.visual = trimesh.visual.TextureVisuals(
-        material=trimesh.visual.material.PBRMaterial(name="junk"))
-    scene = trimesh.Scene()
-    scene.add_geometry(box, node_name="box", geom_name="box")
-    scene.add_geometry(soup, node_name="junk", geom_name="junk")
-    path = tmp_path / "box_soup.glb"
-    scene.export(path)
+    path = _glb(tmp_path / "box_soup.glb", {"box": (box, "body"), "junk": (soup, "junk")})
     said: list[str] = []
     model = voxelize([ObjectRequest(mesh=path, voxel_size=(0.1,) * 3,
                                     material_map={"junk": "wood"}, chunk_size=0.0)],

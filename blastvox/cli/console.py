@@ -19,7 +19,7 @@ def err_console() -> Any:
 
 
 @contextmanager
-def limit_warnings(console: Any) -> Iterator[None]:
+def cli_warnings(console: Any) -> Iterator[None]:
     """Print each :class:`~blastvox.errors.BlastvoxWarning` (a simulation limit, an
     export a client handles badly) raised inside as one ``blastvox: warning:
     <message>`` line on ``console`` (stderr), each message once; other warnings go

@@ -40,7 +40,7 @@ def export(
 ) -> None:
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
     from blastvox.cache import SimCache
-    from blastvox.cli.console import err_console, limit_warnings
+    from blastvox.cli.console import cli_warnings, err_console
     from blastvox.export.api import ExportOptions
     from blastvox.export.api import export as run
     from blastvox.io.outputs import check_distinct, check_output
@@ -52,7 +52,7 @@ def export(
         check_distinct([("-o", output), ("its .bin", output.with_name(output.stem + ".bin"))])
     started = time.perf_counter()
     cache = SimCache.load(cache_path)
-    with limit_warnings(err_console()):
+    with cli_warnings(err_console()):
         run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value,
                                            shock=shock, damage_textures=damage_textures))
     if not quiet:

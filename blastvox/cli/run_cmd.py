@@ -20,7 +20,7 @@ def run(
     A stage is up to date when its output is newer than all its inputs (like
     make). Outputs are written atomically.
     """
-    from blastvox.cli.console import err_console, limit_warnings
+    from blastvox.cli.console import cli_warnings, err_console
     from blastvox.shot import run_scene
 
     console = err_console()
@@ -30,7 +30,7 @@ def run(
         if not quiet:
             console.print(message, markup=False, highlight=False)
 
-    with limit_warnings(console):
+    with cli_warnings(console):
         ran = run_scene(scene, force=force, log=log,
                         warn=lambda m: console.print(f"warning: {m}", markup=False))
     if ran and not quiet:

@@ -98,7 +98,7 @@ def simulate(
     """
     from dataclasses import replace
 
-    from blastvox.cli.console import err_console, limit_warnings
+    from blastvox.cli.console import cli_warnings, err_console
     from blastvox.model import VoxelModel
     from blastvox.simulate.engine import simulate as run
     from blastvox.simulate.settings import (
@@ -162,7 +162,7 @@ def simulate(
     started = time.perf_counter()
     progress = _Progress(enabled=not quiet and console.is_terminal, console=console,
                          notes=not quiet)
-    with progress, limit_warnings(console):
+    with progress, cli_warnings(console):
         cache = run(model, settings, progress=progress,
                     warn=lambda m: console.print(f"warning: {m}", markup=False))
     cache.save(output)

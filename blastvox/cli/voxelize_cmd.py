@@ -183,8 +183,9 @@ def voxelize(
                                   shape=shape.value, jitter=jitter, material=material,
                                   chunk_size=chunk_size,
                                   part_bond=1.0 if part_bond is None else part_bond,
-                                  anchored=anchored, **({} if sheet_thickness is None else
-                                                        {"sheet_thickness": sheet_thickness}))
+                                  anchored=anchored,
+                                  sheet_thickness=DEFAULT_SHEET_THICKNESS_M
+                                  if sheet_thickness is None else sheet_thickness)
                     for m in meshes]
         settings = VoxelizeSettings(up_axis=up_axis.value if up_axis else "Y",
                                     ground=ground_value,

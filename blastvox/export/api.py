@@ -53,9 +53,9 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
             from blastvox.errors import ExportWarning
 
             warnings.warn(f"{path}: {cache.piece_count:,} pieces, a glTF node each: Blender's "
-                          f"importer slows down with the square of the node count (17,684 "
-                          f"nodes: over 150 s); --layout skinned (17,684 pieces: about 35 s) "
-                          f"or a .usdc (13 s) imports faster", ExportWarning, stacklevel=2)
+                          f"importer slows down with the square of the node count; --layout "
+                          f"skinned or a .usdc imports several times faster "
+                          f"(docs/benchmarks.md, Export at scale)", ExportWarning, stacklevel=2)
         from blastvox.export.gltf import write_gltf
 
         write_gltf(cache, path, options)
