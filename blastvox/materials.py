@@ -77,6 +77,9 @@ class Material:
             solver, :mod:`blastvox.simulate.stress`); ``inf`` = never.
         youngs_modulus: Pa; the links' stiffness, which shares loads between the
             paths of a statically indeterminate structure.
+        crush_pressure: Pa; under pressure-impulse fracture, the face or impact
+            pressure below which a voxel never turns to dust (its compressive
+            strength for a quasi-brittle solid); 0 = the voxel yield alone decides.
         chunk_size: m; mean size of the chunks voxelize groups voxels into (0 =
             every voxel its own chunk).
         chunk_weibull: Weibull modulus of the chunk volumes (large = uniform).
@@ -105,6 +108,7 @@ class Material:
     tensile_strength: float = math.inf
     shear_strength: float = math.inf
     youngs_modulus: float = 30e9
+    crush_pressure: float = 0.0
     chunk_size: float = 0.0
     chunk_weibull: float = 2.0
     chunk_bond_scale: float = 1.0
@@ -131,6 +135,7 @@ _FIELD_KINDS: dict[str, str] = {
     "tensile_strength": "strength",
     "shear_strength": "strength",
     "youngs_modulus": "modulus",
+    "crush_pressure": "threshold",
     "chunk_size": "length",
     "chunk_weibull": "weibull",
     "chunk_bond_scale": "bond_scale",
@@ -159,7 +164,7 @@ _BOUNDS: dict[str, Bound] = {
 }
 _OPTIONAL = ("description", "link_impulse", "voxel_impulse", "pi_shape",
              "compressive_strength", "tensile_strength", "shear_strength", "youngs_modulus",
-             "chunk_size", "chunk_weibull", "chunk_bond_scale", "damage_pattern")
+             "crush_pressure", "chunk_size", "chunk_weibull", "chunk_bond_scale", "damage_pattern")
 _REQUIRED = [k for k in _FIELD_KINDS if k not in _OPTIONAL]
 _SCALARS = [k for k, kind in _FIELD_KINDS.items() if kind not in ("rgb", "text", "pattern")]
 _TOML_POSITION = re.compile(r"\s*\(at (line \d+, column \d+|end of document)\)$")

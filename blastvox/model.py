@@ -140,7 +140,8 @@ MATERIAL_ARRAYS: dict[str, Spec] = {
     "material_link_impulse": (_F8, ("M",)), "material_voxel_impulse": (_F8, ("M",)),
     "material_pi_shape": (_F8, ("M",)), "material_compressive_strength": (_F8, ("M",)),
     "material_tensile_strength": (_F8, ("M",)), "material_shear_strength": (_F8, ("M",)),
-    "material_youngs_modulus": (_F8, ("M",)), "material_chunk_size": (_F8, ("M",)),
+    "material_youngs_modulus": (_F8, ("M",)), "material_crush_pressure": (_F8, ("M",)),
+    "material_chunk_size": (_F8, ("M",)),
     "material_chunk_weibull": (_F8, ("M",)), "material_chunk_bond_scale": (_F8, ("M",)),
     "material_color": (_F8, ("M", 3)),
     "material_damage_color": (_F8, ("M", 3)), "material_description": (np.str_, ("M",)),
@@ -152,8 +153,9 @@ OPTIONAL_MATERIAL_ARRAYS = ("material_link_impulse", "material_voxel_impulse",
                             "material_pi_shape", "material_description",
                             "material_compressive_strength", "material_tensile_strength",
                             "material_shear_strength", "material_youngs_modulus",
-                            "material_chunk_size", "material_chunk_weibull",
-                            "material_chunk_bond_scale", "material_damage_pattern")
+                            "material_crush_pressure", "material_chunk_size",
+                            "material_chunk_weibull", "material_chunk_bond_scale",
+                            "material_damage_pattern")
 #: Every member a VoxelModel file may hold besides ``meta``; others are never read.
 ARRAY_NAMES = (frozenset(_REQUIRED) | frozenset(OPTIONAL_ARRAYS) | frozenset(MATERIAL_ARRAYS)
                | frozenset(SURFACE_ARRAYS))
@@ -433,6 +435,7 @@ _MATERIAL_RANGES: dict[str, tuple[float, float | None, bool, bool]] = {
     "material_tensile_strength": (0.0, None, True, False),
     "material_shear_strength": (0.0, None, True, False),
     "material_youngs_modulus": (0.0, None, True, True),
+    "material_crush_pressure": (0.0, None, False, False),
     "material_chunk_size": (0.0, None, False, True),
     "material_chunk_weibull": (0.0, None, True, True),
     "material_chunk_bond_scale": (1.0, None, False, True),

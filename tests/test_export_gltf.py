@@ -43,9 +43,10 @@ def shot(tmp_path_factory: pytest.TempPathFactory) -> tuple[SimCache, Path]:
     trimesh.creation.box(extents=(2, 0.5, 2)).export(tmp / "wall.stl")
     model = voxelize([ObjectRequest(mesh=tmp / "wall.stl", voxel_size=(0.25,) * 3,
                                     material="brick")], VoxelizeSettings(up_axis="Z"))
-    # 10 kg: the wall breaks through (at 5 kg its freed face pieces stay pressed to it)
+    # 10 kg 0.75 m off the face: the wall breaks through, and its face crushes to dust
+    # (brick crushes above 7 MPa)
     cache = simulate(model, SimSettings(duration=0.5, fps=24,
-                                        charges=(ChargeSpec((0, -2.0, 1.0), 10.0),)))
+                                        charges=(ChargeSpec((0, -1.0, 1.0), 10.0),)))
     assert (cache.piece_end_frame < cache.frame_count).any(), "the shot needs vanished pieces"
     moved = np.linalg.norm(cache.piece_position[-1] - cache.piece_position[0], axis=-1)
     assert moved.max() > 0.05, "the shot needs a moving piece"

@@ -115,6 +115,7 @@ MATERIAL_UNITS: dict[str, str] = {
     "voxel_impulse": "Pa s",
     "pi_shape": "-",
     "compressive_strength": "Pa",
+    "crush_pressure": "Pa",
     "tensile_strength": "Pa",
     "shear_strength": "Pa",
     "youngs_modulus": "Pa",

@@ -195,6 +195,8 @@ class Run:
     def start(cls, model: VoxelModel, settings: SimSettings) -> Run:
         sm = build_model(model)
         state = initial_state(model, sm, ground=settings.ground)
+        if settings.fracture == "pressure-impulse":  # only a crushing pressure pulverizes
+            np.maximum(state.voxels.yield_pa, sm.strength.crush_pa, out=state.voxels.yield_pa)
         charges = build_charges(settings.charges, sm.up,
                                 sm.ground_height if settings.ground else None)
         dt = settings.step_seconds()

@@ -196,7 +196,9 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
                 owner = link_voxels[link, 0]
                 i0 = (strength.link_impulse[owner] * strength.link_factor[link] * thick
                       / REFERENCE_THICKNESS)
-                breaks = pi_exceeded(peak, imp, limit, i0, strength.pi_shape[owner])
+                # a chunk of a material that crushes comes apart only as dust
+                breaks = not strength.inner[link] and pi_exceeded(
+                    peak, imp, limit, i0, strength.pi_shape[owner])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
                 breaks = peak > limit
@@ -418,11 +420,42 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                            _candidates(model, state, model.link_grid, state.scratch.link_owner,
                                        state.scratch.link_candidate, front), marks,
                            model.strength, exposure)
+    if params.pressure_impulse and n:
+        n += whole_interfaces(model, state)
     state.counters.broken_links += int(n)
     if released:
         refresh_fixed(state.voxels, state.bodies)
         if state.holding:
             release_held(model.voxels, state.voxels, state.bodies, state.loads)
+
+
+#: A crack that has run through this fraction of an interface between two chunks runs
+#: through the rest of it (what is left carries the load the broken part shed).
+INTERFACE_RUN = 0.5
+
+
+def whole_interfaces(model, state) -> int:
+    """Break the rest of every chunk interface (model.strength.interface) whose links
+    the step broke (marks.broken) up to :data:`INTERFACE_RUN` of them; returns how
+    many links it broke (marked like the fracture's, their bodies dirty)."""
+    interface, marks, alive = model.strength.interface, state.marks, state.links.alive
+    hit = np.unique(interface[marks.broken])
+    hit = hit[hit >= 0]
+    if not hit.size:
+        return 0
+    links = np.flatnonzero(np.isin(interface, hit))
+    group = np.searchsorted(hit, interface[links])
+    ends = model.links.voxels[links]  # a link of a voxel dusted this step is gone too
+    still = alive[links] & state.voxels.alive[ends[:, 0]] & state.voxels.alive[ends[:, 1]]
+    total = np.bincount(group, minlength=hit.size)
+    standing = np.bincount(group, weights=still, minlength=hit.size)
+    run = links[still & (standing[group] <= (1.0 - INTERFACE_RUN) * total[group])]
+    if not run.size:
+        return 0
+    alive[run] = False
+    marks.broken[run] = True
+    marks.dirty[state.voxels.body[model.links.voxels[run, 0]]] = True
+    return int(run.size)
 
 
 def _candidates(model, state, grid, owner, out, front) -> np.ndarray:

@@ -72,14 +72,22 @@ class LinkGeometry(NamedTuple):
 class Strength(NamedTuple):
     """Pressure-impulse strength of each voxel's material (N,): link_impulse and
     voxel_impulse, Pa s, the impulse asymptotes for a 0.25 m element; pi_shape,
-    K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`); link_factor
+    K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`); crush_pa, Pa,
+    the pressure below which the voxel never turns to dust (0: none); link_factor
     (L,): each link's strength relative to its material (:func:`link_strength_factor`),
-    which scales its impulse asymptote as its yield."""
+    which scales its impulse asymptote as its yield; inner (L,) bool: the link holds
+    together a chunk (both voxels in one chunk of ``voxel_chunk``) of a material that
+    crushes (crush_pa > 0): neither the blast nor an impact breaks it; interface (L,)
+    int64: the interface between two chunks a link crosses, numbered from 0 in order
+    of the pair of chunk ids (-1: an inner link, or a model without chunks)."""
 
     link_impulse: np.ndarray
     voxel_impulse: np.ndarray
     pi_shape: np.ndarray
+    crush_pa: np.ndarray
     link_factor: np.ndarray
+    inner: np.ndarray
+    interface: np.ndarray
 
 
 def link_strength_factor(arrays: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -191,8 +199,19 @@ def _strength(arrays: dict) -> Strength:
         return np.ascontiguousarray(np.asarray(values, dtype=np.float64)[material])
 
     factor, _ = link_strength_factor(arrays)
+    crush = column("crush_pressure")
+    ends = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
+    inner = np.zeros(len(ends), dtype=bool)
+    interface = np.full(len(ends), -1, dtype=np.int64)
+    if "voxel_chunk" in arrays:
+        chunk = np.asarray(arrays["voxel_chunk"], dtype=np.int64)[ends]
+        within = chunk[:, 0] == chunk[:, 1]
+        pair = np.sort(chunk[~within], axis=1)
+        inner = within & (crush[ends[:, 0]] > 0.0)
+        interface[~within] = np.unique(pair[:, 0] * (int(chunk.max(initial=0)) + 1) + pair[:, 1],
+                                      return_inverse=True)[1]
     return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"),
-                    np.ascontiguousarray(factor))
+                    crush, np.ascontiguousarray(factor), inner, interface)
 
 
 @kernel

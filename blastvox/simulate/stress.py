@@ -590,7 +590,9 @@ def impact_phase(model, state, stress: Stress, lin_before: np.ndarray,
     Goldsmith 1960, "Impact", ch. 2): it decelerates at a = dv / tau. Its voxels
     carry the inertial load -m a to the voxels in contact (within one voxel of its
     face towards the contact), solved as for gravity; every link past its limit
-    breaks. The solve is linear in its load, so a body that survived a larger
+    breaks, except links inside a chunk of a material that crushes (model.strength.inner):
+    such a chunk is the smallest piece of rubble.
+    The solve is linear in its load, so a body that survived a larger
     impact from the same side (:data:`SAME_SIDE`) with the same voxels is not
     solved again unless the scaled peak utilization reaches
     :data:`RESOLVE_UTILIZATION` (stress.survived). Weight is a sustained load, not an
@@ -657,10 +659,12 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
                      model.voxels.mass[members], model.voxels.centroid[members],
                      -acceleration * rest_dir)
     stress.solves += 1
-    broken = links[solution.links[solution.stress[:, 3] > 1.0]]
+    use = solution.stress[:, 3]
+    between = ~model.strength.inner[links[solution.links]]  # a chunk never shatters
+    broken = links[solution.links[(use > 1.0) & between]]
     if not broken.size:
         if known is None or acceleration > known[2]:
-            peak = float(solution.stress[:, 3].max(initial=0.0))
+            peak = float(use[between].max(initial=0.0))
             stress.survived[b] = (members.size, rest_dir, acceleration, peak)
         return False
     stress.survived.pop(b, None)
