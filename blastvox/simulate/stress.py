@@ -650,6 +650,8 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
             and known[3] * acceleration / known[2] < RESOLVE_UTILIZATION):
         return False
     links, ends = links_among(model, members)  # the body alone, renumbered
+    if model.strength.inner[links].all():
+        return False  # one chunk of a material that crushes: nothing an impact can break
     voxel_in = np.ones(members.size, dtype=bool)
     fixed = along <= along.min() + 0.5 * size
     chunk = None if stress.chunk is None else stress.chunk[members]
