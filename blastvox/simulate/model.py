@@ -73,7 +73,10 @@ class Strength(NamedTuple):
     """Pressure-impulse strength of each voxel's material (N,): link_impulse and
     voxel_impulse, Pa s, the impulse asymptotes for a 0.25 m element; pi_shape,
     K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`); crush_pa, Pa,
-    the pressure below which the voxel never turns to dust (0: none); link_factor
+    the pressure below which the voxel never turns to dust: its material's
+    crush_pressure if the voxel is part of a chunk of several voxels, else 0 (a voxel
+    as large as the material's fragments turns to debris finer than itself, dust,
+    whenever it fails); link_factor
     (L,): each link's strength relative to its material (:func:`link_strength_factor`),
     which scales its impulse asymptote as its yield; inner (L,) bool: the link holds
     together a chunk (both voxels in one chunk of ``voxel_chunk``) of a material that
@@ -203,8 +206,14 @@ def _strength(arrays: dict) -> Strength:
     ends = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
     inner = np.zeros(len(ends), dtype=bool)
     interface = np.full(len(ends), -1, dtype=np.int64)
-    if "voxel_chunk" in arrays:
-        chunk = np.asarray(arrays["voxel_chunk"], dtype=np.int64)[ends]
+    if "voxel_chunk" not in arrays:
+        crush[:] = 0.0
+    else:
+        # a voxel that is a whole chunk is the material's fragment size or larger: when
+        # it fails it breaks into debris finer than itself (dust) without crushing
+        voxel_chunk = np.asarray(arrays["voxel_chunk"], dtype=np.int64)
+        crush[np.bincount(voxel_chunk)[voxel_chunk] < 2] = 0.0
+        chunk = voxel_chunk[ends]
         within = chunk[:, 0] == chunk[:, 1]
         pair = np.sort(chunk[~within], axis=1)
         inner = within & (crush[ends[:, 0]] > 0.0)
