@@ -17,6 +17,7 @@ from blastvox.bounds import (
     MAX_PARTICLES,
     MAX_STEPS,
 )
+from blastvox.cli.entry import check_interrupt
 from blastvox.errors import BlastvoxError
 
 
@@ -206,6 +207,7 @@ class _Progress:
             self.console.print(line, markup=False, highlight=False)
 
     def update(self, sim_time: float, done: int, total: int) -> None:
+        check_interrupt()  # one that library code swallowed stops the run here
         if not self.enabled:
             return
         if self._bar is None:
