@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import trimesh
 from bad_input import assert_clean_failure, run_blastvox, unchanged
+from shapes import standing_box
 
 from blastvox.errors import ContractError
 from blastvox.materials import MaterialLibrary
@@ -29,11 +30,7 @@ from blastvox.voxelize.regions import RegionRule
 @pytest.fixture(scope="module")
 def wall(tmp_path_factory) -> Path:
     """A 4 x 0.4 x 3 m wall standing on z = 0 (4,800 voxels of 0.1 m)."""
-    path = tmp_path_factory.mktemp("chunks") / "wall.stl"
-    mesh = trimesh.creation.box(extents=(4.0, 0.4, 3.0))
-    mesh.apply_translation((0.0, 0.0, 1.5))
-    mesh.export(path)
-    return path
+    return standing_box(tmp_path_factory.mktemp("chunks") / "wall.stl", (4.0, 0.4, 3.0))
 
 
 def _model(mesh: Path, chunk_size: float | None = None, seed: int = 0,

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from shapes import standing_box
 
 from blastvox.blast.kingery_bulmash import AIR, SURFACE, burst_parameters
 from blastvox.materials import MaterialLibrary
@@ -45,10 +46,7 @@ def _model(tmp_path: Path, boxes, size: float, material: str = "solid", ground=N
 def _founded_wall(tmp_path: Path, material: str):
     """A 3 x 3 m wall, 0.25 m thick (one 0.25 m voxel), standing on the ground at x = 0;
     no chunks (chunk_size 0): the calibration is of one link's pressure-impulse curve."""
-    path = tmp_path / "wall.stl"
-    mesh = trimesh.creation.box(extents=(0.25, 3.0, 3.0))
-    mesh.apply_translation((0.0, 0.0, 1.5))
-    mesh.export(path)
+    path = standing_box(tmp_path / "wall.stl", (0.25, 3.0, 3.0))
     return voxelize([ObjectRequest(mesh=path, voxel_size=(0.25,) * 3, material=material,
                                    chunk_size=0.0)],
                     VoxelizeSettings(up_axis="Z", ground="auto"))

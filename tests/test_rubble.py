@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
+from shapes import standing_box
 
 from blastvox.cache import moved_pieces
 from blastvox.simulate.engine import simulate
@@ -31,11 +31,7 @@ CHUNKY_VOXELS = 8  #: the issue's "pieces of 8 voxels or more"
 
 @pytest.fixture(scope="module")
 def wall(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("rubble") / "wall.obj"
-    mesh = trimesh.creation.box(extents=(3.0, 0.3, 2.5))
-    mesh.apply_translation((0.0, 0.0, 1.25))
-    mesh.export(path)
-    return path
+    return standing_box(tmp_path_factory.mktemp("rubble") / "wall.obj", (3.0, 0.3, 2.5))
 
 
 def _shot(wall: Path, kg: float, chunk_size: float | None = None) -> dict:
