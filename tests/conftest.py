@@ -8,6 +8,8 @@ concurrently, so the session starts by compiling them once, in-process.
 
 from __future__ import annotations
 
+import signal
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -94,3 +96,17 @@ def shattered_slab(tmp_path_factory: pytest.TempPathFactory):
                                         camera=((0.3, -2.0, 1.4), (0.0, 0.0, 0.4), 35.0)))
     assert cache.piece_count > 20
     return cache
+
+
+@pytest.fixture(autouse=True)
+def signal_handlers_restored(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Every test leaves SIGINT's and SIGTERM's handlers as it found them: a test that
+    leaves SIGINT ignored makes every later signal test of its xdist worker fail (a
+    subprocess inherits the ignored signal), far from the cause. This names the cause."""
+    watched = (signal.SIGINT, signal.SIGTERM)
+    before = {s: signal.getsignal(s) for s in watched}
+    yield
+    changed = {s: signal.getsignal(s) for s in watched if signal.getsignal(s) is not before[s]}
+    for signum in changed:
+        signal.signal(signum, before[signum])
+    assert not changed, f"{request.node.nodeid} left the handlers {changed}, was {before}"
