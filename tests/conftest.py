@@ -100,13 +100,29 @@ def shattered_slab(tmp_path_factory: pytest.TempPathFactory):
 
 @pytest.fixture(autouse=True)
 def signal_handlers_restored(request: pytest.FixtureRequest) -> Iterator[None]:
-    """Every test leaves SIGINT's and SIGTERM's handlers as it found them: a test that
+    """Every test leaves SIGINT's and SIGTERM's handlers as it found them, in Python and
+    in the kernel (a C library can ignore a signal behind Python's back): a test that
     leaves SIGINT ignored makes every later signal test of its xdist worker fail (a
     subprocess inherits the ignored signal), far from the cause. This names the cause."""
     watched = (signal.SIGINT, signal.SIGTERM)
     before = {s: signal.getsignal(s) for s in watched}
+    ignored = _kernel_ignored()
     yield
     changed = {s: signal.getsignal(s) for s in watched if signal.getsignal(s) is not before[s]}
     for signum in changed:
         signal.signal(signum, before[signum])
     assert not changed, f"{request.node.nodeid} left the handlers {changed}, was {before}"
+    assert _kernel_ignored() == ignored, (
+        f"{request.node.nodeid} left the kernel's ignored signals {_kernel_ignored()}, "
+        f"was {ignored}")
+
+
+def _kernel_ignored() -> set[int]:
+    """SIGINT and SIGTERM if the kernel ignores them for this process (Linux), else {}."""
+    try:
+        line = next(x for x in Path("/proc/self/status").read_text().splitlines()
+                    if x.startswith("SigIgn:"))
+    except (OSError, StopIteration):
+        return set()
+    mask = int(line.split()[1], 16)
+    return {s for s in (signal.SIGINT, signal.SIGTERM) if mask >> (s - 1) & 1}

@@ -13,7 +13,7 @@ with moments about the two tangents bounded by the normal impulse times the
 patch's half extents, is exactly what forces at the patch corners can do, so a
 box rests on a face, tips over an edge and rolls on a corner. The rows, and
 the ground's (:mod:`blastvox.simulate.ground`), are solved together by
-:func:`~blastvox.simulate.kernels.solve_contacts`: sequential impulses, warm
+:func:`~blastvox.simulate.contact_solver.solve_contacts`: sequential impulses, warm
 started, restitution the smaller of the two voxels', Coulomb friction,
 penetration removed by moving bodies. Impacts weaken voxels; a voxel whose
 strength runs out turns to dust.
@@ -28,6 +28,7 @@ import numpy as np
 
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
+from blastvox.simulate.contact_solver import solve_contacts
 from blastvox.simulate.ground import (
     SLOP,
     ground_rows,
@@ -39,7 +40,6 @@ from blastvox.simulate.ground import (
     solver_params,
 )
 from blastvox.simulate.integrate import angular_velocity
-from blastvox.simulate.kernels import solve_contacts
 from blastvox.simulate.limits import voxel_size
 from blastvox.simulate.spatial_hash import (
     bucket,
@@ -417,7 +417,7 @@ def _clip(poly, src, n, axis, sign, limit, dst) -> int:
 def _wake_struck(rows, count, bodies, params) -> None:
     """Wake the sleeping bodies that the first ``count`` rows strike: approach faster
     than params.rest_speed (m/s), closing the gap (but params.slop) within the step,
-    as the solver's bounces (:func:`~blastvox.simulate.kernels.solve_contacts`). A gentle
+    as the solver's bounces (:func:`~blastvox.simulate.contact_solver.solve_contacts`). A gentle
     touch does
     not wake (debris creeping at about the sleep speed woke its resting neighbours every
     step, and they fell asleep again the next, for ever); an asleep body is immovable."""

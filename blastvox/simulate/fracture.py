@@ -213,12 +213,12 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
 
 
 @kernel
-def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, strength,
+def fracture_voxels(front, params, geometry, voxels, bodies, order, marks, strength,
                     exposure, loads) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
-    candidate (N,): voxels that can be in a shell, the only ones tested, in order
-    of the wave's arrival (see :func:`_arrival_order`); a voxel dusted under
+    order (K,) int64: the voxels a front crosses this step, the only ones tested, in
+    order of the wave's arrival (see :func:`arrival_order`); a voxel dusted under
     pressure-impulse fracture leaves the shielding grid at once, so the points
     behind it see the gap (the same whatever the step), and leaves with the net
     impulse of the wave on its face towards the charge in loads.held_p (N s,
@@ -235,11 +235,11 @@ def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, s
     voxel_alive, voxel_yield, voxel_body = voxels.alive, voxels.yield_pa, voxels.body
     voxel_foundation, voxel_foundation_yield = voxels.foundation, voxels.foundation_pa
     body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
-    active, destroyed, dirty, crossed = marks.active, marks.destroyed, marks.dirty, marks.crossed
+    destroyed, dirty, crossed = marks.destroyed, marks.dirty, marks.crossed
     released = 0
     n_charges = charge_pos.shape[0]
     centre = np.empty(3)
-    for v in _arrival_order(front, voxel_centroid, voxels, bodies, candidate, active):
+    for v in order:
         b = voxel_body[v]
         to_world_into(body_rot[b], body_pos[b], body_com[b], voxel_centroid[v], centre)
         cx, cy, cz = centre[0], centre[1], centre[2]
@@ -281,11 +281,19 @@ def fracture_voxels(front, params, geometry, voxels, bodies, candidate, marks, s
     return released
 
 
-@helper
-def _arrival_order(front, voxel_centroid, voxels, bodies, candidate, active):
-    """The alive candidate voxels of active bodies that a front crosses this step, in
-    order of the earliest crossing front's arrival time there (its time of
-    detonation plus the arrival time at that distance), ties by index."""
+def arrival_order(front, voxel_centroid, voxels, bodies, candidate, active) -> np.ndarray:
+    """The alive candidate voxels (candidate (N,) bool) of active bodies that a front
+    crosses this step, in order of the earliest crossing front's arrival time there
+    (its time of detonation plus the arrival time at that distance), ties by index:
+    (K,) int64. NumPy's stable sort, not numba's (which costs a first run 2 s of
+    compilation)."""
+    ids, when = _arrivals(front, voxel_centroid, voxels, bodies, candidate, active)
+    return ids[np.argsort(when, kind="stable")]
+
+
+@kernel
+def _arrivals(front, voxel_centroid, voxels, bodies, candidate, active):
+    """(ids (K,) int64 ascending, arrival times (K,) s) of :func:`arrival_order`."""
     n = voxel_centroid.shape[0]
     ids = np.empty(n, dtype=np.int64)
     when = np.empty(n)
@@ -308,8 +316,7 @@ def _arrival_order(front, voxel_centroid, voxels, bodies, candidate, active):
             ids[count] = v
             when[count] = first
             count += 1
-    order = np.argsort(when[:count], kind="mergesort")
-    return ids[:count][order]
+    return ids[:count], when[:count]
 
 
 @kernel
@@ -405,11 +412,12 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
     params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c,
                             s.fracture == "pressure-impulse")
     exposure = exposure_of(model, state, front.position, marks.active, gas)
-    released = fracture_voxels(
-        front, params, model.voxels, state.voxels, state.bodies,
-        _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
-                    state.scratch.voxel_candidate, front), marks, model.strength, exposure,
-        state.loads)
+    candidate = _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
+                            state.scratch.voxel_candidate, front)
+    order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
+                          marks.active)
+    released = fracture_voxels(front, params, model.voxels, state.voxels, state.bodies, order,
+                               marks, model.strength, exposure, state.loads)
     if params.pressure_impulse and marks.destroyed.any():
         state.holding = True  # the split hands the dust its impulse (release_held)
     if s.fracture == "damage":

@@ -9,7 +9,7 @@ Ground: an infinite-mass plane at the scene's ground height. Contact points are 
 corners of a body's boundary voxels that are at or below the plane, or would reach
 it this step (speculative contacts, so fast debris cannot tunnel and resting bodies
 do not sink, without pushing positions around). They are rows of the contact solver
-(:func:`~blastvox.simulate.kernels.solve_contacts`), with the fragments' contacts when
+(:func:`~blastvox.simulate.contact_solver.solve_contacts`), with the fragments' contacts when
 fragments collide (:func:`~blastvox.simulate.collide.collide_phase` solves both, so a
 stack's weight reaches the ground), alone otherwise: normal and tangential impulses
 solved together by projected Gauss-Seidel sweeps; the tangential part is Coulomb
@@ -34,8 +34,8 @@ import numpy as np
 
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
+from blastvox.simulate.contact_solver import solve_contacts
 from blastvox.simulate.integrate import angular_velocity
-from blastvox.simulate.kernels import solve_contacts
 from blastvox.simulate.limits import voxel_size
 
 #: Penetration (and gap) the contact solver leaves alone, and the most its position
