@@ -43,6 +43,16 @@ def _warm_kernels(tmp: Path) -> None:
                                     charges=(ChargeSpec((0.0, -1.5, 0.5), 2.0),)))
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Give SIGINT back its default handler if this run started with it ignored: a
+    non-interactive shell starts a background job (``make test &``) so, and the
+    signal tests would then see their Ctrl-C ignored, as the CLI rightly leaves an
+    inherited ignore alone (``nohup``). Runs in the xdist controller and in each
+    worker."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def pytest_sessionstart(session: pytest.Session) -> None:
     """With pytest-xdist (``-n``), fill the kernel cache once in the controller before the
     workers start (xdist starts them in a trylast hook), so that they load the kernels
