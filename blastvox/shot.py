@@ -30,6 +30,7 @@ def _stale(output: Path, inputs: list[Path]) -> bool:
 def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[Path]) -> None:
     """The output policy (blastvox.io.outputs) for every file the shot writes, before any
     stage runs: none is a device or an input, and no two are the same file."""
+    from blastvox.export.api import GLTF_SUFFIXES, USD_SUFFIXES
     from blastvox.io.outputs import check_distinct, check_output
 
     outputs = [("output.model", model), ("output.cache", cache)]
@@ -41,6 +42,12 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
     for label, path in outputs:
         check_output(path, inputs, label=label, make_dirs=True)
     check_distinct(outputs)
+    for label, path in outputs[2:]:  # refused here, not after voxelize and simulate ran
+        suffix = Path(path).suffix.lower()
+        if suffix not in USD_SUFFIXES + GLTF_SUFFIXES and not label.endswith("(its .bin)"):
+            raise SceneError(f"{path}: {label}: unknown export format "
+                             f"{suffix or '(no suffix)'!r}; use "
+                             f"{', '.join(USD_SUFFIXES + GLTF_SUFFIXES)}")
 
 
 def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] = print,

@@ -130,6 +130,8 @@ def test_scene_outputs_that_are_inputs_or_each_other_are_refused(work: Path) -> 
             ("output.export", "input"),
         'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/a.gltf", "out/a.bin"]':
             ("output.export", "same file"),
+        'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/a.glb", "out/a.fbx"]':
+            ("output.export.1", "unknown export format '.fbx'"),  # before voxelize runs
     }
     for output, (key, word) in cases.items():
         scene.write_text('[[objects]]\nmesh = "wall.stl"\nvoxel_size = 0.25\n'

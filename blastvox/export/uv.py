@@ -120,7 +120,8 @@ def _barycentric(source: np.ndarray, corners: np.ndarray) -> np.ndarray:
     t = len(source)
     if t == 0:
         return np.zeros((0, 3, 3))
-    bary = points_to_barycentric(np.repeat(source, 3, axis=0), corners.reshape(-1, 3))
+    with np.errstate(divide="ignore", invalid="ignore"):  # zero-area source triangles
+        bary = points_to_barycentric(np.repeat(source, 3, axis=0), corners.reshape(-1, 3))
     return np.nan_to_num(bary.reshape(t, 3, 3))  # degenerate source: all zero
 
 
