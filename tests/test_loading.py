@@ -185,6 +185,19 @@ def test_charge_inside_solid_warns_once_naming_it(tmp_path):
     assert len(buried) == 1 and buried[0].startswith("charge 1 at (0.1, 0.1, 0.1) m")
 
 
+def test_charges_below_the_ground_or_after_the_shot_warn_naming_them(tmp_path):
+    model = _founded_wall(tmp_path, "concrete")  # Z up, the ground at z = 0
+    warnings: list[str] = []
+    simulate(model, SimSettings(duration=0.05, charges=(
+        ChargeSpec((-3.0, 0.0, 1.0), 1.0),
+        ChargeSpec((-3.0, 0.0, -0.5), 1.0),
+        ChargeSpec((-3.0, 0.0, 1.0), 1.0, time_s=1.0))), warn=warnings.append)
+    below = [w for w in warnings if "below the ground" in w]
+    late = [w for w in warnings if "after the shot ends" in w]
+    assert len(below) == 1 and below[0].startswith("charge 1 at (-3, 0, -0.5) m is 0.5 m")
+    assert len(late) == 1 and late[0].startswith("charge 2 at (-3, 0, 1) m detonates at 1 s")
+
+
 def _room(open_side: bool, inner: float = 3.0, t: float = 0.5):
     """Six concrete slabs (separate objects) closing a cube room of ``inner`` m."""
     out = inner + 2 * t

@@ -370,11 +370,8 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
     per_frame = settings.steps_per_frame()
     frames = settings.frame_count()
     total_steps = (frames - 1) * per_frame
-    for c, position in enumerate(run.charges.position):
-        if inside_solid(state.shielding, position):
-            warn(f"charge {c} at ({position[0]:g}, {position[1]:g}, {position[2]:g}) m is inside "
-                 "solid voxels: its wave reaches no face in line of sight (a buried charge "
-                 "is not modelled); move it into the air")
+    for line in _charge_warnings(run, total_steps * dt):
+        warn(line)
     limits = LimitMonitor(run.model, settings, dt)  # warns once per limit the run passes
     counts, counted = _alive_counts(run), state.counters.topology_version
     check_record_memory(settings, _live_count(state), frames)
@@ -390,6 +387,29 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
             progress.update(n * dt, n, total_steps)
     limits.finish()
     return _cache(run, model, frames, per_frame, total_steps)
+
+
+def _charge_warnings(run: Run, end: float) -> list[str]:
+    """One line per charge the run cannot model as asked: buried in solid voxels or
+    below the ground, or detonating after the shot's last step (``end``, s)."""
+    lines, charges = [], run.charges
+    up = run.model.up
+    for c, position in enumerate(charges.position):
+        where = f"charge {c} at ({position[0]:g}, {position[1]:g}, {position[2]:g}) m"
+        if inside_solid(run.state.shielding, position):
+            lines.append(f"{where} is inside solid voxels: a buried charge is not modelled "
+                         "(no ground shock, no cavity gas); its air blast craters the voxels "
+                         "around it from point-blank range, a rough guess; move it into the "
+                         "air")
+        depth = None if run.ground is None else run.ground - float(np.dot(position, up))
+        if depth is not None and depth > 0.0:
+            lines.append(f"{where} is {depth:g} m below the ground: it bursts there as a "
+                         "surface burst through the ground plane (a buried charge's ground "
+                         "shock and crater are not modelled); put it on the ground")
+        if charges.time[c] > end:
+            lines.append(f"{where} detonates at {charges.time[c]:g} s, after the shot ends "
+                         f"at {end:g} s: it does nothing; lengthen the duration")
+    return lines
 
 
 def _compiled_before() -> bool:
