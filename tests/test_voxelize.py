@@ -244,6 +244,26 @@ def test_open_meshes_are_repaired_or_refused():
         run(DATA / "soup.stl", resolution=20)
 
 
+def test_parts_the_voxel_size_cuts_off_are_warned_about(tmp_path):
+    # at 3 m voxels the teapot's handle and spout touch its body nowhere: three free
+    # objects of 2 to 4 voxels that fall from the first step; multibody.stl's second
+    # body is a part of the asset, not a cut-off fragment
+    warnings: list[str] = []
+    model = voxelize([ObjectRequest(mesh=DATA / "teapot.stl", voxel_size=(3.0,) * 3)],
+                     VoxelizeSettings(up_axis="Z"), warn=warnings.append)
+    assert len(model.meta["objects"]) == 4
+    assert len(warnings) == 1
+    assert "teapot.stl: --voxel-size 3 m: 3 part(s) of 2 to 4 voxels lie cut off" in warnings[0]
+    assert "use a smaller voxel size" in warnings[0]
+    warnings.clear()
+    finer = voxelize([ObjectRequest(mesh=DATA / "teapot.stl", voxel_size=(1.5,) * 3)],
+                     VoxelizeSettings(up_axis="Z"), warn=warnings.append)
+    assert len(finer.meta["objects"]) == 1 and not warnings
+    two = voxelize([ObjectRequest(mesh=DATA / "multibody.stl", resolution=20)],
+                   VoxelizeSettings(up_axis="Z"), warn=warnings.append)
+    assert len(two.meta["objects"]) >= 2 and not warnings
+
+
 def test_model_round_trip_and_version_check(tmp_path):
     path = box_file(tmp_path, (1.0, 1.0, 1.0))
     model = run(path, voxel_size=(0.5,) * 3)
