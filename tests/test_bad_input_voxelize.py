@@ -470,3 +470,24 @@ def test_explosive_aliases_still_load(tmp_path: Path) -> None:
         {"position": [0, 0, 0], "mass_kg": 1, "explosive": name}
         for name in ("TNT", "C-4", "composition b", "Semtex")]}, "scene.toml", tmp_path)
     assert [c.explosive for c in scene.charges] == ["TNT", "C-4", "composition b", "Semtex"]
+
+
+def test_one_mesh_given_twice_is_refused_and_same_stems_get_distinct_names(
+        cube: Path, tmp_path: Path) -> None:
+    """Two copies of one solid overlap and push each other apart from the first step;
+    two files of one stem (a/cube.obj, b/cube.obj) are two objects, named apart."""
+    with unchanged(tmp_path, [cube]):
+        outcome = run_blastvox("voxelize", cube, "cube.obj", "--voxel-size", "0.25", "-q",
+                               "-o", "m.npz", cwd=tmp_path)
+    assert_clean_failure(outcome, ["cube.obj"], words=["given twice"])
+    other = tmp_path / "b" / "cube.obj"
+    other.parent.mkdir()
+    trimesh.creation.box(extents=(1.0, 1.0, 1.0)).apply_translation((3.0, 0.0, 0.5)).export(
+        other)
+    outcome = run_blastvox("voxelize", cube, other, "--voxel-size", "0.25", "-q", "-o",
+                           "m.npz", cwd=tmp_path)
+    assert outcome.code == 0, outcome.stderr
+    from blastvox.model import VoxelModel
+
+    names = [o["name"] for o in VoxelModel.load(tmp_path / "m.npz").meta["objects"]]
+    assert names == ["cube", "cube_2"]

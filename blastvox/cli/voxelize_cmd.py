@@ -179,14 +179,15 @@ def voxelize(
                                 f"(known: {', '.join(library.names())})")
         if size is None and resolution is None:
             resolution = DEFAULT_RESOLUTION
-        requests = [ObjectRequest(mesh=m, voxel_size=size, resolution=resolution,
+        names = _object_names(meshes)
+        requests = [ObjectRequest(mesh=m, name=names[i], voxel_size=size, resolution=resolution,
                                   shape=shape.value, jitter=jitter, material=material,
                                   chunk_size=chunk_size,
                                   part_bond=1.0 if part_bond is None else part_bond,
                                   anchored=anchored,
                                   sheet_thickness=DEFAULT_SHEET_THICKNESS_M
                                   if sheet_thickness is None else sheet_thickness)
-                    for m in meshes]
+                    for i, m in enumerate(meshes)]
         settings = VoxelizeSettings(up_axis=up_axis.value if up_axis else "Y",
                                     ground=ground_value,
                                     seed=0 if seed is None else seed, max_voxels=max_voxels,
@@ -249,3 +250,23 @@ def _print_summary(console, model, output: Path, seconds: float) -> None:
         f"{s['object_count']} object(s), {s['foundation_voxel_count']:,} foundation voxels, "
         f"{s['total_mass_kg']:.4g} kg, materials {', '.join(s['materials_used'])} "
         f"({seconds:.2f} s, {s['voxel_count'] / max(seconds, 1e-9):,.0f} voxels/s)")
+
+
+def _object_names(meshes: list[Path]) -> list[str]:
+    """An object name per MESH argument: its file's stem, with _2, _3, ... for later files
+    of the same stem (the scene refuses duplicate names; on the command line they come
+    from the files). The same file twice is an error: two copies of one solid overlap."""
+    names: list[str] = []
+    seen: dict[Path, Path] = {}
+    for mesh in meshes:
+        key = Path(mesh).resolve()
+        if key in seen:
+            raise BlastvoxError(f"{mesh}: given twice as a MESH (the second copy would "
+                                "overlap the first); give each mesh once")
+        seen[key] = Path(mesh)
+        stem, k = Path(mesh).stem, 2
+        name = stem
+        while name in names:
+            name, k = f"{stem}_{k}", k + 1
+        names.append(name)
+    return names
