@@ -242,6 +242,11 @@ def test_open_meshes_are_repaired_or_refused():
         assert model.voxel_count > 1000
     with pytest.raises(MeshError, match="soup.stl.*soup"):
         run(DATA / "soup.stl", resolution=20)
+    # too coarse to put any cell centre near the teapot: the voxels are too big, whether
+    # or not the surface is open
+    with pytest.raises(MeshError, match=r"teapot.stl: no voxel centre lies inside it at this "
+                                        r"voxel size, two voxels across at most; use a smaller"):
+        run(DATA / "teapot.stl", up="Z", resolution=1)
 
 
 def test_parts_the_voxel_size_cuts_off_are_warned_about(tmp_path):

@@ -247,8 +247,9 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
             volume[conform_data[0]], centroid[conform_data[0]] = cv, cc
             inertia[conform_data[0]] = ci
     if not keep.any():
+        larger = " (a larger resolution)" if request.voxel_size is None else ""
         raise MeshError(f"{source}: no voxel lies inside the mesh at voxel size "
-                        f"{_fmt_size(spacing)} m; use a smaller voxel size")
+                        f"{_fmt_size(spacing)} m; use a smaller voxel size{larger}")
     _check_material_map(request, parts, [solids[i] for i in np.unique(chosen.part[keep])],
                         source, warn)
     # renumber to the kept voxels

@@ -91,6 +91,9 @@ def check_inside_defined(where: str, winding: np.ndarray, report: SurfaceReport)
     inside = winding > 0.5
     n_inside = int(np.count_nonzero(inside))
     ambiguous = int(np.count_nonzero((winding > 0.2) & (winding < 0.8)))
+    if n_inside == 0 and max(winding.shape, default=0) <= 2:  # two cells across at most
+        raise MeshError(f"{where}: no voxel centre lies inside it at this voxel size, two "
+                        f"voxels across at most; use a smaller voxel size")
     if report.open_edges and (n_inside == 0 or ambiguous > MAX_AMBIGUOUS_FRACTION * n_inside):
         raise MeshError(
             f"{where}: is an open surface, not a closed solid ({report.open_edges} open edges "
