@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -472,6 +473,16 @@ def test_cli_table_shows_units(cli_runs) -> None:
     result = cli_runs["table"]
     assert result.returncode == 0, result.stderr
     assert "kPa" in result.stdout and "934.9" in result.stdout
+
+
+def test_cli_table_cuts_no_number_in_a_narrow_terminal_or_pipe() -> None:
+    # rich shrank the columns to 80 (a pipe) or the terminal's width: "1.79…" for 1.791e+04
+    for columns in ("80", "40"):
+        result = subprocess.run([sys.executable, "-m", "blastvox", "blast", "--charge",
+                                 "100000", "--distance", "62"], capture_output=True, text=True,
+                                timeout=120, env={**os.environ, "COLUMNS": columns})
+        assert result.returncode == 0, result.stderr
+        assert "1.791e+04" in result.stdout and "…" not in result.stdout, result.stdout
 
 
 @pytest.mark.parametrize("name", sorted(CLI_ERRORS))

@@ -135,20 +135,27 @@ def blast(
                "Td positive duration; b Friedlander decay; I positive impulse; Pr, Ir "
                "normally reflected overpressure and impulse")
     table = Table(title=title, caption=caption, title_justify="left", caption_justify="left")
-    for header in ("R m", "Z", "Ps kPa", "ta ms", "Td ms", "b", "I Pa s", "Pr kPa", "Ir Pa s",
-                   "note"):
-        table.add_column(header, justify="left" if header == "note" else "right")
+    headers = ("R m", "Z", "Ps kPa", "ta ms", "Td ms", "b", "I Pa s", "Pr kPa", "Ir Pa s",
+               "note")
+    rows = []
     for row in records:
         z = row["scaled_distance"]
         note = "in charge" if z < z_min else "far field" if z > Z_MAX else ""
-        table.add_row(f"{row['distance_m']:g}", f"{z:.4g}",
-                      f"{row['peak_overpressure_pa'] / 1e3:.4g}",
-                      f"{row['arrival_time_s'] * 1e3:.4g}",
-                      f"{row['positive_duration_s'] * 1e3:.4g}",
-                      f"{row['decay_coefficient']:.4g}", f"{row['impulse_pa_s']:.4g}",
-                      f"{row['reflected_overpressure_pa'] / 1e3:.4g}",
-                      f"{row['reflected_impulse_pa_s']:.4g}", note)
-    Console().print(table)
+        rows.append((f"{row['distance_m']:g}", f"{z:.4g}",
+                     f"{row['peak_overpressure_pa'] / 1e3:.4g}",
+                     f"{row['arrival_time_s'] * 1e3:.4g}",
+                     f"{row['positive_duration_s'] * 1e3:.4g}",
+                     f"{row['decay_coefficient']:.4g}", f"{row['impulse_pa_s']:.4g}",
+                     f"{row['reflected_overpressure_pa'] / 1e3:.4g}",
+                     f"{row['reflected_impulse_pa_s']:.4g}", note))
+    widths = [max([len(h)] + [len(r[i]) for r in rows]) for i, h in enumerate(headers)]
+    for header, width in zip(headers, widths, strict=True):
+        table.add_column(header, justify="left" if header == "note" else "right", no_wrap=True,
+                         min_width=width)
+    for r in rows:
+        table.add_row(*r)
+    # never a number cut to fit a narrow terminal or an 80-column pipe: wider lines wrap
+    Console(width=max(Console().width, sum(widths) + 3 * len(widths) + 1)).print(table)
     if any(r["scaled_distance"] < z_min or r["scaled_distance"] > Z_MAX for r in records):
         Console(stderr=True, highlight=False).print(
             f"note: data cover Z {z_min:g}-{Z_MAX:g} m/kg^(1/3); in charge = held at the "
