@@ -491,3 +491,21 @@ def test_one_mesh_given_twice_is_refused_and_same_stems_get_distinct_names(
 
     names = [o["name"] for o in VoxelModel.load(tmp_path / "m.npz").meta["objects"]]
     assert names == ["cube", "cube_2"]
+
+
+def test_a_conform_refusal_names_the_setting_that_asked_for_it(tmp_path: Path) -> None:
+    """Suzanne is open: conform voxels need a closed manifold. From a scene the line
+    names its key, from the command line the flag."""
+    shutil.copy(ROOT / "tests" / "data" / "suzanne.ply", tmp_path / "suzanne.ply")
+    (tmp_path / "scene.toml").write_text(
+        '[[objects]]\nmesh = "suzanne.ply"\nresolution = 20\nshape = "conform"\n'
+        '[output]\nmodel = "m.npz"\ncache = "s.npz"\n')
+    with unchanged(tmp_path, [tmp_path / "suzanne.ply", tmp_path / "scene.toml"]):
+        outcome = run_blastvox("voxelize", "--scene", "scene.toml", "-q", cwd=tmp_path)
+    line = assert_clean_failure(outcome, ["suzanne.ply", 'objects[0].shape = "conform"'],
+                                words=["closed manifold", 'use shape = "cube"'])
+    assert "--shape" not in line
+    with unchanged(tmp_path, [tmp_path / "suzanne.ply"], allow=["scene.toml"]):
+        outcome = run_blastvox("voxelize", "suzanne.ply", "--resolution", "20", "--shape",
+                               "conform", "-q", "-o", "m.npz", cwd=tmp_path)
+    assert_clean_failure(outcome, ["suzanne.ply", "--shape conform"], words=["--shape cube"])

@@ -193,8 +193,8 @@ def test_a_missing_texture_is_one_warning_and_the_base_colour(tmp_path: Path) ->
                           check=False)
     assert done.returncode == 0, done.stderr
     warnings = [line for line in done.stderr.splitlines() if "gone.png" in line]
-    assert warnings == ["warning: tet.obj: texture 'gone.png' of material 'skin' not found; "
-                        "the base colour is used"]
+    assert warnings == ["blastvox: warning: tet.obj: texture 'gone.png' of material 'skin' "
+                        "not found; the base colour is used"]
     assert not VoxelModel.load(tmp_path / "tet.npz").textures
 
 

@@ -32,7 +32,8 @@ def run(
 
     with cli_warnings(console):
         ran = run_scene(scene, force=force, log=log,
-                        warn=lambda m: console.print(f"warning: {m}", markup=False))
+                        warn=lambda m: console.print(f"blastvox: warning: {m}", markup=False,
+                                                  highlight=False))
     if ran and not quiet:
         console.print(f"{scene}: {', '.join(ran)} in {time.perf_counter() - started:.2f} s",
                       markup=False, highlight=False)

@@ -165,7 +165,8 @@ def simulate(
                          notes=not quiet)
     with progress, cli_warnings(console):
         cache = run(model, settings, progress=progress,
-                    warn=lambda m: console.print(f"warning: {m}", markup=False))
+                    warn=lambda m: console.print(f"blastvox: warning: {m}", markup=False,
+                                                  highlight=False))
     cache.save(output)
     if not quiet:
         s = cache.summary()

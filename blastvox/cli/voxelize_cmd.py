@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from blastvox.bounds import DEFAULT_SHEET_THICKNESS_M
+from blastvox.bounds import DEFAULT_SHEET_THICKNESS_M, printable
 from blastvox.cli.options import UpAxis
 from blastvox.errors import BlastvoxError, SceneError
 
@@ -206,7 +206,8 @@ def voxelize(
     started = time.perf_counter()
     with RichProgress(enabled=not quiet and console.is_terminal) as progress:
         model = run(requests, settings, progress=progress,
-                    warn=lambda m: console.print(f"[yellow]warning:[/] {m}"))
+                    warn=lambda m: console.print(f"blastvox: warning: {m}", markup=False,
+                                                  highlight=False))
     model.save(output)
     if not quiet:
         _print_summary(console, model, output, time.perf_counter() - started)
@@ -264,7 +265,7 @@ def _object_names(meshes: list[Path]) -> list[str]:
             raise BlastvoxError(f"{mesh}: given twice as a MESH (the second copy would "
                                 "overlap the first); give each mesh once")
         seen[key] = Path(mesh)
-        stem, k = Path(mesh).stem, 2
+        stem, k = Path(printable(mesh)).stem, 2  # a non-UTF-8 name's bytes escaped
         name = stem
         while name in names:
             name, k = f"{stem}_{k}", k + 1

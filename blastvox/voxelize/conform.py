@@ -41,15 +41,20 @@ class ConformCells:
     tags: np.ndarray
 
 
-def solid_manifold(mesh: trimesh.Trimesh, where: str) -> m3d.Manifold:
-    """The mesh as a manifold3d solid; :class:`MeshError` if it is not a valid manifold."""
+def solid_manifold(mesh: trimesh.Trimesh, where: str, origin: str | None = None
+                   ) -> m3d.Manifold:
+    """The mesh as a manifold3d solid; :class:`MeshError` if it is not a valid manifold,
+    naming the setting that asked for conform voxels: the scene's key (``origin``, e.g.
+    ``scene.toml: objects[0]``) or else the ``--shape`` flag."""
     mesh64 = m3d.Mesh64(vert_properties=np.ascontiguousarray(mesh.vertices, dtype=np.float64),
                         tri_verts=np.ascontiguousarray(mesh.faces, dtype=np.uint64))
     mesh64.merge()
     solid = m3d.Manifold(mesh64)
     if solid.status() != m3d.Error.NoError:
-        raise MeshError(f"{where}: --shape conform needs a closed manifold surface "
-                        f"(manifold3d: {solid.status().name}); use --shape cube for this mesh")
+        asked, fix = ((f"{origin}.shape = \"conform\"", 'shape = "cube"') if origin
+                      else ("--shape conform", "--shape cube"))
+        raise MeshError(f"{where}: {asked} needs a closed manifold surface "
+                        f"(manifold3d: {solid.status().name}); use {fix} for this mesh")
     return solid.as_original()
 
 

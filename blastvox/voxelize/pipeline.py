@@ -241,7 +241,7 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     if conform:
         closed = [s for i, s in enumerate(solids) if i not in chosen.sheet_parts]
         keep, conform_data = _clip_conform(closed, chosen, positions, voxel_vertices, volume,
-                                           progress)
+                                           progress, request.origin)
         if conform_data[0].size:
             cv, cc, ci = soup_mass_properties(conform_data[2], conform_data[1])
             volume[conform_data[0]], centroid[conform_data[0]] = cv, cc
@@ -349,11 +349,11 @@ def _place_vertices(ijk: np.ndarray, grid: Grid, jitter: float, seed: int, strea
     return vertex_ids, positions, inverse.reshape(-1, 8)
 
 
-def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progress):
+def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progress, origin):
     label = solids[0].label
-    solid = solid_manifold(solids[0].mesh, label)
+    solid = solid_manifold(solids[0].mesh, label, origin)
     for other in solids[1:]:
-        solid = solid + solid_manifold(other.mesh, other.label)
+        solid = solid + solid_manifold(other.mesh, other.label, origin)
     candidates = np.flatnonzero(chosen.touched)
     progress.start(f"conform clip ({len(candidates):,} cells)", len(candidates))
     corners = positions[voxel_vertices[candidates]]
