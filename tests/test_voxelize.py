@@ -269,6 +269,16 @@ def test_parts_the_voxel_size_cuts_off_are_warned_about(tmp_path):
     assert len(two.meta["objects"]) >= 2 and not warnings
 
 
+def test_a_flattened_closed_shell_is_refused_not_voxelized_at_random(tmp_path):
+    # 1 nm thick: winding numbers between its faces are round-off; 10 of the 100 cells
+    # came out, in a staircase. 1 cm thick it is a sheet of 100 voxels.
+    with pytest.raises(MeshError, match=r"flat.stl: encloses almost no volume .* give it a "
+                                        r"thickness"):
+        run(box_file(tmp_path, (1.0, 1.0, 1e-9), "flat.stl"), voxel_size=(0.1,) * 3)
+    thin = run(box_file(tmp_path, (1.0, 1.0, 0.01), "thin.stl"), voxel_size=(0.1,) * 3)
+    assert thin.voxel_count == 100
+
+
 def test_model_round_trip_and_version_check(tmp_path):
     path = box_file(tmp_path, (1.0, 1.0, 1.0))
     model = run(path, voxel_size=(0.5,) * 3)
