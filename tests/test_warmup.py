@@ -54,7 +54,9 @@ def test_the_child_compiles_the_late_phases_and_a_cancel_stops_it(tmp_path):
     cache = Path(cache)
     assert float(seconds) < 2.0
     assert _cached(cache, "integrate.integrate_velocities")
-    assert not _cached(cache, "collide.collide_bodies")  # the next phase: stopped half-way
+    # the next: the contact solver (the longest, compiled first), stopped half-way
+    assert not _cached(cache, "contact_solver.solve_contacts")
+    assert not _cached(cache, "collide.collide_bodies")
     assert not _cached(cache, "forces.blast_impulses")  # an early phase: the parent's
 
 
@@ -76,3 +78,5 @@ def test_the_late_phases_run_on_a_run_with_every_effect(tmp_path):
     assert run.settings.collisions and run.ground is not None and run.fire is not None
     compile_late_phases(run)
     assert np.isfinite(run.state.bodies.pos).all() and np.isfinite(run.state.bodies.lin).all()
+    # the solver compiled on a stand-in memory first; the phases then made the real one
+    assert len(run.state.contacts.memory.half) == model.voxel_count
