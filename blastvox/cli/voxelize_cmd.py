@@ -258,13 +258,13 @@ def _object_names(meshes: list[Path]) -> list[str]:
     of the same stem (the scene refuses duplicate names; on the command line they come
     from the files). The same file twice is an error: two copies of one solid overlap."""
     names: list[str] = []
-    seen: dict[Path, Path] = {}
+    seen: set[Path] = set()
     for mesh in meshes:
         key = Path(mesh).resolve()
         if key in seen:
             raise BlastvoxError(f"{mesh}: given twice as a MESH (the second copy would "
                                 "overlap the first); give each mesh once")
-        seen[key] = Path(mesh)
+        seen.add(key)
         stem, k = Path(printable(mesh)).stem, 2  # a non-UTF-8 name's bytes escaped
         name = stem
         while name in names:
