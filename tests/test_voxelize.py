@@ -279,6 +279,26 @@ def test_a_flattened_closed_shell_is_refused_not_voxelized_at_random(tmp_path):
     assert thin.voxel_count == 100
 
 
+def test_objects_that_overlap_are_warned_about(tmp_path):
+    # two 1 m boxes as two objects, 0.5 m apart centre to centre: their pieces would push
+    # each other apart as soon as they move; 1.5 m apart they only stand side by side
+    def two_boxes(shift: float) -> list[str]:
+        a = box_file(tmp_path, (1.0, 1.0, 1.0), "a.stl")
+        mesh = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+        mesh.apply_translation((shift, 0.0, 0.0))
+        mesh.export(tmp_path / "b.stl")
+        warnings: list[str] = []
+        voxelize([ObjectRequest(mesh=a, voxel_size=(0.25,) * 3),
+                  ObjectRequest(mesh=tmp_path / "b.stl", voxel_size=(0.25,) * 3)],
+                 VoxelizeSettings(up_axis="Z", ground=None), warn=warnings.append)
+        return warnings
+
+    overlapping = two_boxes(0.5)
+    assert len(overlapping) == 1
+    assert overlapping[0].startswith("b overlaps a: 32 of its voxels (0.5 m3) lie inside it")
+    assert two_boxes(1.0) == [] and two_boxes(1.5) == []
+
+
 def test_model_round_trip_and_version_check(tmp_path):
     path = box_file(tmp_path, (1.0, 1.0, 1.0))
     model = run(path, voxel_size=(0.5,) * 3)

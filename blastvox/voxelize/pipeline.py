@@ -26,6 +26,7 @@ from blastvox.voxelize import budget, chunks
 from blastvox.voxelize import cells as cellsel
 from blastvox.voxelize.components import component_labels
 from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
+from blastvox.voxelize.diagnostics import warn_islands, warn_overlaps
 from blastvox.voxelize.hashing import uniform_by_key
 from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
 from blastvox.voxelize.look import LookBuilder
@@ -161,6 +162,8 @@ def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
         lattice = _voxelize_one(index, request, settings, up, budget_left, progress, warn)
         budget_left -= len(lattice.ijk)
         lattices.append(lattice)
+    warn_overlaps([(lat.name, lat.grid, lat.ijk, lat.centroid, lat.volume)
+                   for lat in lattices], warn)
     return _assemble(lattices, settings, up)
 
 
@@ -275,27 +278,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                                    np.isin(lat.part, chosen.sheet_parts),
                                    request.sheet_thickness)
     _boundary(lat)
-    _warn_islands(lat, _size_label(request), warn)
+    warn_islands(lat.name, lat.link_voxels, len(lat.ijk), _size_label(request), warn)
     return lat
-
-
-#: A connected part of one mesh's voxels with fewer than this fraction of its largest
-#: part's voxels is a fragment the voxel size cut off, not a part of the asset.
-ISLAND_FRACTION = 0.05
-
-
-def _warn_islands(lat: _Lattice, size_label: str, warn) -> None:
-    """Warn about the voxels of one mesh that the voxel size cut off from the rest: where
-    the mesh is thinner than a voxel (an ear tip, a handle), the voxels do not touch,
-    and each such island becomes an object of its own, free to fall or fly."""
-    counts = np.bincount(component_labels(lat.link_voxels, len(lat.ijk)))
-    small = np.sort(counts[counts < ISLAND_FRACTION * counts.max()])
-    if small.size:
-        sizes = f"{small[0]:,}" if small[0] == small[-1] else f"{small[0]:,} to {small[-1]:,}"
-        warn(f"{size_label}: {small.size} part(s) of {sizes} voxels lie cut off from the rest "
-             f"of {lat.name} ({counts.max():,} voxels) where the mesh is thinner than a "
-             "voxel; each is an object of its own that falls or flies free: use a smaller "
-             "voxel size")
 
 
 def _check_material_map(request: ObjectRequest, parts: list, used: list, source: str,
