@@ -227,6 +227,30 @@ def test_an_interrupt_swallowed_by_a_ctypes_callback_still_surfaces(capfd) -> No
     assert "Exception ignored" not in capfd.readouterr().err
 
 
+def test_an_interrupt_during_an_import_surfaces_after_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd) -> None:
+    """Raised inside the import machinery, the Interrupted of a Ctrl-C met C code that
+    printed it as a traceback (a run signalled 0.3 s in, while importing); the handler
+    now holds it until the import is done, then it surfaces as usual."""
+    from blastvox.cli.entry import Interrupted, interrupt_handlers
+
+    (tmp_path / "slow_to_import.py").write_text(
+        "import os, signal, time\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.3)  # the handler runs in here\n"
+        "DONE = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    started = time.perf_counter()
+    with pytest.raises(Interrupted), interrupt_handlers():
+        import slow_to_import  # noqa: F401
+        time.sleep(5.0)  # re-delivered within a few hundredths of a second
+    import sys as system
+
+    assert system.modules["slow_to_import"].DONE  # the import finished, whole
+    assert time.perf_counter() - started < 2.0
+    assert "Traceback" not in capfd.readouterr().err
+
+
 def test_running_out_of_memory_is_one_line(work: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A MemoryError (here raised where the model is read) is a line, not a traceback."""
     from blastvox.model import VoxelModel

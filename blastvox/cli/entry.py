@@ -56,11 +56,12 @@ class _Interrupt:
     numba compiles through such callbacks (llvmlite's object cache), so a Ctrl-C
     during the first run's compilation used to be swallowed and the command
     finished with exit 0, or left numba half-way through a compilation ("no
-    compiled object yet"). So the handler does not raise while llvmlite is on
-    the stack (it calls Python back from C there): it marks the interrupt
-    pending, and a watchdog thread re-delivers the signal
+    compiled object yet"). So the handler does not raise while llvmlite or an
+    import is on the stack (C code calls Python back there; a C extension
+    importing a module printed the exception as a traceback): it marks the
+    interrupt pending, and a watchdog thread re-delivers the signal
     (``signal.pthread_kill``) every :data:`WATCH_S` until the main thread is
-    out of llvmlite and the exception can surface. ``sys.unraisablehook``
+    out of them and the exception can surface. ``sys.unraisablehook``
     catches any other callback that swallows it, quietly, for the same retry.
     """
 
@@ -69,6 +70,7 @@ class _Interrupt:
         self.redelivering = False
         self.swallowed = False
         self.done = False
+        self._watchdog = None  # threading.Thread, started on the first deferral
 
     def handle(self, signum: int, frame: object) -> None:
         import os
@@ -77,7 +79,7 @@ class _Interrupt:
             os._exit(128 + self.signum)
         self.redelivering = False
         self.signum = self.signum or signum
-        if _in_llvmlite(frame):
+        if _in_callback_prone_code(frame):
             self.swallowed = True  # not yet: the watchdog delivers it again shortly
             self._start_watchdog()
             return
@@ -94,9 +96,11 @@ class _Interrupt:
     def _start_watchdog(self) -> None:
         import threading
 
-        if not any(t.name == "blastvox-interrupt" for t in threading.enumerate()):
-            threading.Thread(target=self._watch, name="blastvox-interrupt",
-                             daemon=True).start()
+        # this interrupt's own: an earlier one's may still be winding down (in-process use)
+        if self._watchdog is None or not self._watchdog.is_alive():
+            self._watchdog = threading.Thread(target=self._watch, name="blastvox-interrupt",
+                                              daemon=True)
+            self._watchdog.start()
 
     def _watch(self) -> None:
         import os
@@ -132,10 +136,14 @@ def check_interrupt() -> None:
         raise Interrupted(_ACTIVE[-1].signum)
 
 
-def _in_llvmlite(frame: object, depth: int = 64) -> bool:
-    """Is a frame of llvmlite (which C code calls back into) on the stack from ``frame``?"""
+def _in_callback_prone_code(frame: object, depth: int = 64) -> bool:
+    """Is a frame on the stack from ``frame`` one that C code called, which may print or
+    drop an exception raised there: llvmlite's (numba's compiler calls back into it)
+    or the import machinery's (a C extension importing a module printed the
+    Interrupted of a Ctrl-C 0.3 s into a run as a traceback, then carried on)?"""
     while frame is not None and depth > 0:
-        if "llvmlite" in frame.f_code.co_filename:  # type: ignore[attr-defined]
+        name = frame.f_code.co_filename  # type: ignore[attr-defined]
+        if "llvmlite" in name or name.startswith("<frozen importlib"):
             return True
         frame, depth = frame.f_back, depth - 1  # type: ignore[attr-defined]
     return False
