@@ -433,9 +433,10 @@ def test_bad_inputs_raise(r: float, w: float) -> None:
 # --- CLI ---
 
 
-def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+def run_cli(*args: str, columns: str | None = None) -> subprocess.CompletedProcess[str]:
+    env = None if columns is None else {**os.environ, "COLUMNS": columns}
     return subprocess.run([sys.executable, "-m", "blastvox", "blast", *args],
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=120, env=env)
 
 
 CLI_ERRORS = {
@@ -478,9 +479,7 @@ def test_cli_table_shows_units(cli_runs) -> None:
 def test_cli_table_cuts_no_number_in_a_narrow_terminal_or_pipe() -> None:
     # rich shrank the columns to 80 (a pipe) or the terminal's width: "1.79…" for 1.791e+04
     for columns in ("80", "40"):
-        result = subprocess.run([sys.executable, "-m", "blastvox", "blast", "--charge",
-                                 "100000", "--distance", "62"], capture_output=True, text=True,
-                                timeout=120, env={**os.environ, "COLUMNS": columns})
+        result = run_cli("--charge", "100000", "--distance", "62", columns=columns)
         assert result.returncode == 0, result.stderr
         assert "1.791e+04" in result.stdout and "…" not in result.stdout, result.stdout
 

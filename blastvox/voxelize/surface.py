@@ -77,10 +77,8 @@ def prepare_surface(part: Part) -> tuple[trimesh.Trimesh, SurfaceReport]:
         report.repairs.extend(orient_shells(mesh))
     report.open_edges = _open_edges(mesh)
     report.triangles_out = len(mesh.faces)
-    if mesh.is_watertight and mesh.volume <= 0:
-        raise MeshError(f"{where}: encloses no volume (all triangles coplanar or inverted)")
     if mesh.is_watertight:
-        _check_thickness(mesh, where)
+        _check_volume(mesh, where)
     return mesh, report
 
 
@@ -90,9 +88,11 @@ def prepare_surface(part: Part) -> tuple[trimesh.Trimesh, SurfaceReport]:
 MIN_THICKNESS_FRACTION = 1e-6
 
 
-def _check_thickness(mesh: trimesh.Trimesh, where: str) -> None:
-    """Refuse a closed surface too thin to have a defined inside (a 1 x 1 m box 1 nm
-    thick gave a quarter of its cells in a staircase)."""
+def _check_volume(mesh: trimesh.Trimesh, where: str) -> None:
+    """Refuse a closed surface that encloses no volume, or too little to have a defined
+    inside (a 1 x 1 m box 1 nm thick gave a quarter of its cells in a staircase)."""
+    if mesh.volume <= 0:
+        raise MeshError(f"{where}: encloses no volume (all triangles coplanar or inverted)")
     thickness = 2.0 * float(mesh.volume) / max(float(mesh.area), 1e-300)
     diagonal = float(np.linalg.norm(mesh.extents))
     if thickness < MIN_THICKNESS_FRACTION * diagonal:
