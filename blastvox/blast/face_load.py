@@ -174,6 +174,22 @@ def face_load_nb(wave, cos_a, direct, s_clear, g_clear):
 
 
 @helper
+def face_step_fractions_nb(t0, t1, ta, td, b, td_neg):
+    """(positive, negative) fractions of a face's phase impulses falling in [t0, t1]:
+    :func:`face_step_impulse_nb` of a face taking i_pos = 1 and of one taking i_neg = 1
+    (the second negated), bit for bit, with the positive phase evaluated once."""
+    if t1 <= ta:
+        return 0.0, 0.0
+    positive = positive_fraction_nb((t0 - ta) / td, (t1 - ta) / td, b)
+    if td_neg <= 0.0:
+        return 1.0 * positive, 0.0
+    negative = 0.0 * positive
+    if t1 > ta + td:
+        negative -= negative_fraction_nb((t0 - ta - td) / td_neg, (t1 - ta - td) / td_neg)
+    return 1.0 * positive, -negative
+
+
+@helper
 def face_step_impulse_nb(i_pos, i_neg, t0, t1, ta, td, b, td_neg):
     """Impulse (Pa s) of [t0, t1] (s after detonation) of a face taking i_pos in the
     positive phase (the incident Friedlander shape from ta over td) and -i_neg in the

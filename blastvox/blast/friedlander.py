@@ -292,7 +292,11 @@ def _positive_cumulative_nb(tau, b):
 @helper
 def positive_fraction_nb(tau0, tau1, b):
     """Fraction (0..1) of the positive phase's impulse between tau0 <= tau1 (in units
-    of Td from arrival); consecutive windows telescope exactly."""
+    of Td from arrival); consecutive windows telescope exactly. A window wholly before
+    arrival or after the phase is exactly 0 (both ends clamp alike), without the
+    exponentials."""
+    if tau0 >= 1.0 or tau1 <= 0.0:
+        return 0.0
     return (_positive_cumulative_nb(tau1, b) - _positive_cumulative_nb(tau0, b)) / _gfun_nb(b)
 
 

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from blastvox.blast.face_load import face_load_nb, face_params_at, face_step_impulse_nb
+from blastvox.blast.face_load import face_load_nb, face_params_at, face_step_fractions_nb
 from blastvox.geometry.transforms_nb import rotate_into, to_world_into
 from blastvox.geometry.voxel_faces import FACE_CORNERS
 from blastvox.jit import helper, kernel
@@ -116,8 +116,7 @@ def _point_load(front, c, px, py, pz, t0, t1, out):
     if t1 <= ta:
         return False
     out[0], out[1], out[2], out[3] = r, rx / r, ry / r, rz / r
-    out[4] = face_step_impulse_nb(1.0, 0.0, t0, t1, ta, td, b, td_neg)
-    out[5] = -face_step_impulse_nb(0.0, 1.0, t0, t1, ta, td, b, td_neg) if td_neg > 0.0 else 0.0
+    out[4], out[5] = face_step_fractions_nb(t0, t1, ta, td, b, td_neg)
     out[6], out[7], out[8], out[9], out[10] = ps, td, b, imp, pr
     out[11], out[12], out[13], out[14] = ir, q, u, i_neg
     return True
@@ -205,6 +204,9 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                 for f in range(CONFORM_FACES):
                     if f < 6 and not (exposed >> f) & 1:
                         continue
+                    face_area = conform_area[slot, f]
+                    if face_area[0] == 0.0 and face_area[1] == 0.0 and face_area[2] == 0.0:
+                        continue  # no such face (it would take exactly no load)
                     rotate_into(rot, conform_area[slot, f], area)
                     to_world_into(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
                     if not _point_load(front, c, point[0], point[1], point[2], t0, t1,
