@@ -449,7 +449,10 @@ class Stress:
     each voxel's lattice index, chunk (N,) its chunk or None, wave_speed (N,) m/s its
     material's bar wave speed sqrt(E / rho), solved (B,) bodies whose current solution is known (a
     body's voxels or links changed: it is solved again), and run totals (solves,
-    seconds of wall time, links broken, the worst utilization of the last solve)."""
+    seconds of wall time, links broken, the worst utilization of the last solve).
+    survived and rubble, by body until its voxels or links change: the largest
+    impact it survived (see :func:`impact_phase`), and its live voxel count when it
+    is one chunk of a crushing material (no impact can break it)."""
 
     springs: LinkSprings
     cell: np.ndarray
@@ -461,6 +464,7 @@ class Stress:
     broken: int = 0
     peak: dict = field(default_factory=dict)
     survived: dict = field(default_factory=dict)
+    rubble: dict = field(default_factory=dict)
 
 
 def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
@@ -564,6 +568,7 @@ def invalidate(stress: Stress, voxel_body: np.ndarray, link_voxels: np.ndarray,
     stress.solved[changed] = False
     for b in np.unique(changed).tolist():
         stress.survived.pop(b, None)
+        stress.rubble.pop(b, None)
 
 
 #: Contact decelerations below this (m/s^2, 20 g) are resting contact, not impacts.
@@ -634,7 +639,7 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     dp (3,) N s, world frame, of which ``sustained`` m/s of velocity change held it up."""
     bodies, voxels = state.bodies, state.voxels
     dv = float(np.linalg.norm(dp)) / bodies.mass[b] - sustained
-    if dv <= 0.0 or dv < MIN_IMPACT_DV:
+    if dv <= 0.0 or dv < MIN_IMPACT_DV or stress.rubble.get(b) == members.size:
         return False
     rest_dir = bodies.rot[b].T @ (dp / np.linalg.norm(dp))
     along = model.voxels.centroid[members] @ rest_dir
@@ -651,7 +656,8 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
         return False
     links, ends = links_among(model, members)  # the body alone, renumbered
     if model.strength.inner[links].all():
-        return False  # one chunk of a material that crushes: nothing an impact can break
+        stress.rubble[b] = members.size  # one chunk of a material that crushes: nothing
+        return False                     # an impact can break
     voxel_in = np.ones(members.size, dtype=bool)
     fixed = along <= along.min() + 0.5 * size
     chunk = None if stress.chunk is None else stress.chunk[members]
