@@ -1,6 +1,6 @@
 """The building's rubble pile: blastvox's contact phase beside PyBullet on the same pieces.
 
-    python benchmarks/pile.py [--split 2.5] [--iterations 8]
+    python benchmarks/pile.py [--split 2.5] [--iterations 8] [--contact-sweeps N]
 
 Runs ``examples/building`` (its VoxelModel at ``out/building/model.npz``: run
 ``blastvox run examples/building/scene.toml`` first) in blastvox up to
@@ -29,7 +29,7 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -61,13 +61,10 @@ class Pile:
     static_corners: np.ndarray  # (S, 8, 3) the standing voxels' corners
 
 
-def run_to_split(split_step: int, steps: int) -> tuple[Pile, float, object]:
+def run_to_split(settings, split_step: int, steps: int) -> tuple[Pile, float, object]:
     """blastvox up to ``split_step``; returns the pile there, the seconds of steps
-    split_step + 1 .. steps, and the settings."""
-    from blastvox.simulate.settings import settings_from_scene
-
+    split_step + 1 .. steps, and the run."""
     model = VoxelModel.load(MODEL)
-    settings = settings_from_scene(load_scene(SCENE), str(SCENE))
     engine.simulate(model, settings)  # warm-up: numba's cache, untimed
     run = engine.Run.start(model, settings)
     per_frame = settings.steps_per_frame()
@@ -148,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds of shot before the timed part (default 2.5)")
     parser.add_argument("--iterations", type=int, default=8,
                         help="PyBullet's solver iterations (default 8)")
+    parser.add_argument("--contact-sweeps", type=int,
+                        help="blastvox's contact_sweeps (default: the scene's)")
     args = parser.parse_args(argv)
     if not MODEL.exists():
         print(f"{MODEL}: missing; run `blastvox run {SCENE}` first", file=sys.stderr)
@@ -159,10 +158,12 @@ def main(argv: list[str] | None = None) -> int:
     from blastvox.simulate.settings import settings_from_scene
 
     settings = settings_from_scene(load_scene(SCENE), str(SCENE))
+    if args.contact_sweeps is not None:
+        settings = replace(settings, contact_sweeps=args.contact_sweeps)
     dt = settings.step_seconds()
     steps = (settings.frame_count() - 1) * settings.steps_per_frame()
     split = max(1, min(steps - 1, round(args.split / dt)))
-    pile, blastvox_s, run = run_to_split(split, steps)
+    pile, blastvox_s, run = run_to_split(settings, split, steps)
     ground = float(run.model.ground_height)
     bullet_s, contacts = bullet_seconds(p, pile, settings, dt, steps - split, ground,
                                         np.asarray(run.model.up, dtype=float), args.iterations)
@@ -173,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{len(pile.static_corners):,} standing voxels at the split\n")
     print("| engine | s | ms per step |")
     print("|---|--:|--:|")
-    print(f"| blastvox, every phase | {blastvox_s:.2f} | {1e3 * blastvox_s / timed:.2f} |")
+    print(f"| blastvox, every phase, contact_sweeps {settings.contact_sweeps} | {blastvox_s:.2f} | "
+          f"{1e3 * blastvox_s / timed:.2f} |")
     print(f"| PyBullet, {args.iterations} solver iterations, convex hulls ({contacts:,} contact "
           f"points at the end) | {bullet_s:.2f} | {1e3 * bullet_s / timed:.2f} |")
     print(f"\nPer second of shot: blastvox {blastvox_s / (timed * dt):.2f} s, "

@@ -78,6 +78,10 @@ def simulate(
                                    "ignored and the model floats free."),
     seed: int = typer.Option(None, "--seed", help="Seed of the particles' random streams, "
                              "0 to 2**64 - 1 [default: the scene's or 0]."),
+    contact_sweeps: int = typer.Option(None, "--contact-sweeps", help="Velocity sweeps of the "
+                                       "contact solver at most a step, 1 to 10000: fewer are "
+                                       "faster in rubble piles, and pieces sink further into "
+                                       "each other [default: 64]."),
     max_steps: int = typer.Option(MAX_STEPS, "--max-steps", help="Refuse a run of more fixed "
                                   "steps (duration / dt)."),
     max_frames: int = typer.Option(MAX_FRAMES, "--max-frames", help="Refuse a run of more "
@@ -127,7 +131,8 @@ def simulate(
     check_output(output, [model_path, scene], make_dirs=from_scene,
                  label="output.cache" if from_scene else "-o")
     overrides = {k: v for k, v in {"dt": dt, "fps": fps, "duration": duration,
-                                   "gravity": gravity, "fracture": fracture, "seed": seed}.items()
+                                   "gravity": gravity, "fracture": fracture, "seed": seed,
+                                   "contact_sweeps": contact_sweeps}.items()
                  if v is not None}
     if overrides.get("fracture", "yield") not in ("pressure-impulse", "yield", "damage"):
         raise BlastvoxError(f"--fracture must be pressure-impulse, yield or damage "
@@ -143,7 +148,7 @@ def simulate(
     flagged = [*overrides, "charges"] if charge or scene is None else list(overrides)
     if scene is None:  # every value is a flag's (given or its default)
         flagged += ["dt", "fps", "duration", "gravity", "seed"]
-    names = {k: "--charge" if k == "charges" else f"--{k}" for k in flagged}
+    names = {k: "--charge" if k == "charges" else f"--{k.replace('_', '-')}" for k in flagged}
     settings = replace(settings, **overrides,
                        budget=Budget(max_steps, max_frames, max_particles, max_memory),
                        origin=settings.origin.renamed(names, str(scene or model_path)))

@@ -38,9 +38,8 @@ from blastvox.simulate.integrate import (
 )
 from blastvox.simulate.spatial_hash import bucket, hash_buckets
 
-#: Velocity sweeps of the contact solver at most; it stops sooner once a sweep changes
-#: no contact point's normal velocity by more than :data:`SOLVED_SPEED`.
-VELOCITY_SWEEPS = 64
+#: The velocity sweeps stop once a sweep changes no contact point's normal velocity by
+#: more than this, or after params.sweeps (the scene's ``contact_sweeps``).
 SOLVED_SPEED = 1e-2  # m/s
 #: Sweeps at most of the Gauss-Seidel solve of one pair's corners, in each velocity sweep.
 CORNER_SWEEPS = 16
@@ -295,7 +294,7 @@ def solve_contacts(bodies, memory, count, params) -> None:
     _warm_start(memory, count, ends, bw, rw, params.friction)
     scratch = np.empty(8)
     order = _support_order(ends, n, count)
-    for sweep in range(VELOCITY_SWEEPS):
+    for sweep in range(params.sweeps):
         change = 0.0
         for q in range(count):
             # from the supports out, then back: a stack's weight and an impact on its
@@ -312,7 +311,7 @@ def solve_contacts(bodies, memory, count, params) -> None:
         memory.stats[1] += 1
         if change <= SOLVED_SPEED:
             break
-        if sweep == VELOCITY_SWEEPS - 1:
+        if sweep == params.sweeps - 1:
             memory.stats[2] += 1
     memory.stats[0] += 1
     _remember(memory, count, rw, bounce)

@@ -106,13 +106,14 @@ class ContactMemory(NamedTuple):
 class SolverParams(NamedTuple):
     """dt: s; friction: Coulomb mu; rest_speed: m/s of approach below which a contact
     does not bounce; slop: m of penetration left alone; push: m the position pass
-    may move a contact apart per step."""
+    may move a contact apart per step; sweeps: velocity sweeps at most."""
 
     dt: float
     friction: float
     rest_speed: float
     slop: float
     push: float
+    sweeps: int
 
 
 def empty_rows(capacity: int) -> ContactRows:
@@ -171,7 +172,8 @@ def solver_params(memory: ContactMemory, settings, dt: float) -> SolverParams:
     size = memory.size
     return SolverParams(dt=dt, friction=settings.friction,
                         rest_speed=rest_speed(settings, dt),
-                        slop=SLOP * size, push=PUSH * size)
+                        slop=SLOP * size, push=PUSH * size,
+                        sweeps=int(settings.contact_sweeps))
 
 
 class GroundParams(NamedTuple):

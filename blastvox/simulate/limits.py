@@ -57,6 +57,8 @@ MOTION_LIMIT_VOXELS = 0.5
 SPIN_LIMIT_RAD = MAX_SPIN_PER_STEP
 #: Voxels bodies may sink into each other or the ground before a run warns.
 PENETRATION_LIMIT_VOXELS = 0.5
+#: The contact solver's default sweeps cap (:class:`~blastvox.simulate.settings.SimSettings`).
+DEFAULT_SWEEPS = SimSettings.contact_sweeps
 
 
 def voxel_size(contact_radius: np.ndarray) -> float:
@@ -119,12 +121,15 @@ def spin_message(dt: float, measured: float) -> str:
             f"(scene: [simulation] dt)")
 
 
-def penetration_message(dt: float, measured: float) -> str:
-    """The warning for bodies that sank ``measured`` voxels into each other or the ground."""
+def penetration_message(dt: float, measured: float, sweeps: int = DEFAULT_SWEEPS) -> str:
+    """The warning for bodies that sank ``measured`` voxels into each other or the ground,
+    with the contact solver capped at ``sweeps`` velocity sweeps a step."""
+    fewer = (f", or raise --contact-sweeps from {sweeps} (scene: [simulation] contact_sweeps; "
+             f"default {DEFAULT_SWEEPS})" if sweeps < DEFAULT_SWEEPS else "")
     return (f"dt {dt:.3g} s lets fragments sink {measured:.2f} voxels into each other or the "
             f"ground (limit {PENETRATION_LIMIT_VOXELS:g}), so contacts did not hold them "
             f"apart; use --dt {suggested_dt(dt, measured, PENETRATION_LIMIT_VOXELS):.2g} or "
-            f"smaller (scene: [simulation] dt)")
+            f"smaller (scene: [simulation] dt){fewer}")
 
 
 class LimitMonitor:
@@ -134,6 +139,7 @@ class LimitMonitor:
         self.dt = dt
         self.size = voxel_size(sm.voxels.contact_radius)
         self.collisions = settings.collisions
+        self.sweeps = settings.contact_sweeps
         self.motion = 0.0  # worst voxels per step seen
         self.fastest = (0.0, 0.0)  # that fragment's mass (kg) and speed (m/s)
         self.spin = 0.0  # worst rad per step seen
@@ -180,7 +186,7 @@ class LimitMonitor:
         if self.spin > SPIN_LIMIT_RAD:
             out.append(spin_message(self.dt, self.spin))
         if self.depth > PENETRATION_LIMIT_VOXELS and self.motion <= MOTION_LIMIT_VOXELS:
-            out.append(penetration_message(self.dt, self.depth))
+            out.append(penetration_message(self.dt, self.depth, self.sweeps))
         return out
 
     def finish(self) -> None:
