@@ -117,10 +117,13 @@ def _expected_png(cache: SimCache) -> bytes:
     return damage_png("concrete", color)
 
 
-def test_usd_binds_the_damage_texture_beside_the_file(shot: SimCache, tmp_path: Path) -> None:
-    path = tmp_path / "shot.usda"
+@pytest.mark.parametrize("stem", ["shot", "shot@v2", "x@@@y"])
+def test_usd_binds_the_damage_texture_beside_the_file(shot: SimCache, tmp_path: Path,
+                                                      stem: str) -> None:
+    """An output name may hold '@', the usda asset delimiter (it crashed the export)."""
+    path = tmp_path / f"{stem}.usda"
     export(shot, path, ExportOptions())
-    texture = tmp_path / "shot_textures" / "damage_concrete.png"
+    texture = tmp_path / f"{stem}_textures" / "damage_concrete.png"
     assert texture.read_bytes() == _expected_png(shot)
     stage = Usd.Stage.Open(str(path))
     material = UsdShade.Material(stage.GetPrimAtPath("/Shot/Materials/concrete_damage"))

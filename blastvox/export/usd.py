@@ -297,7 +297,7 @@ class _Writer:
                 f"                token outputs:surface\n            }}\n\n"
                 f'            def Shader "Texture"\n            {{\n'
                 f'                uniform token info:id = "UsdUVTexture"\n'
-                f"                asset inputs:file = @{asset}@\n"
+                f"                asset inputs:file = {_usda_asset(asset)}\n"
                 f'                token inputs:sourceColorSpace = "sRGB"\n'
                 f"                float2 inputs:st.connect = <{path}/UV.outputs:result>\n"
                 f'                token inputs:wrapS = "repeat"\n'
@@ -632,6 +632,14 @@ def write_usd(cache: SimCache, path: Path, options: ExportOptions) -> None:
             with contextlib.suppress(OSError):
                 directory.rmdir()
         raise
+
+
+def _usda_asset(path: str) -> str:
+    """An asset path as usda text: ``@path@``, or ``@@@path@@@`` (with ``@@@`` inside
+    escaped) when it holds an ``@`` (an output named ``shot@v2.usdc``)."""
+    if "@" not in path:
+        return f"@{path}@"
+    return "@@@" + path.replace("@@@", "\\@@@") + "@@@"
 
 
 def _write_textures(files: list[tuple[str, bytes]], directory: Path) -> list[Path]:
