@@ -27,21 +27,35 @@ def _stale(output: Path, inputs: list[Path]) -> bool:
     return output.stat().st_mtime_ns < newest
 
 
+def _side_missing(export: Path) -> bool:
+    """Is the file an export writes beside ``export`` (a .gltf's .bin) missing?"""
+    from blastvox.export.api import side_outputs
+
+    buffer, _ = side_outputs(export)
+    return buffer is not None and not buffer.exists()
+
+
 def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[Path]) -> None:
     """The output policy (blastvox.io.outputs) for every file the shot writes, before any
     stage runs: none is a device or an input, and no two are the same file."""
-    from blastvox.export.api import GLTF_SUFFIXES, USD_SUFFIXES
-    from blastvox.io.outputs import check_distinct, check_output
+    from blastvox.export.api import GLTF_SUFFIXES, USD_SUFFIXES, side_outputs
+    from blastvox.io.outputs import check_distinct, check_output, check_side_directory
 
     outputs = [("output.model", model), ("output.cache", cache)]
+    folders = []
     for i, path in enumerate(exports):
         label = "output.export" if len(exports) == 1 else f"output.export.{i}"
         outputs.append((label, path))
-        if Path(path).suffix.lower() == ".gltf":  # its buffer is written beside it
-            outputs.append((f"{label} (its .bin)", Path(path).with_name(Path(path).stem + ".bin")))
+        buffer, textures = side_outputs(path)
+        if buffer is not None:  # a .gltf's buffer is written beside it
+            outputs.append((f"{label} (its .bin)", buffer))
+        if textures is not None:
+            folders.append((f"{label} (its textures)", textures))
     for label, path in outputs:
         check_output(path, inputs, label=label, make_dirs=True)
     check_distinct(outputs)
+    for label, folder in folders:  # the shot's own model and cache are inputs of export
+        check_side_directory(folder, [*inputs, model, cache], label=label)
     for label, path in outputs[2:]:  # refused here, not after voxelize and simulate ran
         suffix = Path(path).suffix.lower()
         if suffix not in USD_SUFFIXES + GLTF_SUFFIXES and not label.endswith("(its .bin)"):
@@ -126,7 +140,7 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
         seconds["simulate"] = time.perf_counter() - started
         ran.append("simulate")
     for path in exports:
-        if "simulate" in ran or _stale(path, [out.cache, scene_path]):
+        if "simulate" in ran or _stale(path, [out.cache, scene_path]) or _side_missing(path):
             from blastvox.cache import SimCache
             from blastvox.export.api import ExportOptions, export
 

@@ -132,6 +132,9 @@ def test_scene_outputs_that_are_inputs_or_each_other_are_refused(work: Path) -> 
             ("output.export", "same file"),
         'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/a.glb", "out/a.fbx"]':
             ("output.export.1", "unknown export format '.fbx'"),  # before voxelize runs
+        # the USD export's textures would overwrite the shot's own cache
+        'model = "out/a.npz"\ncache = "out/s_textures/damage_brick.png"\nexport = ["out/s.usdc"]':
+            ("output.export (its textures)", "holds an input"),
     }
     for output, (key, word) in cases.items():
         scene.write_text('[[objects]]\nmesh = "wall.stl"\nvoxel_size = 0.25\n'
@@ -290,3 +293,32 @@ def test_an_interrupt_that_library_code_swallows_still_stops_the_run(
     assert run(list(commands("new.npz")["simulate"])) == 130
     assert fired and not (work / "new.npz").exists()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_export_never_writes_its_textures_over_an_input(work: Path) -> None:
+    """A USD export writes PNGs into <stem>_textures/: an input there (a cache renamed
+    damage_brick.png) is refused before anything is written, and a file where that
+    directory goes is named as such (it was a bare "File exists")."""
+    (work / "s_textures").mkdir()
+    (work / "s_textures" / "damage_brick.png").write_bytes((work / "sim.npz").read_bytes())
+    with unchanged(work, [work / "s_textures" / "damage_brick.png"]):
+        outcome = run_blastvox("export", "s_textures/damage_brick.png", "-q", "-o", "s.usdc",
+                               cwd=work)
+    assert_clean_failure(outcome, ["s_textures", "-o"], words=["holds an input"])
+    (work / "y_textures").write_text("in the way")
+    with unchanged(work, [work / "y_textures"]):
+        outcome = run_blastvox("export", "sim.npz", "-q", "-o", "y.usdc", cwd=work)
+    assert_clean_failure(outcome, ["y_textures"], words=["is a file"])
+
+
+def test_run_exports_again_when_a_gltf_lost_its_buffer(work: Path) -> None:
+    """A .gltf without its .bin cannot be loaded: run rebuilds it, not "up to date"."""
+    (work / "scene.toml").write_text(
+        '[[objects]]\nmesh = "wall.stl"\nvoxel_size = 0.25\n'
+        '[[charges]]\nposition = [0, -1.5, 0.5]\nmass_kg = 2\n[simulation]\nduration = 0.2\n'
+        '[output]\nmodel = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/a.gltf"]\n')
+    assert run_blastvox("run", "scene.toml", "-q", cwd=work).code == 0
+    buffer = (work / "out" / "a.bin").read_bytes()
+    (work / "out" / "a.bin").unlink()
+    assert run_blastvox("run", "scene.toml", "-q", cwd=work).code == 0
+    assert (work / "out" / "a.bin").read_bytes() == buffer

@@ -41,15 +41,17 @@ def export(
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
     from blastvox.cache import SimCache
     from blastvox.cli.console import cli_warnings, err_console
-    from blastvox.export.api import ExportOptions
+    from blastvox.export.api import ExportOptions, side_outputs
     from blastvox.export.api import export as run
-    from blastvox.io.outputs import check_distinct, check_output
+    from blastvox.io.outputs import check_distinct, check_output, check_side_directory
 
     check_output(output, [cache_path])
-    if output.suffix.lower() == ".gltf":  # its buffer is written beside it
-        check_output(output.with_name(output.stem + ".bin"), [cache_path],
-                     label="-o (the .gltf's .bin)")
-        check_distinct([("-o", output), ("its .bin", output.with_name(output.stem + ".bin"))])
+    buffer, textures = side_outputs(output)
+    if buffer is not None:  # a .gltf's buffer is written beside it
+        check_output(buffer, [cache_path], label="-o (the .gltf's .bin)")
+        check_distinct([("-o", output), ("its .bin", buffer)])
+    if textures is not None:
+        check_side_directory(textures, [cache_path], label="-o (its textures)")
     started = time.perf_counter()
     cache = SimCache.load(cache_path)
     with cli_warnings(err_console()):

@@ -15,13 +15,26 @@ from blastvox.errors import BlastvoxError
 from blastvox.export.options import ExportOptions
 from blastvox.geometry.frames import UP_AXES
 
-__all__ = ["ExportOptions", "GLTF_SUFFIXES", "USD_SUFFIXES", "export"]
+__all__ = ["ExportOptions", "GLTF_SUFFIXES", "USD_SUFFIXES", "export", "side_outputs"]
 
 USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
 GLTF_SUFFIXES = (".gltf", ".glb")
 #: pieces above which a node-per-piece glTF warns: Blender's importer slows down with
 #: the square of the node count (docs/benchmarks.md, "Export at scale")
 GLTF_NODE_WARNING = 2000
+
+
+def side_outputs(path: str | Path) -> tuple[Path | None, Path | None]:
+    """What an export to ``path`` writes beside it: (file, directory): a .gltf's buffer
+    ``<stem>.bin``, and a .usd/.usda/.usdc's ``<stem>_textures/`` (the look's and the
+    damage faces' PNGs); None where there is none."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".gltf":
+        return path.with_name(path.stem + ".bin"), None
+    if suffix in USD_SUFFIXES and suffix != ".usdz":  # a .usdz packs its textures inside
+        return None, path.with_name(path.stem + "_textures")
+    return None, None
 
 
 def export(cache: SimCache, path: str | Path, options: ExportOptions | None = None) -> None:

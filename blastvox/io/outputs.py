@@ -86,3 +86,29 @@ def check_distinct(outputs: Iterable[tuple[str, str | os.PathLike]]) -> None:
                 raise OutputError(f"{path}: {label} is the same file as {other_label}; "
                                   f"each output needs its own path")
         seen.append((label, path))
+
+
+def check_side_directory(directory: str | os.PathLike,
+                         inputs: Iterable[str | os.PathLike | None] = (),
+                         label: str = "-o") -> Path:
+    """The output policy for a directory an output writes files into (a USD export's
+    ``<stem>_textures/``): it is a directory or does not exist yet, and holds none of the
+    command's ``inputs`` (its files would be overwritten). Returns it as a Path."""
+    folder = Path(directory)
+    try:
+        mode = os.stat(folder).st_mode
+    except FileNotFoundError:
+        mode = None
+    except OSError as exc:
+        raise OutputError(f"{folder}: {label}: cannot be written ({exc.strerror})") from None
+    if mode is not None and not stat.S_ISDIR(mode):
+        kind = "a file" if stat.S_ISREG(mode) else file_kind(mode)
+        raise OutputError(f"{folder}: {label}: is {kind}, where the export "
+                          f"writes its textures (a directory); move it away")
+    inside = os.path.realpath(folder)
+    for source in inputs:
+        if source is not None and os.path.realpath(source).startswith(inside + os.sep):
+            raise OutputError(f"{folder}: {label}: holds an input of this command ({source}), "
+                              f"and the export writes its textures there; write the output "
+                              f"elsewhere")
+    return folder
