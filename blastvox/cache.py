@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from blastvox import __version__
-from blastvox.geometry.frames import AXES
+from blastvox.geometry.frames import UP_AXES
 from blastvox.io.npz import read_npz, write_npz
 from blastvox.io.validate import (
     Spec,
@@ -269,7 +269,7 @@ def _check_meta(path: str | os.PathLike, meta: Mapping[str, Any],
     if meta.get("ground_height") is not None:
         check_meta_number(path, "ground_height", meta["ground_height"], limit=COORD_LIMIT_M)
     up = meta.get("up_axis")
-    if up is not None and (up not in AXES or up != model_meta.get("up_axis")):
+    if up is not None and (up not in UP_AXES or up != model_meta.get("up_axis")):
         fail(path, f"meta up_axis is {up!r}; expected the model's, "
                    f"{model_meta.get('up_axis')!r}")
     settings = meta.get("settings")

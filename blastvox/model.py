@@ -64,7 +64,7 @@ import numpy as np
 
 from blastvox import __version__
 from blastvox.damage_look import PATTERNS
-from blastvox.geometry.frames import AXES, up_index
+from blastvox.geometry.frames import UP_AXES, up_index
 from blastvox.geometry.voxel_faces import SURFACE_BIT as SURFACE_BIT  # voxel_boundary's bit 6
 from blastvox.geometry.voxel_faces import SURFACE_TAG
 from blastvox.io.npz import check_schema_version, read_npz, write_npz
@@ -395,8 +395,8 @@ def _check_unit_or_zero(path: str | os.PathLike, name: str, vectors: np.ndarray)
 def _check_meta(path: str | os.PathLike, meta: Mapping[str, Any], prefix: str) -> list[str]:
     """up_axis, ground_height, objects, materials; returns the material names."""
     up = meta.get("up_axis")
-    if up not in AXES:
-        fail(path, f"meta {prefix}up_axis is {up!r}; expected one of {', '.join(AXES)}")
+    if up not in UP_AXES:
+        fail(path, f"meta {prefix}up_axis is {up!r}; expected one of {', '.join(UP_AXES)}")
     ground = meta.get("ground_height")
     if ground is not None:
         check_meta_number(path, f"{prefix}ground_height", ground, limit=COORD_LIMIT_M)

@@ -222,6 +222,8 @@ MODEL_CASES: list[tuple[str, Callable[[Arrays], None], tuple[str, ...]]] = [
     ("meta-version-bool", _meta_set("schema_version", True), ("invalid schema_version True",)),
     ("meta-schema", _meta_set("schema", "blastvox.SimCache"), ("found 'blastvox.SimCache'",)),
     ("meta-up-axis", _meta_set("up_axis", "Q"), ("up_axis is 'Q'",)),
+    # an X-up model simulated, then crashed every export (up axes are Y or Z)
+    ("meta-up-axis-x", _meta_set("up_axis", "X"), ("up_axis is 'X'", "Y, Z")),
     ("meta-objects", _meta_set("objects", {"name": "x"}), ("meta objects",)),
     ("meta-object-name", _meta_set("objects", [{"source": "x"}]), ("meta objects",)),
     ("meta-materials", _meta_set("materials", ["wood", 3]), ("meta materials",)),

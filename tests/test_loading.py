@@ -185,6 +185,19 @@ def test_charge_inside_solid_warns_once_naming_it(tmp_path):
     assert len(buried) == 1 and buried[0].startswith("charge 1 at (0.1, 0.1, 0.1) m")
 
 
+def test_a_charge_on_a_voxel_centre_dusts_it(tmp_path):
+    """A buried charge exactly at a voxel's centre (round coordinates in a grid-aligned
+    mesh) crashed with ZeroDivisionError: the dust's push had no direction. It dusts the
+    voxel, which leaves with no net push."""
+    model = _founded_wall(tmp_path, "concrete")
+    centre = model.arrays["voxel_centroid"]
+    target = int(np.argmin(np.linalg.norm(centre - (0.125, 0.0, 1.5), axis=1)))
+    cache = simulate(model, SimSettings(duration=0.05, charges=(
+        ChargeSpec(tuple(float(x) for x in centre[target]), 1.0),)))
+    assert cache.arrays["voxel_destroyed_frame"][target] >= 0
+    assert np.isfinite(cache.arrays["piece_position"]).all()
+
+
 def test_charges_below_the_ground_or_after_the_shot_warn_naming_them(tmp_path):
     model = _founded_wall(tmp_path, "concrete")  # Z up, the ground at z = 0
     warnings: list[str] = []

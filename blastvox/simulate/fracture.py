@@ -267,9 +267,9 @@ def fracture_voxels(front, params, geometry, voxels, bodies, order, marks, stren
                     remove_voxel(exposure.grid, geometry, v)
                     i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
                     area = (2.0 * geometry.contact_radius[v]) ** 2
-                    for a in range(3):
-                        loads.held_p[v, a] = (imp - i_neg) * area * (centre[a]
-                                                                     - charge_pos[c, a]) / r
+                    for a in range(3):  # a voxel centred on the charge: pushed evenly
+                        loads.held_p[v, a] = (imp - i_neg) * area * (
+                            centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
                         loads.held_l[v, a] = 0.0
                 break
             voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * peak)
