@@ -685,3 +685,29 @@ def test_the_cli_refuses_crafted_files_in_one_line(model_members, cache_members,
     for (name, (_, _, word)), outcome in zip(bad.items(), outcomes, strict=True):
         assert_clean_failure(outcome, [name, word])
     assert not (tmp_path / "out.npz").exists() and not (tmp_path / "shot.glb").exists()
+
+
+def test_inputs_that_are_not_blastvox_files_are_named_for_what_they_are(tmp_path):
+    """info, diff and export say what a wrong input is: a directory or a device is not
+    "no such file"; info names both kinds it reads; no doubled words."""
+    (tmp_path / "adir.npz").mkdir()
+    np.savez(tmp_path / "rand.npz", a=np.zeros(3))
+    np.savez(tmp_path / "schemaless.npz",
+             meta=np.frombuffer(json.dumps({"kind": "SimCache"}).encode(), dtype=np.uint8))
+    cases = {
+        ("info", "adir.npz"): ["adir.npz", "is a directory"],
+        ("info", "/dev/null"): ["/dev/null", "is a character device"],
+        ("info", "rand.npz"): ["rand.npz", "not a blastvox VoxelModel or SimCache"],
+        ("info", "schemaless.npz"): ["schemaless.npz", "VoxelModel or blastvox.SimCache",
+                                     "meta naming no schema"],
+        ("diff", "adir.npz", "rand.npz"): ["adir.npz", "is a directory"],
+        ("diff", "rand.npz", "rand.npz"): ["rand.npz", "not a blastvox file ("],
+        ("export", "adir.npz", "-o", "x.usdc"): ["adir.npz", "is a directory, not a SimCache"],
+    }
+    for args, needles in cases.items():
+        outcome = run_blastvox(*args, cwd=tmp_path)
+        line = assert_clean_failure(outcome, needles[:1], code=outcome.code)
+        assert outcome.code in (1, 2), outcome.code
+        for needle in needles[1:]:
+            assert needle in line, (args, line)
+        assert "blastvox blastvox" not in line

@@ -55,14 +55,25 @@ def load_summary(path: Path) -> dict[str, Any]:
     from blastvox.errors import ContractError
 
     if not path.is_file():
-        raise ContractError(f"{path}: no such file")
+        from blastvox.io.outputs import not_a_file
+
+        raise ContractError(not_a_file(path))
     schema = _peek_schema(path)
     if schema == cache.SCHEMA:
         return cache.SimCache.load(path).summary()
     if isinstance(schema, str) and schema != model.SCHEMA:
         raise ContractError(f"{path}: expected a {model.SCHEMA} or {cache.SCHEMA} file, "
                             f"found {schema!r}")
-    # a VoxelModel, or unreadable: the VoxelModel loader gives the precise one-line error
+    if schema is None:  # unreadable: the reader gives the precise one-line error
+        from blastvox.io.npz import read_npz
+
+        try:
+            read_npz(path, model.SCHEMA, model.SCHEMA_VERSION, members=(),
+                     what="VoxelModel or SimCache")
+        except ContractError as exc:  # either schema would do
+            raise ContractError(str(exc).replace(
+                f"expected a {model.SCHEMA} file", f"expected a {model.SCHEMA} or "
+                f"{cache.SCHEMA} file")) from None
     return model.VoxelModel.load(path).summary()
 
 

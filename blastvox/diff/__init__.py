@@ -100,7 +100,9 @@ def diff_files(a: str | Path, b: str | Path, atol: float = DEFAULT_ATOL,
                         f"({KIND_NAMES[kinds[1]]}): different kinds of file")
     for p in (a, b):
         if not p.is_file():
-            raise DiffError(f"{p}: no such file")
+            from blastvox.io.outputs import not_a_file
+
+            raise DiffError(not_a_file(p))
     out = _Collector(atol, rtol, limit)
     compare = {"npz": _diff_npz, "usd": _diff_usd, "gltf": _diff_gltf}[kinds[0]]
     try:

@@ -35,7 +35,7 @@ def _load_npz(path: Path) -> tuple[str, dict[str, Any], dict[str, np.ndarray]]:
         raise DiffError(f"{path}: expected a {model.SCHEMA} or {cache.SCHEMA} file, "
                         f"found {schema!r}")
     schema = schema if schema in versions else model.SCHEMA
-    meta, arrays = read_npz(path, schema, versions[schema], what="blastvox file")
+    meta, arrays = read_npz(path, schema, versions[schema], what="file")
     return schema, meta, arrays
 
 

@@ -148,7 +148,9 @@ def read_npz(path: str | os.PathLike, schema: str, max_version: int,
     """
     p = Path(path)
     if not p.is_file():
-        raise ContractError(f"{p}: no such {what}")
+        from blastvox.io.outputs import not_a_file
+
+        raise ContractError(not_a_file(p, what))
     if not zipfile.is_zipfile(p):
         raise ContractError(f"{p}: not a blastvox {what} (not an .npz archive)")
     wanted = _wants(members)
@@ -213,7 +215,8 @@ def _read_meta(p: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo, schema: str,
         raise ContractError(f"{p}: corrupt metadata ({_one_line(exc)})") from None
     if not isinstance(meta, dict) or meta.get("schema") != schema:
         found = meta.get("schema") if isinstance(meta, dict) else None
-        raise ContractError(f"{p}: expected a {schema} file, found {found!r}")
+        raise ContractError(f"{p}: expected a {schema} file, found "
+                            f"{'a meta naming no schema' if found is None else repr(found)}")
     check_schema_version(p, "", meta, schema, max_version)
     return meta
 

@@ -27,6 +27,16 @@ def file_kind(mode: int) -> str:
     return next((name for test, name in _KINDS if test(mode)), "not a regular file")
 
 
+def not_a_file(path: str | os.PathLike, what: str = "file") -> str:
+    """Why an input ``path`` that is not a regular file cannot be read, as an error line:
+    ``no such file``, or ``is a directory, not a file`` for one that exists."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return f"{path}: no such {what}"
+    return f"{path}: is {file_kind(mode)}, not a {what}"
+
+
 def refuse_special(path: Path, label: str) -> None:
     """OutputError if ``path`` exists and is not a regular file (following symlinks)."""
     try:

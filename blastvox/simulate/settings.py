@@ -315,7 +315,7 @@ def check_budget(settings: SimSettings) -> None:
     if total > budget.max_particles:
         parts = " + ".join(f"{system} {_count(count)}" for system, count in settings.budgets)
         raise BudgetError(
-            f"{where}: {particles} budgets total {_count(total)} particles ({parts}), over "
+            f"{where}: {particles}: the particle budgets total {_count(total)} ({parts}), over "
             f"the limit of {budget.max_particles:,} (raise it with --max-particles)")
 
 
