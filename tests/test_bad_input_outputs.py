@@ -322,3 +322,13 @@ def test_run_exports_again_when_a_gltf_lost_its_buffer(work: Path) -> None:
     (work / "out" / "a.bin").unlink()
     assert run_blastvox("run", "scene.toml", "-q", cwd=work).code == 0
     assert (work / "out" / "a.bin").read_bytes() == buffer
+
+
+def test_choices_on_the_command_line_are_case_insensitive_as_in_a_scene(work: Path) -> None:
+    """--up-axis z, --layout XFORMS and --burst AIR are what a scene's values would be."""
+    outcome = run_blastvox("export", "sim.npz", "-q", "-o", "a.usda", "--up-axis", "z",
+                           "--layout", "XFORMS", cwd=work)
+    assert outcome.code == 0, outcome.stderr
+    assert 'upAxis = "Z"' in (work / "a.usda").read_text()
+    assert run_blastvox("blast", "--charge", "1", "--distance", "5", "--burst", "AIR",
+                        "--json", cwd=work).code == 0

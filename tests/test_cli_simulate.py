@@ -112,7 +112,7 @@ GOOD_RUNS: dict[str, Spec] = {
     "basic": Spec("wall", (MODEL, "--charge", "0,-3,0:5@0.05", "--duration", "0.23",
                            "--fps", "40", "--dt", "0.0025")),
     "damage_odd_dt": Spec("wall", (MODEL, "--charge", "0,-5,0:1", "--duration", "0.1",
-                                   "--fps", "30", "--dt", "0.002", "--fracture", "damage",
+                                   "--fps", "30", "--dt", "0.002", "--fracture", "DAMAGE",
                                    "--seed", "11", "--contact-sweeps", "7")),
     "scene": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",)),
     "scene_again": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",)),

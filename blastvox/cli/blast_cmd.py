@@ -84,7 +84,7 @@ def blast(
                                    "included) and peak overpressure and "
                                    "impulse, incident and reflected, against distance "
                                    "(.png, .svg or .pdf)."),
-    burst: Burst = typer.Option(Burst.air, "--burst",
+    burst: Burst = typer.Option(Burst.air, "--burst", case_sensitive=False,
                                 help="air: spherical charge in free air; surface: "
                                      "hemispherical charge on the ground."),
 ) -> None:

@@ -23,8 +23,10 @@ def export(
     output: Path = typer.Option(..., "-o", "--output", help="Output: .usda, .usdc, .usd, "
                                 ".usdz (one package with its textures), .gltf or .glb (the "
                                 "suffix picks the format)."),
-    up_axis: UpAxis = typer.Option(UpAxis.Y, "--up-axis", help="Up axis of the written file."),
-    layout: Layout = typer.Option(Layout.xforms, "--layout", help="xforms: an Xform and Mesh "
+    up_axis: UpAxis = typer.Option(UpAxis.Y, "--up-axis", case_sensitive=False,
+                                   help="Up axis of the written file."),
+    layout: Layout = typer.Option(Layout.xforms, "--layout", case_sensitive=False,
+                                  help="xforms: an Xform and Mesh "
                                   "per piece (USD) or a node per piece (glTF); instancer: a USD "
                                   "PointInstancer (many pieces); skinned: a glTF of one mesh "
                                   "with a joint per piece (imports fast in Blender)."),

@@ -71,7 +71,8 @@ def simulate(
     fracture: str = typer.Option(None, "--fracture", help="pressure-impulse, yield (the "
                                  "papers' peak overpressure) or damage (Davison-Stevens) "
                                  "[default: pressure-impulse]."),
-    burst: ChargeBurst = typer.Option(ChargeBurst.auto, "--burst", help="Burst of --charge "
+    burst: ChargeBurst = typer.Option(ChargeBurst.auto, "--burst", case_sensitive=False,
+                                       help="Burst of --charge "
         "charges: air (free-air sphere), surface (hemisphere on the ground) or auto "
         "(surface within 0.2 W^(1/3) m of the ground)."),
     no_ground: bool = typer.Option(False, "--no-ground", help="No ground: foundations are "
@@ -130,6 +131,7 @@ def simulate(
     from_scene = scene is not None and output == spec.output.cache
     check_output(output, [model_path, scene], make_dirs=from_scene,
                  label="output.cache" if from_scene else "-o")
+    fracture = fracture.lower() if fracture is not None else None  # as a scene's value
     overrides = {k: v for k, v in {"dt": dt, "fps": fps, "duration": duration,
                                    "gravity": gravity, "fracture": fracture, "seed": seed,
                                    "contact_sweeps": contact_sweeps}.items()

@@ -85,7 +85,8 @@ def voxelize(
                                  "(see `blastvox materials`)."),
     materials_file: Path = typer.Option(None, "--materials", help="TOML file of extra or "
                                         "overriding materials."),
-    up_axis: UpAxis = typer.Option(None, "--up-axis", help="Which input axis points up "
+    up_axis: UpAxis = typer.Option(None, "--up-axis", case_sensitive=False,
+                                   help="Which input axis points up "
                                    "[default: Y, as glTF; Z for most CAD/STL files]."),
     ground: str = typer.Option(None, "--ground", help="Ground height: auto (lowest point), "
                                "none (free-floating, no foundation), or metres [default: auto]."),
