@@ -209,6 +209,7 @@ SCALE = Bound(0.0, 1e6, lo_open=True)
 VOXEL_SIZE = Bound(0.0, MAX_VOXEL_SIZE_M, lo_open=True, unit="m")
 RESOLUTION = Bound(1, 2**63 - 1, integer=True)
 CONTACT_SWEEPS = Bound(1, 10_000, integer=True)
+FOCAL_LENGTH_MM = Bound(1.0, 10_000.0, unit="mm")  # a 36 mm film back
 JITTER = Bound(0.0, 0.5, hi_open=True)
 SEED = Bound(0, MAX_SEED, integer=True)
 MAX_VOXELS = Bound(1, MAX_VOXELS_LIMIT, integer=True)

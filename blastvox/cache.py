@@ -287,8 +287,8 @@ def _check_meta(path: str | os.PathLike, meta: Mapping[str, Any],
         if camera["position"] == camera["look_at"]:
             fail(path, "meta camera.look_at is the camera's position; the camera looks nowhere")
         if camera.get("focal_length_mm") is not None:
-            check_meta_number(path, "camera.focal_length_mm", camera["focal_length_mm"], 0.0,
-                              lo_open=True)
+            check_meta_number(path, "camera.focal_length_mm", camera["focal_length_mm"], 1.0,
+                              limit=10_000.0)  # an export's field of view stays valid
     systems = meta.get("particle_systems")
     if systems is None:
         if particles:

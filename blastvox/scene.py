@@ -140,6 +140,7 @@ Scale3 = Annotated[tuple[float, float, float], _sizes(limits.SCALE)]
 # numbers within a documented bound (blastvox.bounds), as pydantic constraints
 Resolution = Annotated[int, limits.RESOLUTION.constraints()]
 ContactSweeps = Annotated[int, limits.CONTACT_SWEEPS.constraints()]
+FocalLength = Annotated[float, limits.FOCAL_LENGTH_MM.constraints()]
 Seed = Annotated[int, limits.SEED.constraints()]
 Jitter = Annotated[float, limits.JITTER.constraints()]
 Length = Annotated[float, limits.LENGTH.constraints()]
@@ -480,8 +481,8 @@ class Camera(_Model):
 
     position: Vec3 = Field(description="Camera position (world frame).")
     look_at: Vec3 = Field(description="Point the camera looks at (world frame).")
-    focal_length_mm: Positive = Field(35.0, description=(
-        "Focal length on a 36 x 24 mm film back."))
+    focal_length_mm: FocalLength = Field(35.0, description=(
+        "Focal length on a 36 x 24 mm film back, 1 to 10,000 mm."))
 
     @model_validator(mode="after")
     def _distinct(self) -> Camera:

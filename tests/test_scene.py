@@ -290,6 +290,12 @@ def test_ground_forms(ground: Any) -> None:
     (minimal(camera={"position": [1, 2, 3], "look_at": [1, 2, 3]}), "camera.look_at",
      "must differ from position"),
     (minimal(camera={"position": [1, 2, 3]}), "camera.look_at", "required key is missing"),
+    # 1e308 mm gave the .glb a yfov of 0, which the Khronos validator rejects
+    (minimal(camera={"position": [1, 2, 3], "look_at": [0, 0, 0], "focal_length_mm": 1e308}),
+     "camera.focal_length_mm", "must be <= 10000"),
+    (minimal(camera={"position": [1, 2, 3], "look_at": [0, 0, 0], "focal_length_mm": 0.5}),
+     "camera.focal_length_mm", "must be >= 1"),
+    (minimal(simulation={"contact_sweeps": 0}), "simulation.contact_sweeps", "must be >= 1"),
     (minimal(output={"cache": ""}), "output.cache", "non-empty path"),
     (minimal(materials={"m": {"base": "brick", "density": -1}}), "materials.m.density",
      "must be > 0"),

@@ -21,7 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
-from blastvox.bounds import COORDINATE, MAX_OUTPUT_PIXELS, MAX_PIXELS, Bound, fmt
+from blastvox.bounds import (
+    COORDINATE,
+    FOCAL_LENGTH_MM,
+    MAX_OUTPUT_PIXELS,
+    MAX_PIXELS,
+    Bound,
+    fmt,
+)
 from blastvox.errors import BlastvoxError, BudgetError
 
 FORMATS = (".png", ".gif", ".mp4")
@@ -32,7 +39,7 @@ MIN_SIDE_PX = 16
 #: Animation rates: a GIF delay is 1/100 s to 655 s; ffmpeg wants a sane rate.
 FPS = Bound(0.01, 1000.0, unit="frames/s")
 #: Explicit cameras: within +-1000 km (bounds.COORDINATE, m); focal length 1 mm to 10 m (mm).
-FOCAL_MM = Bound(1.0, 10_000.0, unit="mm")
+FOCAL_MM = FOCAL_LENGTH_MM
 MIN_CAMERA_DISTANCE_M = 1e-6
 
 
