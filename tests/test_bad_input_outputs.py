@@ -332,3 +332,17 @@ def test_choices_on_the_command_line_are_case_insensitive_as_in_a_scene(work: Pa
     assert 'upAxis = "Z"' in (work / "a.usda").read_text()
     assert run_blastvox("blast", "--charge", "1", "--distance", "5", "--burst", "AIR",
                         "--json", cwd=work).code == 0
+
+
+@pytest.mark.parametrize("up", ['up_axis = "Y"\n', ""], ids=["scene says Y", "scene silent"])
+def test_a_scene_whose_frame_differs_from_the_model_warns(work: Path, up: str) -> None:
+    """model.npz was voxelized Z-up: a scene saying Y warns that the run follows the
+    model; a scene that says nothing (its default is Y) does not."""
+    (work / "scene.toml").write_text(
+        f'{up}[[objects]]\nmesh = "wall.stl"\nvoxel_size = 0.25\n'
+        '[[charges]]\nposition = [0, -1.5, 0.5]\nmass_kg = 2\n[simulation]\nduration = 0.1\n')
+    outcome = run_blastvox("simulate", "model.npz", "--scene", "scene.toml", "-o", "s.npz",
+                           "-q", cwd=work)
+    assert outcome.code == 0, outcome.stderr
+    warned = "scene.toml: up_axis is Y but model.npz was voxelized Z-up" in outcome.stderr
+    assert warned == bool(up), outcome.stderr

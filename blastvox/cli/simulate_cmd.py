@@ -49,6 +49,25 @@ def _parse_charge(text: str) -> tuple[tuple[float, float, float], float, float]:
     return (x, y, z), kg, t
 
 
+def scene_model_mismatch(spec, model_meta: dict, scene: Path, model_path: Path) -> list[str]:
+    """Warnings for a scene whose explicit up_axis or ground height differs from the
+    model's: the simulation follows the model, so the scene's charges may be placed in
+    another frame than its author meant."""
+    lines = []
+    model_up, model_ground = model_meta.get("up_axis"), model_meta.get("ground_height")
+    if "up_axis" in spec.model_fields_set and spec.up_axis != model_up:
+        lines.append(f"{scene}: up_axis is {spec.up_axis} but {model_path} was voxelized "
+                     f"{model_up}-up: the simulation follows the model, and reads the "
+                     f"scene's charge positions in its frame")
+    ground = spec.ground
+    if (isinstance(ground, float) and model_ground is not None
+            and abs(ground - float(model_ground)) > 1e-9 * max(1.0, abs(ground))):
+        lines.append(f"{scene}: ground is {ground:g} m but {model_path} was voxelized with "
+                     f"its ground at {float(model_ground):g} m: the simulation uses the "
+                     f"model's")
+    return lines
+
+
 def simulate(
     model_path: Path = typer.Argument(..., metavar="MODEL", help="VoxelModel .npz from "
                                       "`blastvox voxelize`."),
@@ -167,6 +186,9 @@ def simulate(
                             f"[[charges]] in the scene")
 
     console = err_console()
+    if scene is not None:
+        for line in scene_model_mismatch(spec, model.meta, scene, model_path):
+            console.print(f"blastvox: warning: {line}", markup=False, highlight=False)
     started = time.perf_counter()
     progress = _Progress(enabled=not quiet and console.is_terminal, console=console,
                          notes=not quiet)
