@@ -9,6 +9,7 @@ and a rerun picks up where it stopped.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -35,7 +36,8 @@ def _side_missing(export: Path) -> bool:
     return buffer is not None and not buffer.exists()
 
 
-def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[Path]) -> None:
+def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[Path],
+                   layout: str = "xforms") -> None:
     """The output policy (blastvox.io.outputs) for every file the shot writes, before any
     stage runs: none is a device or an input, and no two are the same file."""
     from blastvox.export.api import GLTF_SUFFIXES, USD_SUFFIXES, side_outputs
@@ -56,12 +58,24 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
     check_distinct(outputs)
     for label, folder in folders:  # the shot's own model and cache are inputs of export
         check_side_directory(folder, [*inputs, model, cache], label=label)
+    for label, path in outputs:  # a file one output needs as the directory of another
+        for other_label, other in outputs:
+            if os.path.realpath(other).startswith(os.path.realpath(path) + os.sep):
+                raise SceneError(f"{other}: {other_label}: its directory {path} is "
+                                 f"{label}, a file")
     for label, path in outputs[2:]:  # refused here, not after voxelize and simulate ran
         suffix = Path(path).suffix.lower()
-        if suffix not in USD_SUFFIXES + GLTF_SUFFIXES and not label.endswith("(its .bin)"):
+        if label.endswith("(its .bin)"):
+            continue
+        if suffix not in USD_SUFFIXES + GLTF_SUFFIXES:
             raise SceneError(f"{path}: {label}: unknown export format "
                              f"{suffix or '(no suffix)'!r}; use "
                              f"{', '.join(USD_SUFFIXES + GLTF_SUFFIXES)}")
+        wrong = {"skinned": USD_SUFFIXES, "instancer": GLTF_SUFFIXES}.get(layout, ())
+        if suffix in wrong:
+            raise SceneError(f"{path}: {label}: output.layout {layout} is "
+                             f"{'glTF' if layout == 'skinned' else 'USD'} only; this export "
+                             f"takes xforms")
 
 
 def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] = print,
@@ -110,7 +124,7 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
     voxel_inputs = [scene_path] + [Path(o.mesh) for o in scene.objects]
     if scene.materials_file is not None:
         voxel_inputs.append(Path(scene.materials_file))
-    _check_outputs(out.model, out.cache, exports, voxel_inputs)
+    _check_outputs(out.model, out.cache, exports, voxel_inputs, out.layout)
     sim = check_simulation(scene, str(scene_path))
     model = None
     if force or _stale(out.model, voxel_inputs):

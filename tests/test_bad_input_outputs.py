@@ -135,6 +135,10 @@ def test_scene_outputs_that_are_inputs_or_each_other_are_refused(work: Path) -> 
         # the USD export's textures would overwrite the shot's own cache
         'model = "out/a.npz"\ncache = "out/s_textures/damage_brick.png"\nexport = ["out/s.usdc"]':
             ("output.export (its textures)", "holds an input"),
+        # both were found only after voxelize (and simulate) had run
+        'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/s.usdc"]\nlayout = "skinned"':
+            ("output.export", "skinned is glTF only"),
+        'model = "out/m"\ncache = "out/m/b.npz"': ("output.cache", "its directory"),
     }
     for output, (key, word) in cases.items():
         scene.write_text('[[objects]]\nmesh = "wall.stl"\nvoxel_size = 0.25\n'
