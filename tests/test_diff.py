@@ -76,11 +76,15 @@ def run_diff(*args: Any) -> subprocess.CompletedProcess[str]:
 
 
 def copy_shot(path: Path, folder: Path) -> Path:
-    """Copy ``path`` (and a .gltf's .bin) into ``folder``; the copy's path."""
+    """Copy ``path`` (and a .gltf's .bin, a USD file's textures) into ``folder``; the
+    copy's path."""
     folder.mkdir(parents=True, exist_ok=True)
     shutil.copy(path, folder / path.name)
     if path.suffix == ".gltf":
         shutil.copy(path.with_suffix(".bin"), folder / path.with_suffix(".bin").name)
+    textures = path.parent / f"{path.stem}_textures"
+    if path.suffix.startswith(".usd") and textures.is_dir():
+        shutil.copytree(textures, folder / textures.name, dirs_exist_ok=True)
     return folder / path.name
 
 
@@ -335,3 +339,19 @@ def test_library_errors_are_exit_code_2(shots: dict[str, dict[str, Path]],
         diff_files(shots["base"]["glb"], shots["base"]["npz"])
     with pytest.raises(DiffError):
         diff_files(shots["base"]["npz"], shots["base"]["npz"], atol=-1.0)
+
+
+def test_a_usd_s_texture_is_compared_by_content(shots: dict[str, dict[str, Path]],
+                                                tmp_path: Path) -> None:
+    """Two USD files naming the same damage texture differ when the PNG beside one of them
+    changed or is missing (the look of every fracture face; diff said "same")."""
+    base = shots["base"]["usdc"]
+    copies = [copy_shot(base, tmp_path / name) for name in ("a", "b")]
+    assert run_diff(*copies).returncode == 0
+    texture = next((tmp_path / "b" / f"{base.stem}_textures").glob("*.png"))
+    texture.write_bytes(texture.read_bytes() + b"\0")
+    result = run_diff(*copies)
+    assert result.returncode == 1 and "asset content" in result.stdout, result.stdout
+    texture.unlink()
+    result = run_diff(*copies)
+    assert result.returncode == 1 and 'B="missing"' in result.stdout, result.stdout

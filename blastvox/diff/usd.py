@@ -168,6 +168,9 @@ def _usd_attribute(xa: Any, xb: Any, path: str, name: str, out: _Collector) -> N
     qa, qb = Usd.AttributeQuery(xa), Usd.AttributeQuery(xb)  # faster repeated Get
     _usd_compare(qa.Get(Usd.TimeCode.Default()), qb.Get(Usd.TimeCode.Default()), path, name,
                  None, out)
+    if type_a == "asset":  # a texture: what the file holds, not only its name
+        _usd_asset_content(qa.Get(Usd.TimeCode.Default()), qb.Get(Usd.TimeCode.Default()),
+                           path, name, out)
     # the value at every time code either file samples: one difference per attribute, at
     # the first time code that differs, with how many do
     times = sorted(set(qa.GetTimeSamples()) | set(qb.GetTimeSamples()))
@@ -183,6 +186,33 @@ def _usd_attribute(xa: Any, xb: Any, path: str, name: str, out: _Collector) -> N
     if first is not None:
         note = f"{count} of {len(times)} time codes differ"
         out.add(replace(first, note=f"{first.note}; {note}" if first.note else note))
+
+
+def _usd_asset_content(va: Any, vb: Any, path: str, name: str, out: _Collector) -> None:
+    """A difference if the files two asset paths resolve to (beside the layer, or inside
+    a .usdz) hold different bytes, or only one of them resolves."""
+    ha, hb = _asset_digest(va), _asset_digest(vb)
+    if ha != hb:
+        out.add(Difference(path, name, None, ha, hb, "asset content"))
+
+
+def _asset_digest(value: Any) -> str | None:
+    """'<bytes> bytes, sha256 <first 12 hex>' of the file an Sdf.AssetPath resolves to;
+    'missing' if it does not resolve; None for no asset."""
+    import hashlib
+
+    from pxr import Ar
+
+    if value is None or not getattr(value, "path", ""):
+        return None
+    resolved = value.resolvedPath
+    if not resolved:
+        return "missing"
+    asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
+    if asset is None:
+        return "missing"
+    data = bytes(asset.GetBuffer())
+    return f"{len(data)} bytes, sha256 {hashlib.sha256(data).hexdigest()[:12]}"
 
 
 def _usd_compare(va: Any, vb: Any, path: str, name: str, frame: float | None,
