@@ -445,7 +445,6 @@ CLI_ERRORS = {
     "negative distance": (("--charge", "1", "--distance=2,-1"), "must be >= 0"),
     "unknown explosive": (("--charge", "1", "--distance", "1", "--explosive", "unobtainium"),
                           "unknown explosive"),
-    "missing charge": (("--distance", "1"), "--charge"),
 }
 
 
@@ -491,4 +490,15 @@ def test_cli_errors_are_one_line(cli_runs, name: str) -> None:
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("blastvox: error: "), result.stderr
     assert CLI_ERRORS[name][1] in lines[0]
+    assert result.stdout == ""
+
+
+@pytest.mark.parametrize("args, flag", [(("--distance", "1"), "--charge"),
+                                        (("--charge", "1"), "--distance")],
+                         ids=["no charge", "no distance"])
+def test_a_missing_required_option_is_a_usage_error(args, flag: str) -> None:
+    """Exit 2, as every command's missing required option (export without -o)."""
+    result = run_cli(*args)
+    assert result.returncode == 2, result.stderr
+    assert f"'{flag}'" in result.stderr and "is required" in result.stderr
     assert result.stdout == ""

@@ -37,10 +37,10 @@ def _number(text: str, what: str) -> float:
 def parse_charge(text: str | None) -> float:
     """The --charge value in kg, within :data:`blastvox.bounds.CHARGE_KG` (1 µg to 1 Mt)."""
     from blastvox.bounds import CHARGE_KG
-    from blastvox.errors import BlastvoxError
 
-    if text is None:
-        raise BlastvoxError("--charge KG is required (mass of explosive in kg)")
+    if text is None:  # a usage error (exit 2), as any missing required option
+        raise typer.BadParameter("is required (mass of explosive in kg)",
+                                 param_hint="'--charge'")
     return CHARGE_KG.named(_number(text, "--charge"), "--charge")
 
 
@@ -51,7 +51,7 @@ def parse_distances(text: str | None) -> list[float]:
     from blastvox.errors import BlastvoxError
 
     if text is None:
-        raise BlastvoxError("--distance R[,R,...] is required (distances in m)")
+        raise typer.BadParameter("is required (distances in m)", param_hint="'--distance'")
     parts = text.split(",")
     if not any(p.strip() for p in parts):
         raise BlastvoxError("--distance: no distances given")
