@@ -198,6 +198,17 @@ def test_a_charge_on_a_voxel_centre_dusts_it(tmp_path):
     assert np.isfinite(cache.arrays["piece_position"]).all()
 
 
+def test_a_surface_burst_without_a_ground_warns_naming_it(tmp_path):
+    model = _model(tmp_path, [((2.0, 2.0, 2.0), (0.0, 0.0, 0.0))], 0.5)
+    warnings: list[str] = []
+    simulate(model, _free(duration=0.05, charges=(ChargeSpec((5.0, 0.0, 0.0), 1.0, burst="air"),
+                                                   ChargeSpec((6.0, 0.0, 0.0), 1.0,
+                                                              burst="surface"))),
+             warn=warnings.append)
+    surface = [w for w in warnings if "surface burst" in w]
+    assert len(surface) == 1 and surface[0].startswith("charge 1 at (6, 0, 0) m"), warnings
+
+
 def test_charges_below_the_ground_or_after_the_shot_warn_naming_them(tmp_path):
     model = _founded_wall(tmp_path, "concrete")  # Z up, the ground at z = 0
     warnings: list[str] = []

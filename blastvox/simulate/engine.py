@@ -391,7 +391,8 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
 
 def _charge_warnings(run: Run, end: float) -> list[str]:
     """One line per charge the run cannot model as asked: buried in solid voxels or
-    below the ground, or detonating after the shot's last step (``end``, s)."""
+    below the ground, a surface burst with no ground, or detonating after the shot's
+    last step (``end``, s)."""
     lines, charges = [], run.charges
     up = run.model.up
     for c, position in enumerate(charges.position):
@@ -406,6 +407,10 @@ def _charge_warnings(run: Run, end: float) -> list[str]:
             lines.append(f"{where} is {depth:g} m below the ground: it bursts there as a "
                          "surface burst through the ground plane (a buried charge's ground "
                          "shock and crater are not modelled); put it on the ground")
+        if run.ground is None and run.settings.charges[c].burst == "surface":
+            lines.append(f"{where} is a surface burst, but the run has no ground: it loads "
+                         "as a surface burst in open air (about 1.8 times an air burst of "
+                         "its mass); give it burst = \"air\", or a ground")
         if charges.time[c] > end:
             lines.append(f"{where} detonates at {charges.time[c]:g} s, after the shot ends "
                          f"at {end:g} s: it does nothing; lengthen the duration")
