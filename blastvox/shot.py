@@ -41,7 +41,12 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
     """The output policy (blastvox.io.outputs) for every file the shot writes, before any
     stage runs: none is a device or an input, and no two are the same file."""
     from blastvox.export.api import GLTF_SUFFIXES, USD_SUFFIXES, side_outputs
-    from blastvox.io.outputs import check_distinct, check_output, check_side_directory
+    from blastvox.io.outputs import (
+        check_distinct,
+        check_npz_output,
+        check_output,
+        check_side_directory,
+    )
 
     outputs = [("output.model", model), ("output.cache", cache)]
     folders = []
@@ -55,6 +60,8 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
             folders.append((f"{label} (its textures)", textures))
     for label, path in outputs:
         check_output(path, inputs, label=label, make_dirs=True)
+    check_npz_output(model, "output.model", "VoxelModel")
+    check_npz_output(cache, "output.cache", "SimCache")
     check_distinct(outputs)
     for label, folder in folders:  # the shot's own model and cache are inputs of export
         check_side_directory(folder, [*inputs, model, cache], label=label)

@@ -133,12 +133,12 @@ def test_scene_outputs_that_are_inputs_or_each_other_are_refused(work: Path) -> 
         'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/a.glb", "out/a.fbx"]':
             ("output.export.1", "unknown export format '.fbx'"),  # before voxelize runs
         # the USD export's textures would overwrite the shot's own cache
-        'model = "out/a.npz"\ncache = "out/s_textures/damage_brick.png"\nexport = ["out/s.usdc"]':
+        'model = "out/a.npz"\ncache = "out/s_textures/b.npz"\nexport = ["out/s.usdc"]':
             ("output.export (its textures)", "holds an input"),
         # both were found only after voxelize (and simulate) had run
         'model = "out/a.npz"\ncache = "out/b.npz"\nexport = ["out/s.usdc"]\nlayout = "skinned"':
             ("output.export", "skinned is glTF only"),
-        'model = "out/m"\ncache = "out/m/b.npz"': ("output.cache", "its directory"),
+        'model = "out/m.npz"\ncache = "out/m.npz/b.npz"': ("output.cache", "its directory"),
     }
     for output, (key, word) in cases.items():
         scene.write_text('[[objects]]\nmesh = "wall.stl"\nvoxel_size = 0.25\n'
@@ -350,3 +350,13 @@ def test_a_scene_whose_frame_differs_from_the_model_warns(work: Path, up: str) -
     assert outcome.code == 0, outcome.stderr
     warned = "scene.toml: up_axis is Y but model.npz was voxelized Z-up" in outcome.stderr
     assert warned == bool(up), outcome.stderr
+
+
+@pytest.mark.parametrize("command", ["voxelize", "simulate"])
+def test_a_model_or_cache_named_other_than_npz_is_refused(work: Path, command: str) -> None:
+    """-o wall.obj (a typo) would have replaced the mesh with a zip archive."""
+    victim = work / "victim.obj"
+    victim.write_text("v 0 0 0\n")
+    with unchanged(work, [victim]):
+        outcome = run_blastvox(*commands("victim.obj")[command], cwd=work)
+    assert_clean_failure(outcome, ["victim.obj", "-o"], words=[".npz"])

@@ -145,11 +145,12 @@ def simulate(
             output = spec.output.cache
     if output is None:
         raise BlastvoxError(f"{model_path}: no output file: give -o SIM.npz")
-    from blastvox.io.outputs import check_output
+    from blastvox.io.outputs import check_npz_output, check_output
 
     from_scene = scene is not None and output == spec.output.cache
-    check_output(output, [model_path, scene], make_dirs=from_scene,
-                 label="output.cache" if from_scene else "-o")
+    label = "output.cache" if from_scene else "-o"
+    check_output(output, [model_path, scene], make_dirs=from_scene, label=label)
+    check_npz_output(output, label, "SimCache")
     fracture = fracture.lower() if fracture is not None else None  # as a scene's value
     overrides = {k: v for k, v in {"dt": dt, "fps": fps, "duration": duration,
                                    "gravity": gravity, "fracture": fracture, "seed": seed,

@@ -195,12 +195,12 @@ def voxelize(
                                     library=library)
         if output is None:
             raise BlastvoxError(f"{where}: no output file: give -o MODEL.npz")
-    from blastvox.io.outputs import check_output
+    from blastvox.io.outputs import check_npz_output, check_output
 
+    label = "-o" if scene is None or output != spec.output.model else "output.model"
     check_output(output, [scene, materials_file, *(r.mesh for r in requests)],
-                 make_dirs=scene is not None and output == spec.output.model,
-                 label="-o" if scene is None or output != spec.output.model
-                 else "output.model")
+                 make_dirs=scene is not None and output == spec.output.model, label=label)
+    check_npz_output(output, label, "VoxelModel")
     settings.recorded = _recorded(requests, settings, scene)
 
     console = err_console()

@@ -58,6 +58,15 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return os.path.realpath(a) == os.path.realpath(b)
 
 
+def check_npz_output(path: str | os.PathLike, label: str, what: str) -> None:
+    """OutputError unless ``path`` ends in .npz: a VoxelModel or SimCache (``what``)
+    written under another suffix (``-o wall.obj``, a typo) would replace that file."""
+    suffix = Path(path).suffix
+    if suffix.lower() != ".npz":
+        raise OutputError(f"{path}: {label}: a {what} is an .npz file (got "
+                          f"{suffix or 'no suffix'!r}); name it .npz")
+
+
 def check_output(path: str | os.PathLike, inputs: Iterable[str | os.PathLike | None] = (),
                  label: str = "-o", make_dirs: bool = False) -> Path:
     """Apply the output policy to ``path``; return it as a Path.
