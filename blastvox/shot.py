@@ -128,7 +128,10 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
     exports = out.export if isinstance(out.export, list) else (
         [out.export] if out.export is not None else [])
     ran: list[str] = []
-    voxel_inputs = [scene_path] + [Path(o.mesh) for o in scene.objects]
+    from blastvox.io.resources import mesh_resources
+
+    voxel_inputs = [scene_path] + [path for o in scene.objects
+                                   for path in mesh_resources(Path(o.mesh))]
     if scene.materials_file is not None:
         voxel_inputs.append(Path(scene.materials_file))
     _check_outputs(out.model, out.cache, exports, voxel_inputs, out.layout)

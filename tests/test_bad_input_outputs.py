@@ -360,3 +360,26 @@ def test_a_model_or_cache_named_other_than_npz_is_refused(work: Path, command: s
     with unchanged(work, [victim]):
         outcome = run_blastvox(*commands("victim.obj")[command], cwd=work)
     assert_clean_failure(outcome, ["victim.obj", "-o"], words=[".npz"])
+
+
+def test_run_voxelizes_again_when_a_mesh_s_material_or_texture_changed(work: Path) -> None:
+    """An OBJ's .mtl and the texture it names are voxelize's inputs too: touching the
+    texture makes the model stale (run said "up to date" and kept the old look)."""
+    import os
+
+    box = trimesh.creation.box(extents=(1.0, 0.5, 1.0))
+    (work / "box.obj").write_text("mtllib box.mtl\nusemtl skin\n"
+                                  + trimesh.exchange.obj.export_obj(box, include_texture=False))
+    (work / "box.mtl").write_text("newmtl skin\nKd 1 1 1\nmap_Kd skin.png\n")
+    (work / "skin.png").write_bytes(b"not read by this test")
+    (work / "scene.toml").write_text(
+        '[[objects]]\nmesh = "box.obj"\nvoxel_size = 0.25\n'
+        '[[charges]]\nposition = [0, -1.5, 0.5]\nmass_kg = 2\n[simulation]\nduration = 0.1\n'
+        '[output]\nmodel = "out/a.npz"\ncache = "out/b.npz"\n')
+    assert run_blastvox("run", "scene.toml", "-q", cwd=work).code == 0
+    later = (work / "out" / "a.npz").stat().st_mtime_ns + 10**9
+    for name in ("box.mtl", "skin.png"):
+        os.utime(work / name, ns=(later, later))
+        outcome = run_blastvox("run", "scene.toml", cwd=work)
+        assert outcome.code == 0 and "voxelize ->" in outcome.stdout + outcome.stderr, name
+        later = (work / "out" / "a.npz").stat().st_mtime_ns + 10**9

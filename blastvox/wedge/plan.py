@@ -20,7 +20,8 @@ import numpy as np
 
 from blastvox.bounds import printable
 from blastvox.errors import SceneError, WedgeError
-from blastvox.wedge.digest import keyed_scene, mesh_resources, shot_key
+from blastvox.io.resources import mesh_resources
+from blastvox.wedge.digest import keyed_scene, shot_key
 from blastvox.wedge.keys import check_key, valid_keys, with_values
 from blastvox.wedge.values import format_value, parse_values
 
