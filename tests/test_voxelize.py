@@ -209,6 +209,19 @@ def test_region_rule_changes_material_and_strength(tmp_path):
     assert np.all(y >= 0.5 * (mean - var) - 1e-9) and np.all(y <= 0.5 * (mean + var) + 1e-9)
 
 
+def test_a_region_rule_that_holds_no_voxel_warns(tmp_path):
+    """A box placed beside the object (a typo in its coordinates) warns once, naming
+    the rule; a rule that holds voxels does not."""
+    path = box_file(tmp_path, (4.0, 1.0, 1.0))
+    rules = [RegionRule("halfspace", (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), "glass"),
+             RegionRule("box", (10.0, 10.0, 10.0), (11.0, 11.0, 11.0), "brick")]
+    messages: list[str] = []
+    voxelize([ObjectRequest(mesh=path, voxel_size=(0.5,) * 3, rules=rules)],
+             VoxelizeSettings(up_axis="Y"), warn=messages.append)
+    flagged = [m for m in messages if "contains no voxel centre" in m]
+    assert len(flagged) == 1 and "rules[1] (box)" in flagged[0], messages
+
+
 def test_yield_limits_are_perturbed_within_variance_and_seeded(tmp_path):
     path = box_file(tmp_path, (3.0, 3.0, 3.0))
     a = run(path, voxel_size=(0.5,) * 3, seed=5)

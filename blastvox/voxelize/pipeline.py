@@ -279,6 +279,11 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                                    request.sheet_thickness)
     _boundary(lat)
     warn_islands(lat.name, lat.link_voxels, len(lat.ijk), _size_label(request), warn)
+    for j, rule in enumerate(request.rules):  # a typo in a region changes nothing, silently
+        if len(lat.centroid) and not rule.contains(lat.centroid).any():
+            warn(f"object '{lat.name}' ({source}): its rules[{j}] ({rule.kind}) contains no "
+                 f"voxel centre, so it changes nothing; check its coordinates (m, the "
+                 f"scene's frame)")
     return lat
 
 
