@@ -250,6 +250,16 @@ def test_missing_file_exit_2(shots: dict[str, dict[str, Path]], tmp_path: Path) 
     assert "nope.npz" in line
 
 
+def test_a_json_that_is_no_gltf_cannot_be_compared(shots: dict[str, dict[str, Path]],
+                                                    tmp_path: Path) -> None:
+    """'{}' named .gltf has no asset.version: exit 2 (it was "same" against itself)."""
+    empty = tmp_path / "empty.gltf"
+    empty.write_text("{}")
+    for other in (empty, shots["base"]["gltf"]):
+        line = _one_line_error(run_diff(empty, other))
+        assert "empty.gltf" in line and "asset.version" in line
+
+
 @pytest.mark.parametrize(("a", "b"), [("glb", "usda"), ("npz", "gltf"), ("usdc", "npz")])
 def test_different_kinds_exit_2(shots: dict[str, dict[str, Path]], a: str, b: str) -> None:
     line = _one_line_error(run_diff(shots["base"][a], shots["base"][b]))

@@ -61,6 +61,11 @@ def _load_gltf(path: Path) -> tuple[dict[str, Any], list[bytes]]:
         raise DiffError(f"{path}: not a valid glTF JSON document ({exc})") from None
     if not isinstance(doc, dict):
         raise DiffError(f"{path}: not a glTF document (the JSON is not an object)")
+    asset = doc.get("asset")
+    version = asset.get("version") if isinstance(asset, dict) else None
+    if not isinstance(version, str) or not version.startswith("2."):
+        raise DiffError(f"{path}: not a glTF 2.0 document (asset.version is "
+                        f"{version!r}; the specification requires it)")
     buffers = []
     for i, buf in enumerate(_list(doc, "buffers")):
         uri = buf.get("uri") if isinstance(buf, dict) else None
