@@ -222,6 +222,7 @@ def test_wedge_table_and_options(duck_scene: Path) -> None:
 @pytest.mark.parametrize(("vary", "error", "words"), [
     (["charges.0.mass_kg=1,-2"], SceneError, "charges[0].mass_kg"),
     (["seed=1,1"], WedgeError, "listed twice"),
+    (["charges.0.mass_kg=1,1.0"], WedgeError, "value 1.0 listed twice (as 1)"),  # one shot
     (["simulation.dt=0.001,1e-9"], BudgetError, "simulation.dt=1e-09): simulation.duration"),
     (["charges.0.mass_kg=1,1e300"], BlastvoxError, "mass_kg=1e+300): charges[0].mass_kg"),
     ([], WedgeError, "nothing to vary"),

@@ -144,10 +144,13 @@ def _axes(table: dict[str, Any], options: Sequence[str], valid: list[str],
         raise WedgeError(f"{source}: nothing to vary: give --vary KEY=VALUES or a "
                          f"[wedge.vary] table")
     for axis in axes.values():
-        seen = [repr(v) for v in axis.values]
-        twice = sorted({v for v in seen if seen.count(v) > 1})
-        if twice:
-            raise WedgeError(f"{axis.key}: value {twice[0]} listed twice")
+        seen: dict[object, object] = {}
+        for v in axis.values:  # 1 and 1.0 are one shot, twice
+            key = float(v) if isinstance(v, int | float) and not isinstance(v, bool) else repr(v)
+            if key in seen:
+                raise WedgeError(f"{axis.key}: value {v!r} listed twice"
+                                 + (f" (as {seen[key]!r})" if repr(seen[key]) != repr(v) else ""))
+            seen[key] = v
     return list(axes.values())
 
 
