@@ -140,6 +140,7 @@ BAD_RUNS: dict[str, Spec] = {
     "charge_malformed": Spec("wall", (MODEL, "--charge", "1,2:5"), ("--charge", "1,2:5")),
     "charge_negative_mass": Spec("wall", (MODEL, "--charge", "0,0,0:-1"), ("--charge",)),
     "charge_negative_time": Spec("wall", (MODEL, "--charge", "0,0,0:1@-1"), ("--charge",)),
+    "charge_empty_time": Spec("wall", (MODEL, "--charge", "0,0,0:1@"), ("--charge", "X,Y,Z:KG@T")),
     "dt_zero": Spec("wall", (MODEL, *CHARGE, "--dt", "0"), ("--dt",)),
     "fps_negative": Spec("wall", (MODEL, *CHARGE, "--fps", "-1"), ("--fps",)),
     "duration_nan": Spec("wall", (MODEL, *CHARGE, "--duration", "nan"), ("--duration",)),

@@ -34,10 +34,10 @@ def _parse_charge(text: str) -> tuple[tuple[float, float, float], float, float]:
     (:mod:`blastvox.bounds`)."""
     try:
         where, rest = text.split(":", 1)
-        mass, _, when = rest.partition("@")
+        mass, at, when = rest.partition("@")
         x, y, z = (float(v) for v in where.split(","))
         kg = float(mass)
-        t = float(when) if when else 0.0
+        t = float(when) if at else 0.0  # "KG@" with no time is refused, not read as 0
     except ValueError:
         raise BlastvoxError(f"--charge {text!r}: expected X,Y,Z:KG or X,Y,Z:KG@T "
                             f"(metres, kg TNT, seconds)") from None
