@@ -58,37 +58,9 @@ def load_summary(path: Path) -> dict[str, Any]:
         from blastvox.io.outputs import not_a_file
 
         raise ContractError(not_a_file(path))
-    schema = _peek_schema(path)
-    if schema == cache.SCHEMA:
-        return cache.SimCache.load(path).summary()
-    if isinstance(schema, str) and schema != model.SCHEMA:
-        raise ContractError(f"{path}: expected a {model.SCHEMA} or {cache.SCHEMA} file, "
-                            f"found {schema!r}")
-    if schema is None:  # unreadable: the reader gives the precise one-line error
-        from blastvox.io.npz import read_npz
+    from blastvox.io.npz import read_contract
 
-        try:
-            read_npz(path, model.SCHEMA, model.SCHEMA_VERSION, members=(),
-                     what="VoxelModel or SimCache")
-        except ContractError as exc:  # either schema would do
-            raise ContractError(str(exc).replace(
-                f"expected a {model.SCHEMA} file", f"expected a {model.SCHEMA} or "
-                f"{cache.SCHEMA} file")) from None
-    return model.VoxelModel.load(path).summary()
-
-
-def _peek_schema(path: Path) -> str | None:
-    """The ``schema`` in the file's meta member, reading nothing else; None if unreadable."""
-    import numpy as np
-
-    from blastvox.io.npz import META_KEY
-
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            if META_KEY not in data.files:
-                return None
-            meta = json.loads(data[META_KEY].tobytes().decode("utf-8"))
-    except Exception:  # truncated, foreign, pickled...: the full loader reports it
-        return None
-    schema = meta.get("schema") if isinstance(meta, dict) else None
-    return schema if isinstance(schema, str) else None
+    versions = {model.SCHEMA: model.SCHEMA_VERSION, cache.SCHEMA: cache.SCHEMA_VERSION}
+    meta, _ = read_contract(path, versions, "VoxelModel or SimCache", members=())
+    loader = cache.SimCache if meta["schema"] == cache.SCHEMA else model.VoxelModel
+    return loader.load(path).summary()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -20,23 +19,11 @@ from blastvox.diff.common import (
 def _load_npz(path: Path) -> tuple[str, dict[str, Any], dict[str, np.ndarray]]:
     """(schema, meta, arrays) of a VoxelModel or SimCache, loaded without pickles."""
     from blastvox import cache, model
-    from blastvox.io.npz import META_KEY, read_npz
+    from blastvox.io.npz import read_contract
 
-    schema = None
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            if META_KEY in data.files:
-                meta = json.loads(data[META_KEY].tobytes().decode("utf-8"))
-                schema = meta.get("schema") if isinstance(meta, dict) else None
-    except Exception:  # truncated, foreign, pickled...: read_npz gives the precise error
-        schema = None
     versions = {model.SCHEMA: model.SCHEMA_VERSION, cache.SCHEMA: cache.SCHEMA_VERSION}
-    if isinstance(schema, str) and schema not in versions:
-        raise DiffError(f"{path}: expected a {model.SCHEMA} or {cache.SCHEMA} file, "
-                        f"found {schema!r}")
-    schema = schema if schema in versions else model.SCHEMA
-    meta, arrays = read_npz(path, schema, versions[schema], what="file")
-    return schema, meta, arrays
+    meta, arrays = read_contract(path, versions, what="file")  # diff_files names the error
+    return meta["schema"], meta, arrays
 
 
 def _diff_npz(a: Path, b: Path, out: _Collector) -> None:

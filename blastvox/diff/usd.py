@@ -166,11 +166,10 @@ def _usd_attribute(xa: Any, xb: Any, path: str, name: str, out: _Collector) -> N
         if ka != kb:
             out.add(Difference(path, name, None, ka, kb, key))
     qa, qb = Usd.AttributeQuery(xa), Usd.AttributeQuery(xb)  # faster repeated Get
-    _usd_compare(qa.Get(Usd.TimeCode.Default()), qb.Get(Usd.TimeCode.Default()), path, name,
-                 None, out)
+    va, vb = qa.Get(Usd.TimeCode.Default()), qb.Get(Usd.TimeCode.Default())
+    _usd_compare(va, vb, path, name, None, out)
     if type_a == "asset":  # a texture: what the file holds, not only its name
-        _usd_asset_content(qa.Get(Usd.TimeCode.Default()), qb.Get(Usd.TimeCode.Default()),
-                           path, name, out)
+        _usd_asset_content(va, vb, path, name, out)
     # the value at every time code either file samples: one difference per attribute, at
     # the first time code that differs, with how many do
     times = sorted(set(qa.GetTimeSamples()) | set(qb.GetTimeSamples()))

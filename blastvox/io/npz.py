@@ -127,7 +127,16 @@ def _one_line(exc: BaseException) -> str:
 def read_npz(path: str | os.PathLike, schema: str, max_version: int,
              what: str = "file", members: MemberFilter | None = None
              ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Load a contract file written by :func:`write_npz` and check its schema.
+    """Load a contract file of ``schema`` (at most ``max_version``): :func:`read_contract`
+    of one schema."""
+    return read_contract(path, {schema: max_version}, what, members)
+
+
+def read_contract(path: str | os.PathLike, versions: Mapping[str, int], what: str = "file",
+                  members: MemberFilter | None = None
+                  ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Load a contract file written by :func:`write_npz` whose meta names one of the
+    schemas of ``versions`` (schema -> newest version read); ``meta["schema"]`` says which.
 
     Returns ``(meta, arrays)``: the JSON ``meta`` and every member that
     ``members`` selects (a collection of member names, without ``.npy``, or a
@@ -157,7 +166,7 @@ def read_npz(path: str | os.PathLike, schema: str, max_version: int,
     try:
         with zipfile.ZipFile(p) as zf:
             infos = _select(p, zf, wanted, what)
-            meta = _read_meta(p, zf, infos.pop(META_KEY), schema, max_version)
+            meta = _read_meta(p, zf, infos.pop(META_KEY), versions)
             arrays = {key: _read_member(p, zf, info, key) for key, info in infos.items()}
     except ContractError:
         raise
@@ -203,8 +212,8 @@ def _select(p: Path, zf: zipfile.ZipFile, wanted: Callable[[str], bool],
     return {META_KEY: infos.pop(META_KEY), **infos}
 
 
-def _read_meta(p: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo, schema: str,
-               max_version: int) -> dict[str, Any]:
+def _read_meta(p: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo,
+               versions: Mapping[str, int]) -> dict[str, Any]:
     raw = _read_member(p, zf, info, META_KEY)
     if raw.dtype != np.uint8 or raw.ndim != 1:
         raise ContractError(f"{p}: corrupt metadata ('{META_KEY}' has shape {raw.shape} and "
@@ -213,11 +222,11 @@ def _read_meta(p: Path, zf: zipfile.ZipFile, info: zipfile.ZipInfo, schema: str,
         meta = json.loads(raw.tobytes().decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise ContractError(f"{p}: corrupt metadata ({_one_line(exc)})") from None
-    if not isinstance(meta, dict) or meta.get("schema") != schema:
-        found = meta.get("schema") if isinstance(meta, dict) else None
-        raise ContractError(f"{p}: expected a {schema} file, found "
-                            f"{'a meta naming no schema' if found is None else repr(found)}")
-    check_schema_version(p, "", meta, schema, max_version)
+    schema = meta.get("schema") if isinstance(meta, dict) else None
+    if not isinstance(schema, str) or schema not in versions:
+        raise ContractError(f"{p}: expected a {' or '.join(versions)} file, found "
+                            f"{'a meta naming no schema' if schema is None else repr(schema)}")
+    check_schema_version(p, "", meta, schema, versions[schema])
     return meta
 
 

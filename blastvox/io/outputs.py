@@ -63,8 +63,9 @@ def check_npz_output(path: str | os.PathLike, label: str, what: str) -> None:
     written under another suffix (``-o wall.obj``, a typo) would replace that file."""
     suffix = Path(path).suffix
     if suffix.lower() != ".npz":
-        raise OutputError(f"{path}: {label}: a {what} is an .npz file (got "
-                          f"{suffix or 'no suffix'!r}); name it .npz")
+        got = repr(suffix) if suffix else "no suffix"
+        raise OutputError(f"{path}: {label}: a {what} is an .npz file (got {got}); "
+                          f"name it .npz")
 
 
 def check_output(path: str | os.PathLike, inputs: Iterable[str | os.PathLike | None] = (),
