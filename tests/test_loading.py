@@ -318,3 +318,16 @@ def test_founded_wall_debris_speed_converges_in_dt(tmp_path):
         alive = cache.piece_end_frame > 33
         speeds.append(float(np.median(np.linalg.norm(pos[33, alive] - pos[32, alive], axis=1))))
     assert speeds[0] == pytest.approx(speeds[1], rel=0.1), speeds
+
+
+def test_a_charge_snapped_to_the_surface_is_not_buried(tmp_path):
+    """A charge on a face, an edge or a corner of the solid (snapped there in a DCC) is a
+    contact charge: no "inside solid voxels" warning; 1 cm into the solid it is buried."""
+    model = _model(tmp_path, [((2.0, 2.0, 2.0), (0.0, 0.0, 0.0))], 0.5)  # a cube [-1, 1]^3
+    on_surface = [(1.0, 0.0, 0.1), (1.0, 1.0, 0.1), (1.0, 1.0, 1.0), (-1.0, 0.5, 0.5)]
+    buried = (0.99, 0.5, 0.5)
+    warnings: list[str] = []
+    simulate(model, _free(duration=0.02, charges=tuple(
+        ChargeSpec(p, 0.1) for p in (*on_surface, buried))), warn=warnings.append)
+    inside = [w for w in warnings if "inside solid voxels" in w]
+    assert len(inside) == 1 and inside[0].startswith("charge 4 at (0.99, 0.5, 0.5) m"), inside

@@ -287,14 +287,32 @@ def sight_line(grid, px, py, pz, qx, qy, qz, skip_own):
 
 @kernel
 def inside_solid(grid, point) -> bool:
-    """Is ``point`` (3,) m in an occupied cell of the grid?"""
-    idx = np.empty(3, dtype=np.int64)
-    for a in range(3):
-        x = (point[a] - grid.origin[a]) / grid.cell[0]
-        if not x >= 0.0 or x >= grid.dims[a]:
+    """Is ``point`` (3,) m inside the solid: are the grid cells all around it occupied?
+
+    A point on the solid's surface (a charge snapped to a wall's face, edge or
+    corner, as a DCC snaps it) is a contact charge, not a buried one: it is probed
+    a thousandth of a cell away along each of the eight diagonals, and is inside
+    only if every probe is in an occupied cell."""
+    reach = 1e-3 * grid.cell[0]
+    for corner in range(8):
+        if not _cell_occupied(grid, point[0] + reach * (2 * (corner & 1) - 1),
+                              point[1] + reach * (2 * ((corner >> 1) & 1) - 1),
+                              point[2] + reach * (2 * ((corner >> 2) & 1) - 1)):
             return False
-        idx[a] = int(x)
-    return _occupied(grid, idx[0], idx[1], idx[2])
+    return True
+
+
+@helper
+def _cell_occupied(grid, x, y, z) -> bool:
+    """Is the grid cell holding the point (x, y, z) m occupied (False outside the grid)?"""
+    i = (x - grid.origin[0]) / grid.cell[0]
+    j = (y - grid.origin[1]) / grid.cell[0]
+    k = (z - grid.origin[2]) / grid.cell[0]
+    if not (i >= 0.0 and j >= 0.0 and k >= 0.0):  # NaN is outside too
+        return False
+    if i >= grid.dims[0] or j >= grid.dims[1] or k >= grid.dims[2]:
+        return False
+    return _occupied(grid, int(i), int(j), int(k))
 
 
 @kernel
