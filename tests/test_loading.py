@@ -331,3 +331,21 @@ def test_a_charge_snapped_to_the_surface_is_not_buried(tmp_path):
         ChargeSpec(p, 0.1) for p in (*on_surface, buried))), warn=warnings.append)
     inside = [w for w in warnings if "inside solid voxels" in w]
     assert len(inside) == 1 and inside[0].startswith("charge 4 at (0.99, 0.5, 0.5) m"), inside
+
+
+def test_a_ground_above_the_model_base_warns_counting_the_voxels_under_it(tmp_path):
+    """A ground height typed above the model (a unit slip: 100 for 1.00) started voxels
+    deep in the ground, and the only word was the sinking warning's advice to shorten
+    dt. A ground through the bottom row's centres warns, counting them; one at the
+    base does not."""
+    box = [((2.0, 2.0, 2.0), (0.0, 0.0, 1.0))]  # z from 0 to 2, 0.5 m voxels: 4 rows
+    settings = SimSettings(duration=0.02, fps=100.0)
+    for ground, expected in ((0.0, None), (0.3, "16 of 64 voxels"), (100.0, "64 of 64")):
+        warnings: list[str] = []
+        simulate(_model(tmp_path, box, 0.5, ground=ground), settings, warn=warnings.append)
+        under = [w for w in warnings if "start below the ground" in w]
+        if expected is None:
+            assert under == [], under
+        else:
+            assert len(under) == 1 and under[0].startswith(expected), under
+            assert f"ground at {ground:g} m" in under[0], under

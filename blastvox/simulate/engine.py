@@ -370,7 +370,7 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
     per_frame = settings.steps_per_frame()
     frames = settings.frame_count()
     total_steps = (frames - 1) * per_frame
-    for line in _charge_warnings(run, total_steps * dt):
+    for line in (*_ground_warnings(run), *_charge_warnings(run, total_steps * dt)):
         warn(line)
     limits = LimitMonitor(run.model, settings, dt)  # warns once per limit the run passes
     counts, counted = _alive_counts(run), state.counters.topology_version
@@ -387,6 +387,23 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
             progress.update(n * dt, n, total_steps)
     limits.finish()
     return _cache(run, model, frames, per_frame, total_steps)
+
+
+def _ground_warnings(run: Run) -> list[str]:
+    """A line if voxels start more than half under the ground plane (their centre below
+    it: a ground height typed above the model's base), deeper than the contacts' 0.5
+    voxel limit on sinking: the ground's contacts throw them out of it."""
+    if run.ground is None or run.model.n_voxels == 0:
+        return []
+    vox = run.model.voxels
+    heights = vox.centroid @ run.model.up
+    below = int(np.count_nonzero(heights < run.ground))
+    if below == 0:
+        return []
+    lowest = float((vox.vertices @ run.model.up).min())
+    return [f"{below} of {run.model.n_voxels} voxels start below the ground at "
+            f"{run.ground:g} m (the model's lowest point is at {lowest:g} m): the ground "
+            "throws them out of it; lower the ground, or set ground = \"auto\""]
 
 
 def _charge_warnings(run: Run, end: float) -> list[str]:
