@@ -31,6 +31,7 @@ from blastvox.model import VoxelModel
 from blastvox.simulate.engine import simulate
 from blastvox.simulate.settings import SimSettings
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
+from blastvox.voxelize.requests import transform_matrix
 
 PIXELS = np.arange(4 * 4 * 3, dtype=np.uint8).reshape(4, 4, 3) * 5
 
@@ -232,3 +233,24 @@ def test_a_multi_primitive_gltf_gives_the_same_model_every_time(tmp_path: Path) 
         assert "part 'Cesium_Milk_Truck_1'" in done.stderr  # the glass, by a stable name
         outputs.append(out.read_bytes())
     assert outputs[0] == outputs[1]
+
+
+def test_slivers_of_a_turned_real_mesh_map_no_texture_coordinates(data_dir: Path,
+                                                                    tmp_path: Path) -> None:
+    """wallhole.obj has textured triangles with collinear corners. Turned 33 degrees they
+    are no longer exactly zero-area, their barycentric coordinates blew up and both
+    exports carried NaN/inf UVs (with numpy overflow warnings). Slivers now map nothing:
+    every UV is finite and within the source's UV range, and a warning is an error."""
+    model = voxelize([ObjectRequest(mesh=data_dir / "wallhole.obj", voxel_size=(0.5,) * 3,
+                                    material="concrete",
+                                    transform=transform_matrix((0, 0, 0), (0, 0, 33), 1.0))],
+                     VoxelizeSettings(up_axis="Z"))
+    cache = simulate(model, SimSettings(duration=0.05, fps=20.0, charges=()))
+    with np.errstate(all="raise"):
+        uvs = face_uvs(cache, piece_meshes(cache, "Y"))
+    textured = uvs.texture >= 0
+    assert textured.sum() > 100
+    source = model.arrays["surface_uv"]
+    span = source.max() - source.min()
+    assert np.isfinite(uvs.uv).all()
+    assert (np.abs(uvs.uv[textured]) <= np.abs(source).max() + 3 * span).all()

@@ -42,6 +42,12 @@ from blastvox.export.pieces import PieceMeshes
 REACH = 2.0
 #: Source triangles whose centroids are nearest a face's centroid, searched exactly.
 CANDIDATES = 8
+#: A source triangle whose height is under this fraction of its longest edge (a sliver, or
+#: collinear corners) maps no texture: barycentric coordinates off it blow up.
+SLIVER = 1e-3
+#: Texture coordinates at or beyond this magnitude are taken as a failed mapping (box
+#: UVs instead): a real UV layout is within a few hundred tiles of 0.
+MAX_UV = 1e6
 
 
 def texture_names(cache: SimCache) -> list[str]:
@@ -71,16 +77,20 @@ def face_uvs(cache: SimCache, meshes: PieceMeshes) -> FaceUVs:
     normal = np.repeat(meshes.normals[:, None, :], 3, axis=1)
     a = cache.model.arrays
     outside = np.flatnonzero(~meshes.damage)
-    if "surface_triangles" in a and outside.size:
+    usable = _usable(a["surface_triangles"]) if "surface_triangles" in a else np.zeros(0, int)
+    if usable.size and outside.size:
         edge = np.cbrt(a["voxel_volume"][meshes.voxel[outside]])
-        source, distance = nearest_triangles(a["surface_triangles"], rest[outside].mean(axis=1))
+        nearest, distance = nearest_triangles(a["surface_triangles"][usable],
+                                              rest[outside].mean(axis=1))
         near = distance <= REACH * edge
-        faces, source = outside[near], source[near]
+        faces, source = outside[near], usable[nearest[near]]
         bary = _barycentric(a["surface_triangles"][source], rest[faces])
-        textured = a["surface_texture"][source] >= 0
+        mapped = np.einsum("tcj,tjd->tcd", bary, a["surface_uv"][source].astype(np.float64))
+        # a texture coordinate a float32 holds (the source's own UVs may be anything)
+        textured = (a["surface_texture"][source] >= 0) & (
+            np.abs(mapped) < MAX_UV).all(axis=(1, 2))
         texture[faces[textured]] = a["surface_texture"][source[textured]]
-        uv[faces[textured]] = np.einsum("tcj,tjd->tcd", bary[textured], a["surface_uv"][
-            source[textured]].astype(np.float64)).astype(np.float32)
+        uv[faces[textured]] = mapped[textured].astype(np.float32)
         if "surface_normals" in a:
             normal[faces] = _smooth_normals(bary, a["surface_normals"][source],
                                             meshes.change, normal[faces])
@@ -112,6 +122,18 @@ def nearest_triangles(triangles: np.ndarray, points: np.ndarray
     best = np.argmin(distance, axis=1)
     rows = np.arange(len(points))
     return candidates[rows, best], distance[rows, best]
+
+
+def _usable(triangles: np.ndarray) -> np.ndarray:
+    """Indices of the (S, 3, 3) source triangles that are not slivers (see SLIVER) and
+    have finite corners."""
+    edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2)
+    longest = edges.max(axis=1)
+    twice_area = np.linalg.norm(np.cross(triangles[:, 1] - triangles[:, 0],
+                                         triangles[:, 2] - triangles[:, 0]), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ok = twice_area / longest > SLIVER * longest
+    return np.flatnonzero(ok & np.isfinite(triangles).all(axis=(1, 2)))
 
 
 def _barycentric(source: np.ndarray, corners: np.ndarray) -> np.ndarray:
