@@ -258,7 +258,8 @@ def test_open_meshes_are_repaired_or_refused():
     # too coarse to put any cell centre near the teapot: the voxels are too big, whether
     # or not the surface is open
     with pytest.raises(MeshError, match=r"teapot.stl: no voxel centre lies inside it at this "
-                                        r"voxel size, two voxels across at most; use a smaller"):
+                                        r"voxel size, two voxels across at most; use a smaller "
+                                        r"voxel size \(or a higher resolution\)"):
         run(DATA / "teapot.stl", up="Z", resolution=1)
 
 

@@ -112,7 +112,7 @@ def check_inside_defined(where: str, winding: np.ndarray, report: SurfaceReport)
     ambiguous = int(np.count_nonzero((winding > 0.2) & (winding < 0.8)))
     if n_inside == 0 and max(winding.shape, default=0) <= 2:  # two cells across at most
         raise MeshError(f"{where}: no voxel centre lies inside it at this voxel size, two "
-                        f"voxels across at most; use a smaller voxel size")
+                        f"voxels across at most; use a smaller voxel size (or a higher resolution)")
     if report.open_edges and (n_inside == 0 or ambiguous > MAX_AMBIGUOUS_FRACTION * n_inside):
         raise MeshError(
             f"{where}: is an open surface, not a closed solid ({report.open_edges} open edges "
