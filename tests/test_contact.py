@@ -220,3 +220,24 @@ def test_balanced_matches_the_convex_hull_by_triangles(points, centre):
     inside, margin = _in_some_triangle(p, q)
     assume(margin > 1e-6)
     assert balanced(p, q) == inside
+
+
+def test_without_gravity_touching_pieces_keep_their_momentum(tmp_path):
+    """In zero gravity nothing rests: two touching pieces drifting slowly together were
+    damped at rest_damping (5 1/s, the resting contact of a pile) and then put to sleep
+    in mid-air (sweep finding: momentum -457 -> -133 kg m/s in 0.25 s). Now their momentum
+    is conserved and they keep drifting."""
+    model = model_of(tmp_path, [box((1, 1, 1), (-0.51, 0, 0)), box((1, 1, 1), (0.51, 0, 0))],
+                     0.5, "plastic")  # two pieces, 0.5 m apart on the lattice
+    run, bodies = runner(model, duration=3.0)
+    assert run.state.n_bodies == 2
+    m = bodies.mass[0]
+    bodies.lin[0] = (m * 0.3, 0, 0)  # they meet after 1 s, then drift on together at
+    bodies.lin[1] = (-m * 0.22, 0, 0)  # 0.04 m/s, under sleep_speed (0.05 m/s)
+    before = bodies.lin[:2].sum(axis=0).copy()
+    for step in range(1, int(3.0 / run.dt) + 1):
+        engine.step(run, step, 0)
+    assert run.state.counters.collisions >= 1
+    np.testing.assert_allclose(bodies.lin[:2].sum(axis=0), before, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(bodies.lin[:2, 0] / m, [0.04, 0.04], rtol=1e-6)
+    assert not bodies.asleep[:2].any()

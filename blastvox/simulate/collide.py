@@ -583,8 +583,10 @@ def collide_phase(model, state, settings, dt: float) -> int:
         settle_on_ground(model, state, s, dt, count, end)
     state.counters.collisions += int(resolved)
     b = state.bodies
+    # without gravity nothing rests on anything: no pile to settle, momentum is conserved
+    decay = math.exp(-s.rest_damping * dt) if s.gravity > 0.0 else 1.0
     damp_resting(state.contacts.resting, b.mass, b.inv_inertia, b.rot, b.lin, b.ang, b.radius,
-                 state.n_bodies, math.exp(-s.rest_damping * dt), 4.0 * s.sleep_speed)
+                 state.n_bodies, decay, 4.0 * s.sleep_speed)
     return min(int(resolved), len(state.contacts.hits))
 
 

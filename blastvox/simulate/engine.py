@@ -285,8 +285,8 @@ def step(run: Run, n: int, frame_next: int) -> None:
     if before is not None and impact_phase(model, state, run.stress, before,
                                            _sustained_speed(run, dt)):
         split(run, n, t1, frame_next)
-    if s.collisions or run.ground is not None:
-        settle(state.bodies, s.sleep_speed, run.still_steps)
+    if (s.collisions or run.ground is not None) and s.gravity > 0.0:
+        settle(state.bodies, s.sleep_speed, run.still_steps)  # without gravity nothing rests
     integrate_positions(dt, state.bodies)
 
 
