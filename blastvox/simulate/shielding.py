@@ -221,6 +221,7 @@ def sight_line(grid, px, py, pz, qx, qy, qz, skip_own):
     p = (px, py, pz)
     # clip the segment's parameter range [0, 1] to the grid's box
     t_lo, t_hi = 0.0, 1.0
+    clip_axis = -1  # the axis of the grid's face the segment leaves it through, if it does
     for a in range(3):
         lo = origin[a]
         hi = origin[a] + dims[a] * cell
@@ -233,7 +234,8 @@ def sight_line(grid, px, py, pz, qx, qy, qz, skip_own):
         if t0 > t1:
             t0, t1 = t1, t0
         t_lo = max(t_lo, t0)
-        t_hi = min(t_hi, t1)
+        if t1 < t_hi:
+            t_hi, clip_axis = t1, a
     if t_lo > t_hi:
         return False, -1, 0.0
     if t_lo > 0.0 and skip_own:
@@ -280,8 +282,10 @@ def sight_line(grid, px, py, pz, qx, qy, qz, skip_own):
             break
         last_axis, last_t = a, t_next[a]
         t_next[a] += t_delta[a]
-    if in_own:  # never left solid inside the grid: it leaves at the grid's edge
-        exit_axis, exit_depth = last_axis, t_hi * length
+    if in_own:  # never left solid inside the grid: it leaves through the grid's face
+        # (the axis of the last cell stepped was not that face's: a wall at the grid's low
+        # edge took its inner links as loaded at normal incidence from one side only)
+        exit_axis, exit_depth = clip_axis, t_hi * length
     return False, exit_axis, exit_depth
 
 
