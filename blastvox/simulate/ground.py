@@ -87,7 +87,9 @@ class ContactMemory(NamedTuple):
     centred on its centroid
     (:func:`blastvox.simulate.collide.voxel_boxes`); radius (N,) m: the box's
     half diagonal; deepest (1,) m: the deepest penetration any step has seen; stats
-    (3,) int64: solves, velocity sweeps, solves that used every sweep; size: the
+    (4,) int64: solves, velocity sweeps, solves that used every sweep, solves done again
+    without the warm start (see :data:`~blastvox.simulate.contact_solver.ENERGY_SLACK`);
+    size: the
     model's typical voxel, m.
     """
 
@@ -137,7 +139,7 @@ def new_memory(state, size: float, half: np.ndarray, radius: np.ndarray) -> Cont
         rows=empty_rows(m), keys=np.zeros(m, dtype=np.int64), carried=np.zeros((m, 7)),
         count=np.zeros(1, dtype=np.int64),
         local=np.full(len(state.bodies.mass), -1, dtype=np.int64), half=half, radius=radius,
-        deepest=np.zeros(1), stats=np.zeros(3, dtype=np.int64), size=float(size))
+        deepest=np.zeros(1), stats=np.zeros(4, dtype=np.int64), size=float(size))
     state.contacts = state.contacts._replace(memory=memory)
     return memory
 
