@@ -457,3 +457,17 @@ def test_progress_bar_starts_with_stepping_not_with_compilation():
     text = out.getvalue()
     assert "compiling 25 simulation kernels" in text
     assert "t = 1.000 s" in text and "steps/s" in text
+
+
+@pytest.mark.parametrize("dt, fps, steps", [(0.0020833333, 120.0, 4), (1 / 480, 120.0, 4),
+                                            (0.0041666, 24.0, 11), (0.002, 30.0, 17)])
+def test_a_dt_typed_to_a_few_places_divides_the_frame_it_rounds(dt, fps, steps) -> None:
+    """0.0020833333 s (1/480 s to ten places) with 120 fps frames ran 5 steps per frame of
+    1/600 s, and warned that dt does not divide the frame; a dt within a millionth of
+    dividing it now does. One that really does not (0.0041666: 10.0002 per frame at 24 fps)
+    is still shortened."""
+    from blastvox.simulate.settings import SimSettings
+
+    settings = SimSettings(dt=dt, fps=fps)
+    assert settings.steps_per_frame() == steps
+    assert settings.step_seconds() <= dt * (1 + 1e-6)

@@ -39,6 +39,9 @@ from blastvox.errors import BlastvoxError, BudgetError
 #: (index, position, orientation, centre of mass: 88 B) and the pieces' float64 and
 #: float32 transforms packed at the end (84 B).
 RECORD_BYTES_PER_PIECE_FRAME = 88 + 84
+#: Relative slack of "dt divides the frame interval": a dt typed with a few digits
+#: too few (0.0020833333 for 1/480 s) is taken as the step it rounds.
+DT_ROUNDING = 1e-6
 
 
 @dataclass(frozen=True)
@@ -169,11 +172,14 @@ class SimSettings:
     origin: Origin = field(default_factory=Origin, compare=False)
 
     def steps_per_frame(self) -> int:
-        """Whole steps per output frame; dt is shortened to divide the frame interval."""
-        return max(1, math.ceil(1.0 / (self.fps * self.dt) - 1e-9))
+        """Whole steps per output frame; dt is shortened to divide the frame interval. A dt
+        within a millionth of dividing it does (0.0020833333 s, 1/480 s typed to ten
+        places, is 4 steps of a 1/120 s frame, not 5)."""
+        return max(1, math.ceil(1.0 / (self.fps * self.dt) * (1.0 - DT_ROUNDING)))
 
     def step_seconds(self) -> float:
-        """The step actually used, s: 1 / (fps x steps_per_frame), never above dt."""
+        """The step actually used, s: 1 / (fps x steps_per_frame), never above dt by more
+        than DT_ROUNDING."""
         return 1.0 / (self.fps * self.steps_per_frame())
 
     def frame_count(self) -> int:
