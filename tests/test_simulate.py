@@ -194,7 +194,9 @@ def test_founded_wall_sheds_debris_but_stands(tmp_path):
     assert len(debris) >= 5
     into_wall = cache.piece_position[:, debris, 1] - cache.piece_position[0, debris, 1]
     assert into_wall.max() < 0.01 * 0.25  # < 1 % of a voxel into the standing wall
-    assert len(cache.dust_voxel) == 0  # pressed, not struck: no impact dust
+    # pressed, not struck: no impact dust while the wave presses them (pieces that fall
+    # later may strike the ground or the wall's foot hard enough)
+    assert not (cache.arrays["dust_time"] < 0.1).any(), cache.arrays["dust_time"]
 
 
 def _loose_momentum(cache) -> float:
@@ -214,7 +216,9 @@ def test_debris_of_a_founded_wall_gets_momentum_converged_in_dt(tmp_path):
     1/16000 s (the trade-off sweep found it)."""
     model = box_model(tmp_path, (3.0, 0.3, 2.4), 0.1, material="reinforced_concrete",
                       ground="auto")
-    charge = (ChargeSpec((0.0, -0.35, 0.0), 5.0),)  # mid-height, 0.2 m off the face
+    # mid-height, 0.2 m off the face; 10 kg: 5 kg breached it only while walls at the low
+    # edge of the shielding grid were loaded as one voxel thick (see test_loading)
+    charge = (ChargeSpec((0.0, -0.35, 0.0), 10.0),)
     runs = {steps: _loose_momentum(simulate(model, SimSettings(
         dt=1.0 / steps, fps=20.0, duration=0.05, collisions=False, charges=charge)))
         for steps in (240, 4000, 16000)}
@@ -229,7 +233,7 @@ def test_pressure_impulse_breakage_converges_in_dt(tmp_path):
     voxels it pulverizes leave the shielding grid in order of arrival."""
     model = box_model(tmp_path, (3.0, 0.3, 2.4), 0.1, material="reinforced_concrete",
                       ground="auto")
-    charge = (ChargeSpec((0.0, -0.35, 0.0), 5.0),)
+    charge = (ChargeSpec((0.0, -0.35, 0.0), 10.0),)  # breaches it (see the test above)
     caches = [simulate(model, SimSettings(dt=1.0 / steps, fps=20.0, duration=0.05,
                                           collisions=False, charges=charge))
               for steps in (240, 16000)]
