@@ -86,7 +86,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 @pytest.fixture(scope="session")
 def shattered_slab(tmp_path_factory: pytest.TempPathFactory):
-    """A 2 x 2 x 0.5 m concrete slab (0.25 m voxels) that a 20 kg charge 1.5 m away
+    """A 2 x 2 x 0.5 m concrete slab (0.25 m voxels) that a 40 kg charge 1.5 m away
     breaks into many pieces, with a scene camera close enough to see their fracture
     faces at frame 3: for the damage-texture tests."""
     import trimesh
@@ -102,7 +102,7 @@ def shattered_slab(tmp_path_factory: pytest.TempPathFactory):
                                     material="concrete")], VoxelizeSettings(up_axis="Z"))
     cache = simulate(model, SimSettings(duration=0.25, fps=24.0, dust=False, fire=False,
                                         fireball=False,
-                                        charges=(ChargeSpec((0, -1.5, 0.3), 20.0),),
+                                        charges=(ChargeSpec((0, -1.5, 0.3), 40.0),),
                                         camera=((0.3, -2.0, 1.4), (0.0, 0.0, 0.4), 35.0)))
     assert cache.piece_count > 20
     return cache

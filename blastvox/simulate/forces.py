@@ -182,7 +182,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
         b = voxel_body[v]
         if not active[b] or body_dust[b] or not body_live[b]:
             continue
-        exposed = (~voxel_link_mask[v]) & 0x3F
+        exposed = (~voxel_link_mask[v]) & ~loads.shadow[v] & 0x3F  # not behind dust
         slot = conform_slot[v]
         if exposed == 0 and slot < 0:
             continue
@@ -267,6 +267,7 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
         if state.holding:  # every wave has passed: what held voxels took is spent
             loads.held_p[:] = 0.0
             loads.held_l[:] = 0.0
+            loads.shadow[:] = 0
             state.holding = False
         return
     front = Front(charges.position, charges.time, charges.scale, charges.table, charges.burst,

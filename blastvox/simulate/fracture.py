@@ -53,6 +53,9 @@ class FractureParams(NamedTuple):
 
 
 REFERENCE_THICKNESS = 0.25  #: m: the element thickness a material's impulse asymptote is for
+#: A neighbour is in front of a voxel (between it and the charge) when the line from the
+#: voxel to it is within 45 degrees of the line to the charge.
+FRONT_COSINE = math.sqrt(0.5)
 
 
 @helper
@@ -213,7 +216,7 @@ def fracture_links(front, params, geometry, links, voxels, bodies, candidate, ma
 
 
 @kernel
-def fracture_voxels(front, params, geometry, voxels, bodies, order, marks, strength,
+def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks, strength,
                     exposure, loads) -> int:
     """Dust voxels whose centre sees more than their yield; wear foundations.
 
@@ -223,7 +226,13 @@ def fracture_voxels(front, params, geometry, voxels, bodies, order, marks, stren
     behind it see the gap (the same whatever the step), and leaves with the net
     impulse of the wave on its face towards the charge in loads.held_p (N s,
     replacing what it held; handed to its dust body by the split): dust carries
-    the momentum of the wave that destroyed it.
+    the momentum of the wave that destroyed it. That impulse goes through the
+    face once: the dust's neighbours mark the face they shared with it in
+    loads.shadow (the blast no longer loads it), and a voxel dusted behind dust
+    of the current waves shares, by mass, the impulse the dust in front of it
+    still holds (none if that has left: each layer of a crater took the whole
+    impulse again, and a wall pulverized in four layers left with four times the
+    momentum of one in two; links: the model's LinkGeometry).
 
     Returns the number of foundation voxels that let go (the caller then
     re-checks which bodies are still fixed). marks.destroyed (N,) marks dusted
@@ -271,6 +280,8 @@ def fracture_voxels(front, params, geometry, voxels, bodies, order, marks, stren
                         loads.held_p[v, a] = (imp - i_neg) * area * (
                             centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
                         loads.held_l[v, a] = 0.0
+                    _dust_once(v, geometry, links, voxels.alive, loads, cx - charge_pos[c, 0],
+                               cy - charge_pos[c, 1], cz - charge_pos[c, 2])
                 break
             voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * peak)
             if voxel_foundation[v]:
@@ -279,6 +290,44 @@ def fracture_voxels(front, params, geometry, voxels, bodies, order, marks, stren
                     voxel_foundation[v] = False
                     released += 1
     return released
+
+
+@helper
+def _dust_once(v, geometry, links, voxel_alive, loads, rx, ry, rz) -> None:
+    """Voxel v just turned to dust, its wave's impulse in loads.held_p[v]; (rx, ry, rz):
+    from the charge to v, m. Marks the face each neighbour shared with v in
+    loads.shadow; if a face of v towards the charge is shadowed (dust of the current
+    waves in front of v), v takes no impulse of its own but a share, by mass, of what
+    that dust still holds (see :func:`fracture_voxels`)."""
+    offsets, ids, link_voxels, link_face = (geometry.link_offsets, geometry.link_ids,
+                                            links.voxels, links.face)
+    shadow, held = loads.shadow, loads.held_p
+    front = -1
+    for k in range(offsets[v], offsets[v + 1]):
+        link = ids[k]
+        first = link_voxels[link, 0] == v
+        w = link_voxels[link, 1] if first else link_voxels[link, 0]
+        face_v = link_face[link] if first else link_face[link] - 1
+        face_w = link_face[link] - 1 if first else link_face[link]
+        shadow[w] |= np.uint8(1 << face_w)
+        # w is in front of v if it lies towards the charge (within 45 degrees of the line
+        # to it: not a neighbour beside v in the same layer)
+        d = geometry.centroid[w] - geometry.centroid[v]
+        along = d[0] * rx + d[1] * ry + d[2] * rz
+        if (shadow[v] >> face_v) & 1 and along < -FRONT_COSINE * math.sqrt(
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) * (rx * rx + ry * ry + rz * rz)):
+            front = w
+    if front < 0:
+        return
+    for a in range(3):
+        held[v, a] = 0.0
+    if voxel_alive[front] or (held[front, 0] == 0.0 and held[front, 1] == 0.0
+                              and held[front, 2] == 0.0):
+        return  # that dust has left with it
+    mv, mf = geometry.mass[v], geometry.mass[front]
+    for a in range(3):
+        held[v, a] = held[front, a] * mv / (mv + mf)
+        held[front, a] -= held[v, a]
 
 
 def arrival_order(front, voxel_centroid, voxels, bodies, candidate, active) -> np.ndarray:
@@ -416,8 +465,8 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                             state.scratch.voxel_candidate, front)
     order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
-    released = fracture_voxels(front, params, model.voxels, state.voxels, state.bodies, order,
-                               marks, model.strength, exposure, state.loads)
+    released = fracture_voxels(front, params, model.voxels, model.links, state.voxels,
+                               state.bodies, order, marks, model.strength, exposure, state.loads)
     if params.pressure_impulse and marks.destroyed.any():
         state.holding = True  # the split hands the dust its impulse (release_held)
     if s.fracture == "damage":

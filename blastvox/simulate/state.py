@@ -102,12 +102,16 @@ class Loads(NamedTuple):
     mass: this step's, per body. held_p (N, 3) N s and held_l (N, 3) N m s about
     the voxel centroid: what voxels of fixed bodies took during the current
     wave, handed to their piece if it breaks free (see
-    :func:`blastvox.simulate.kernels.release_held`)."""
+    :func:`blastvox.simulate.kernels.release_held`). shadow (N,) uint8: bit f set
+    when the neighbour across face f turned to dust in the current waves: that dust
+    left with the wave's impulse through the face, which then loads it no more
+    (see :func:`blastvox.simulate.fracture.fracture_voxels`)."""
 
     impulse: np.ndarray
     angular: np.ndarray
     held_p: np.ndarray
     held_l: np.ndarray
+    shadow: np.ndarray
 
 
 class Contacts(NamedTuple):
