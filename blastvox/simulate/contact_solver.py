@@ -527,7 +527,7 @@ def _warm_start(memory, count, ends, bw, rw, friction) -> None:
 @helper
 def _remember(memory, count, rw, bounce) -> None:
     """Keep the impulses of the rows that carried load (not bounces) for the next step,
-    and each row's normal impulse in rows.impulse."""
+    and each row's normal impulse in rows.impulse, its friction in rows.friction."""
     rows, keys, carried = memory.rows, memory.keys, memory.carried
     p = 0
     for r in range(count):
@@ -535,6 +535,9 @@ def _remember(memory, count, rw, bounce) -> None:
         for i in range(rows.used[r]):
             normal += rw[r, RW_ACC + i]
         rows.impulse[r] = normal
+        for a in range(3):
+            rows.friction[r, a] = (rw[r, RW_ACC + 4] * rows.frame[r, 1, a]
+                                   + rw[r, RW_ACC + 5] * rows.frame[r, 2, a])
         if bounce[r] or normal <= 0.0:
             continue
         sign = -1.0 if rows.voxel[r, 0] > rows.voxel[r, 1] else 1.0

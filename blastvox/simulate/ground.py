@@ -57,7 +57,8 @@ class ContactRows(NamedTuple):
     their centre, where friction acts; arm (M,) m: the lever of twisting friction
     about it (0 for a point); restitution (M,). Written by the solver: approach (M,)
     m/s, the fastest normal approach of a point before the solve (< 0: approaching);
-    impulse (M,) N s, the normal impulse of the step, all points together.
+    impulse (M,) N s, the normal impulse of the step, all points together; friction
+    (M, 3) N s, the step's friction impulse on b, world vector (-friction on a).
     """
 
     body: np.ndarray
@@ -73,6 +74,7 @@ class ContactRows(NamedTuple):
     restitution: np.ndarray
     approach: np.ndarray
     impulse: np.ndarray
+    friction: np.ndarray
 
 
 class ContactMemory(NamedTuple):
@@ -127,7 +129,7 @@ def empty_rows(capacity: int) -> ContactRows:
         corners=np.zeros((m, 4, 3)), corner_gap=np.zeros((m, 4)),
         used=np.zeros(m, dtype=np.int64), gap=np.zeros(m), point=np.zeros((m, 3)),
         arm=np.zeros(m), restitution=np.zeros(m),
-        approach=np.zeros(m), impulse=np.zeros(m))
+        approach=np.zeros(m), impulse=np.zeros(m), friction=np.zeros((m, 3)))
 
 
 def new_memory(state, size: float, half: np.ndarray, radius: np.ndarray) -> ContactMemory:
