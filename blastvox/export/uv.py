@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
-from trimesh.triangles import closest_point, points_to_barycentric
+from trimesh.triangles import area, closest_point, points_to_barycentric
 
 from blastvox.cache import SimCache
 from blastvox.export.names import identifier, unique
@@ -129,10 +129,8 @@ def _usable(triangles: np.ndarray) -> np.ndarray:
     have finite corners."""
     edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2)
     longest = edges.max(axis=1)
-    twice_area = np.linalg.norm(np.cross(triangles[:, 1] - triangles[:, 0],
-                                         triangles[:, 2] - triangles[:, 0]), axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ok = twice_area / longest > SLIVER * longest
+    with np.errstate(divide="ignore", invalid="ignore"):  # height = 2 area / base
+        ok = 2.0 * area(triangles) / longest > SLIVER * longest
     return np.flatnonzero(ok & np.isfinite(triangles).all(axis=(1, 2)))
 
 

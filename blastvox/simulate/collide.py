@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.contact_solver import solve_contacts
@@ -514,6 +515,7 @@ def hold_contact_impulses(rows, count, bodies, voxel_centroid, loads) -> None:
     debris: 3,685 N s at dt 1/240 s, 1,891 at 1/1920, 4,734 without contacts). rows:
     the step's contact rows (the first ``count``, fragments against fragments), solved."""
     held_p, held_l = loads.held_p, loads.held_l
+    centre = np.empty(3)
     for r in range(count):
         a, b = rows.body[r, 0], rows.body[r, 1]
         if a < 0 or b < 0 or bodies.fixed[a] == bodies.fixed[b]:
@@ -527,13 +529,9 @@ def hold_contact_impulses(rows, count, bodies, voxel_centroid, loads) -> None:
         if jx == 0.0 and jy == 0.0 and jz == 0.0:
             continue
         v, k = rows.voxel[r, side], rows.body[r, side]
-        x = voxel_centroid[v, 0] - bodies.com[k, 0]  # the voxel's centre in the world
-        y = voxel_centroid[v, 1] - bodies.com[k, 1]
-        z = voxel_centroid[v, 2] - bodies.com[k, 2]
-        rot = bodies.rot[k]
-        lx = rows.point[r, 0] - (bodies.pos[k, 0] + rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z)
-        ly = rows.point[r, 1] - (bodies.pos[k, 1] + rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z)
-        lz = rows.point[r, 2] - (bodies.pos[k, 2] + rot[2, 0] * x + rot[2, 1] * y + rot[2, 2] * z)
+        to_world_into(bodies.rot[k], bodies.pos[k], bodies.com[k], voxel_centroid[v], centre)
+        lx, ly, lz = (rows.point[r, 0] - centre[0], rows.point[r, 1] - centre[1],
+                      rows.point[r, 2] - centre[2])
         held_p[v, 0] += jx
         held_p[v, 1] += jy
         held_p[v, 2] += jz

@@ -280,8 +280,9 @@ def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks
                         loads.held_p[v, a] = (imp - i_neg) * area * (
                             centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
                         loads.held_l[v, a] = 0.0
-                    _dust_once(v, geometry, links, voxels.alive, loads, cx - charge_pos[c, 0],
-                               cy - charge_pos[c, 1], cz - charge_pos[c, 2])
+                    _dust_once(v, geometry, links, voxels.alive, loads, body_rot[b],
+                               cx - charge_pos[c, 0], cy - charge_pos[c, 1],
+                               cz - charge_pos[c, 2])
                 break
             voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * peak)
             if voxel_foundation[v]:
@@ -293,12 +294,12 @@ def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks
 
 
 @helper
-def _dust_once(v, geometry, links, voxel_alive, loads, rx, ry, rz) -> None:
-    """Voxel v just turned to dust, its wave's impulse in loads.held_p[v]; (rx, ry, rz):
-    from the charge to v, m. Marks the face each neighbour shared with v in
-    loads.shadow; if a face of v towards the charge is shadowed (dust of the current
-    waves in front of v), v takes no impulse of its own but a share, by mass, of what
-    that dust still holds (see :func:`fracture_voxels`)."""
+def _dust_once(v, geometry, links, voxel_alive, loads, rot, rx, ry, rz) -> None:
+    """Voxel v just turned to dust, its wave's impulse in loads.held_p[v]; rot (3, 3):
+    its body's rotation; (rx, ry, rz): from the charge to v, m, world. Marks the face
+    each neighbour shared with v in loads.shadow; if a face of v towards the charge is
+    shadowed (dust of the current waves in front of v), v takes no impulse of its own
+    but a share, by mass, of what that dust still holds (see :func:`fracture_voxels`)."""
     offsets, ids, link_voxels, link_face = (geometry.link_offsets, geometry.link_ids,
                                             links.voxels, links.face)
     shadow, held = loads.shadow, loads.held_p
@@ -312,10 +313,15 @@ def _dust_once(v, geometry, links, voxel_alive, loads, rx, ry, rz) -> None:
         shadow[w] |= np.uint8(1 << face_w)
         # w is in front of v if it lies towards the charge (within 45 degrees of the line
         # to it: not a neighbour beside v in the same layer)
-        d = geometry.centroid[w] - geometry.centroid[v]
-        along = d[0] * rx + d[1] * ry + d[2] * rz
-        if (shadow[v] >> face_v) & 1 and along < -FRONT_COSINE * math.sqrt(
-                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) * (rx * rx + ry * ry + rz * rz)):
+        if not (shadow[v] >> face_v) & 1:
+            continue
+        cw, cv = geometry.centroid[w], geometry.centroid[v]
+        dx, dy, dz = cw[0] - cv[0], cw[1] - cv[1], cw[2] - cv[2]  # rest frame
+        along = ((rot[0, 0] * dx + rot[0, 1] * dy + rot[0, 2] * dz) * rx
+                 + (rot[1, 0] * dx + rot[1, 1] * dy + rot[1, 2] * dz) * ry
+                 + (rot[2, 0] * dx + rot[2, 1] * dy + rot[2, 2] * dz) * rz)
+        if along < -FRONT_COSINE * math.sqrt((dx * dx + dy * dy + dz * dz)
+                                             * (rx * rx + ry * ry + rz * rz)):
             front = w
     if front < 0:
         return
