@@ -173,6 +173,8 @@ class SimCache:
             "destroyed_voxel_count": int((a["voxel_destroyed_frame"] >= 0).sum()),
             "charge_count": int(len(a["charge_tnt_kg"])),
             "fracture": self.meta.get("fracture"), "seed": self.meta.get("seed"),
+            **{f"momentum_{term}_n_s": [round(x, 3) for x in value]
+               for term, value in self.meta.get("momentum", {}).items()},
         }
 
 

@@ -192,15 +192,17 @@ def test_founded_wall_sheds_debris_but_stands(tmp_path):
                                                                  len(founded), 4)))
     debris = np.setdiff1d(np.arange(cache.piece_count), founded)
     assert len(debris) >= 5
-    into_wall = cache.piece_position[:, debris, 1] - cache.piece_position[0, debris, 1]
-    # while the wave passes, a piece that broke off moves with the loaded wall until it
-    # is MEMBER_DEPTH into it, and one step more (1.5 cm at dt 1/240 s): then the wall,
-    # which stands, stops it
-    assert into_wall.max() < 0.1 * 0.25
+    front = debris[cache.piece_position[0, debris, 1] < 0.0]  # of the loaded face
+    assert len(front) >= 5
+    into_wall = cache.piece_position[:, front, 1] - cache.piece_position[0, front, 1]
+    # the broken part of the wall, both layers, bulges out 2-4 cm and stops (pieces of
+    # the back layer are pushed out as far, or at the wall's free end off it): nothing
+    # of the loaded face passes into the wall
+    assert into_wall.max() < 0.2 * 0.25
     # pressed, not struck: no impact dust while the wave presses them (pieces that fall
     # later may strike the ground or the wall's foot hard enough)
-    # (its positive phase lasts about 3 ms: none in the first 50 ms)
-    assert not (cache.arrays["dust_time"] < 0.05).any(), cache.arrays["dust_time"]
+    # (it arrives at 1.9 ms and its positive phase lasts 4.4 ms: none in the first 10 ms)
+    assert not (cache.arrays["dust_time"] < 0.01).any(), cache.arrays["dust_time"]
 
 
 def _loose_momentum(cache) -> float:

@@ -532,7 +532,11 @@ def mute_member_rows(rows, count, bodies, voxels, held_p, since, holds, half, de
             holds[body[v]] = True
     for r in range(count):
         a, b = rows.body[r, 0], rows.body[r, 1]
-        if a < 0 or b < 0 or bodies.fixed[a] == bodies.fixed[b]:
+        if a < 0 or b < 0:
+            continue
+        if bodies.fixed[a] == bodies.fixed[b]:
+            if not bodies.fixed[a] and bodies.born[a] >= since and bodies.born[b] >= since:
+                rows.grip[r] = 0.0
             continue
         fixed, free = (a, b) if bodies.fixed[a] else (b, a)
         if holds[fixed] and bodies.born[free] >= since and rows.gap[r] > -depth * 2.0 * min(
@@ -617,6 +621,8 @@ def collide_phase(model, state, settings, dt: float) -> int:
         mute_member_rows(memory.rows, count, state.bodies, state.voxels, state.loads.held_p,
                          state.hold_since, _holds(state), memory.half, MEMBER_DEPTH)
     solve_contacts(state.bodies, memory, end, solver_params(memory, s, dt))
+    memory.rows.grip[:count] = 1.0
+    state.caches.fragment_rows = (int(count), int(end))
     c = state.contacts
     resolved = contact_effects(memory.rows, count, model.voxels.density, state.voxels,
                                state.marks, c.resting, c.hits, params, memory.half)

@@ -130,6 +130,7 @@ def _sweep_row(r, rows, ends, bw, rw, friction, b) -> float:
      b0, b1, b2, b3, b4, b5, b6, b7, b8) = _body_locals(bw, eb)
     nx, ny, nz = frame[r, 0, 0], frame[r, 0, 1], frame[r, 0, 2]
     used = rows.used[r]
+    friction *= rows.grip[r]
     normal = 0.0
     for i in range(used):
         normal += rw[r, RW_ACC + i]
@@ -488,6 +489,7 @@ def _warm_start(memory, count, ends, bw, rw, friction) -> None:
         sign = -1.0 if rows.voxel[r, 0] > rows.voxel[r, 1] else 1.0
         used = rows.used[r]
         normal = carried[found, 0]
+        mu = friction * rows.grip[r]
         for i in range(used):
             rw[r, RW_ACC + i] = normal / used
         for j in range(3):
@@ -498,10 +500,10 @@ def _warm_start(memory, count, ends, bw, rw, friction) -> None:
                                             + carried[found, o + 2] * frame[r, axis, 2])
         f1, f2 = rw[r, RW_ACC + 4], rw[r, RW_ACC + 5]
         size = math.sqrt(f1 * f1 + f2 * f2)
-        if size > friction * normal:
-            rw[r, RW_ACC + 4] *= friction * normal / size
-            rw[r, RW_ACC + 5] *= friction * normal / size
-        twist = friction * normal * rows.arm[r]
+        if size > mu * normal:
+            rw[r, RW_ACC + 4] *= mu * normal / size
+            rw[r, RW_ACC + 5] *= mu * normal / size
+        twist = mu * normal * rows.arm[r]
         rw[r, RW_ACC + 6] = min(max(rw[r, RW_ACC + 6], -twist), twist)
         for side in range(2):
             e = ends[r, side]

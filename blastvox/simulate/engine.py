@@ -19,7 +19,9 @@ and writes:
    (:func:`~blastvox.simulate.forces.blast_phase`);
 6. integrate velocities: blast impulse, gravity, drag;
 7. collide: fragments (:func:`~blastvox.simulate.collide.collide_phase`), then the
-   ground (:func:`~blastvox.simulate.ground.ground_phase`), at velocity level;
+   ground (:func:`~blastvox.simulate.ground.ground_phase`), at velocity level; chunks
+   of founded bodies the contacts pushed out (:func:`~blastvox.simulate.punch.punch_phase`),
+   and the contacts solved again with them free;
    impact fracture of the bodies the contacts stopped hard
    (:func:`~blastvox.simulate.stress.impact_phase`); sleeping;
 8. integrate positions and orientations;
@@ -34,7 +36,7 @@ any NUMBA_NUM_THREADS.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -63,8 +65,10 @@ from blastvox.simulate.kernels import (
     settle,
     wake_on_impulse,
 )
+from blastvox.simulate.ledger import Ledger
 from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
+from blastvox.simulate.punch import Punch, punch_phase
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import (
     SimSettings,
@@ -191,6 +195,8 @@ class Run:
     rooms: Rooms | None = None
     gas: np.ndarray | None = None
     stress: Stress | None = None
+    punch: Punch | None = None
+    ledger: Ledger = field(default_factory=Ledger)
 
     @classmethod
     def start(cls, model: VoxelModel, settings: SimSettings) -> Run:
@@ -213,7 +219,11 @@ class Run:
             # model only what the scene needs: no combustible material, no fire
             fire=Fire.start(state) if settings.fire and combustible else None,
             # model only what the scene needs: no founded body, no load paths
-            stress=start_stress(model.arrays, len(state.bodies.mass), settings.stress),
+            stress=(stress := start_stress(model.arrays, len(state.bodies.mass),
+                                           settings.stress)),
+            # founded bodies' contact loads need the links' strengths, and something to hit
+            punch=(Punch.of(model.arrays) if stress is not None and settings.collisions
+                   else None),
             **_rooms(sm, state, charges))
 
     def effects_on(self) -> dict[str, bool]:
@@ -245,6 +255,8 @@ def step(run: Run, n: int, frame_next: int) -> None:
     body_rotations(bodies.quat, bodies.live, n_bodies, bodies.rot)
     front = _front(charges, t0, t1)
     was_holding = state.holding
+    ledger = run.ledger
+    ledger.book(state, "initial")  # what a caller set between steps
     if bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n_bodies, front.position,
                        front.inner, front.outer, state.marks.active):
         if not state.holding:  # a wave arrives: it sees the structure as it stands
@@ -266,32 +278,84 @@ def step(run: Run, n: int, frame_next: int) -> None:
         run.effects.ground_ring(model, charges, run.ground, t1, front.outer, dt)
     if run.stress is not None and stress_phase(model, state, run.stress, run.gravity):
         split(run, n, t1, frame_next)
+    ledger.book(state, "released")  # founded voxels' held impulses, to freed pieces
+    held = ledger.founded_held(state) if state.holding else None
     blast_phase(model, state, charges, t0, t1, front.outer)
     if run.rooms is not None:
         gas_phase(model, state, run.rooms, t0, t1)
         wake_on_impulse(state.loads.impulse, state.loads.angular, bodies.asleep, n_bodies)
-    if state.holding and not was_holding:
-        state.hold_since = n
+    if state.holding:
+        ledger.founded += ledger.founded_held(state) - (0.0 if held is None else held)
+        if not was_holding:
+            state.hold_since = n
     if not any_moving(bodies.live, bodies.fixed, bodies.dust, bodies.asleep, state.n_bodies):
         _still_step(run)
         return
+    blast = ledger.blast_applied(state)
     integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag, state.loads,
                          state.bodies)
+    ledger.book(state, "gravity_drag", ("blast", blast))
     before = state.bodies.lin[:state.n_bodies].copy() if run.stress is not None else None
     if s.collisions:
-        resolved = collide_phase(model, state, s, dt)
-        if s.dust and resolved:
-            run.effects.collision_dust(model, state.contacts.hits[:resolved], t1)
-        if state.marks.destroyed.any():
-            split(run, n, t1, frame_next)
+        _collide(run, n, t1, frame_next)
+        ground, founded = ledger.contacts(state, state.caches.fragment_rows[1])
+        ledger.book(state, "damping", ("ground", ground), ("foundations", founded))
     if run.ground is not None:
         ground_phase(model, state, s, dt, run.ground)
+        ledger.book(state, "ground")
     if before is not None and impact_phase(model, state, run.stress, before,
                                            _sustained_speed(run, dt)):
         split(run, n, t1, frame_next)
     if (s.collisions or run.ground is not None) and s.gravity > 0.0:
         settle(state.bodies, s.sleep_speed, run.still_steps)  # without gravity nothing rests
+        ledger.book(state, "sleep")
     integrate_positions(dt, state.bodies)
+
+
+#: Contact solves at most in a step whose contacts punch chunks out of founded bodies:
+#: a chunk punched out of a wall's face is pressed into the layer behind it, which the
+#: next solve may punch out in turn.
+PUNCH_ROUNDS = 8
+
+
+def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
+    """Step n's fragment contacts (:func:`~blastvox.simulate.collide.collide_phase`),
+    with their dust and splits. When they pushed a chunk out of a founded body
+    (:func:`~blastvox.simulate.punch.punch_phase`), the step's contacts are solved
+    again from the momenta before them, with the chunk free: the pieces that struck
+    it share their momentum with it as with any free body (an immovable wall stopped
+    them dead)."""
+    model, state, s = run.model, run.state, run.settings
+    count = state.n_bodies
+    lin, ang = state.bodies.lin[:count].copy(), state.bodies.ang[:count].copy()
+    for attempt in range(PUNCH_ROUNDS):
+        resolved = collide_phase(model, state, s, run.dt)
+        if s.dust and resolved:
+            run.effects.collision_dust(model, state.contacts.hits[:resolved], t1)
+        if state.marks.destroyed.any():
+            split(run, n, t1, frame_next)
+        if attempt == PUNCH_ROUNDS - 1 or run.punch is None or not punch_phase(
+                model, state, run.stress, run.punch, state.contacts.memory.rows,
+                *state.caches.fragment_rows, run.dt):
+            return
+        _restore(state.bodies, count, lin, ang)
+        split(run, n, t1, frame_next)
+
+
+def _restore(bodies, count: int, lin: np.ndarray, ang: np.ndarray) -> None:
+    """The momenta before a step's contacts: lin, ang (count, 3) of the first ``count``
+    bodies; a body split off since starts from its parent's (a fixed one's: none)."""
+    live = bodies.live[:count]
+    bodies.lin[:count][live] = lin[live]
+    bodies.ang[:count][live] = ang[live]
+    for b in range(count, int(bodies.count[0])):
+        parent = int(bodies.parent[b])
+        while parent >= count:
+            parent = int(bodies.parent[parent])
+        if parent < 0 or bodies.fixed[parent]:
+            bodies.lin[b] = 0.0
+            bodies.ang[b] = 0.0
+        # a piece of a free body keeps what the split gave it: its parent moved on
 
 
 def _sustained_speed(run: Run, dt: float) -> float:
@@ -484,6 +548,7 @@ def _cache(run: Run, model: VoxelModel, frames: int, per_frame: int,
             "particle_systems": particle_meta(),
             "camera": settings.to_dict()["camera"],
             "confinement": [] if run.rooms is None else run.rooms.meta(),
+            "momentum": run.ledger.meta(),
             "stress": None if run.stress is None else {
                 "solves": run.stress.solves, "links_broken": run.stress.broken}}
     # wall time is reported by the CLI, never stored: caches must be byte-identical

@@ -59,6 +59,8 @@ class ContactRows(NamedTuple):
     m/s, the fastest normal approach of a point before the solve (< 0: approaching);
     impulse (M,) N s, the normal impulse of the step, all points together; friction
     (M, 3) N s, the step's friction impulse on b, world vector (-friction on a).
+    grip (M,): the row's share of the scene's friction coefficient (1; 0 for a row
+    without friction this step, see :func:`~blastvox.simulate.collide.mute_member_rows`).
     """
 
     body: np.ndarray
@@ -75,6 +77,7 @@ class ContactRows(NamedTuple):
     approach: np.ndarray
     impulse: np.ndarray
     friction: np.ndarray
+    grip: np.ndarray
 
 
 class ContactMemory(NamedTuple):
@@ -129,7 +132,8 @@ def empty_rows(capacity: int) -> ContactRows:
         corners=np.zeros((m, 4, 3)), corner_gap=np.zeros((m, 4)),
         used=np.zeros(m, dtype=np.int64), gap=np.zeros(m), point=np.zeros((m, 3)),
         arm=np.zeros(m), restitution=np.zeros(m),
-        approach=np.zeros(m), impulse=np.zeros(m), friction=np.zeros((m, 3)))
+        approach=np.zeros(m), impulse=np.zeros(m), friction=np.zeros((m, 3)),
+        grip=np.ones(m))
 
 
 def new_memory(state, size: float, half: np.ndarray, radius: np.ndarray) -> ContactMemory:

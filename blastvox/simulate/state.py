@@ -176,7 +176,10 @@ class Caches:
     (:func:`blastvox.simulate.clearing.body_boxes`) at topology boxes_version;
     clearing: each body's clearing sizes for the current wave (see
     :func:`blastvox.simulate.clearing.clearing_of`); sight: the faces' lines of
-    sight in the current wave (see :class:`Exposure`)."""
+    sight in the current wave (see :class:`Exposure`); holds: work of
+    :func:`blastvox.simulate.collide.mute_member_rows`; fragment_rows: how many of the
+    step's solved contact rows are between fragments, and how many in all (the
+    ground's follow them)."""
 
     boundary: tuple | None = None
     version: int = 0
@@ -189,6 +192,7 @@ class Caches:
     clearing: np.ndarray | None = None
     sight: np.ndarray | None = None
     holds: np.ndarray | None = None
+    fragment_rows: tuple = (0, 0)
 
 
 @dataclass

@@ -1,0 +1,216 @@
+"""Contact loads on founded structures: what free pieces push into a founded body is
+carried by its links, and a chunk whose links cannot carry it is punched out.
+
+A founded body is an immovable (infinite-mass) body in the contact solve
+(:mod:`~blastvox.simulate.contact_solver`). What its contacts push into it in a step,
+J (N s) on a voxel, is a force F = J / dt on its support, as NVIDIA Blast's stress
+solver turns the impulses applied to an actor into bond stress. The first link of
+that load path is the struck chunk's own boundary: its alive links to the rest of
+the body carry F in compression where they lie ahead of it (the link's outward
+direction within 45 degrees of F) and in shear or tension elsewhere (the weaker of
+the two). When F exceeds what those links can carry together (each link's area
+times its strength: a rigid-plastic limit, the chunk sheared out as a plug), they
+all break in the same step, and the step's contacts are solved again with the chunk
+free: the striking pieces share their momentum with the piece they broke out, as
+with any free body, where the immovable body stopped them dead. Otherwise the
+foundation takes what they pushed.
+
+So a wall that the wave throws into the end of a side wall (the corner of a house)
+shears that end off and goes on, where an immovable side wall stopped it dead.
+Foundation voxels are anchored to the ground (their own yield decides them) and are
+never punched.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from blastvox.jit import helper, kernel
+
+#: A link carries a chunk's load in compression when its outward direction is within
+#: this angle's cosine (45 degrees) of the load.
+AHEAD = math.cos(math.radians(45.0))
+
+
+@helper
+def _row_impulse(rows, r, side, out) -> None:
+    """out (3,): the impulse (N s, normal and friction) row r gave its side (0: a, 1: b)."""
+    sign = 1.0 if side == 1 else -1.0
+    for a in range(3):
+        out[a] = sign * (rows.impulse[r] * rows.frame[r, 0, a] + rows.friction[r, a])
+
+
+@helper
+def _lost(net, k, out) -> None:
+    """out (3,): the load (N s) piece k put into fixed bodies this step: what they took
+    from it, net[k, :3] being their impulse on it, less, axis by axis, what the ground
+    pushed back against them (net[k, 3:6], the ground's impulse on it): between two
+    immovable bodies the solve fixes only the sum of their pushes, not how much of it
+    each gives and takes."""
+    for a in range(3):
+        f, g = net[k, a], net[k, 3 + a]
+        if f * g < 0.0:
+            f = math.copysign(max(0.0, abs(f) - abs(g)), f)
+        out[a] = -f
+
+
+@kernel
+def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net) -> int:
+    """Sum into impulse (N, 3) (N s; zero where nothing touched, the caller zeroes what
+    it read) what free pieces pushed into each fixed body's voxel through the first
+    ``count`` solved rows, and list those voxels in touched (N,); returns how many.
+
+    A piece squeezed between the ground and a founded body is pushed by both in
+    amounts the solve does not determine, only their sum; that cancelling part loads
+    nothing. What a piece pushes into fixed bodies is what they took from it less
+    that part, D (:func:`_lost`; the ground's rows are count..end), shared among its
+    rows with fixed bodies in proportion to how hard each pushed along D. A piece
+    pressed between a striking piece and a founded body passes the strike on.
+    net (B, 7): work."""
+    j = np.empty(3)
+    d = np.empty(3)
+    for r in range(end):
+        for side in range(2):
+            k = rows.body[r, side]
+            if k >= 0 and not bodies.fixed[k]:
+                net[k, :] = 0.0
+    for r in range(end):
+        for side in range(2):
+            k = rows.body[r, side]
+            if k < 0 or bodies.fixed[k]:
+                continue
+            o = rows.body[r, 1 - side]
+            if r < count and (o < 0 or not bodies.fixed[o]):
+                continue  # a free piece's push: a load that passes on
+            _row_impulse(rows, r, side, j)
+            for a in range(3):
+                net[k, a if r < count else 3 + a] += j[a]
+    for sweep in range(2):  # the weights' sums, then the shares
+        n = 0
+        for r in range(count):
+            a_, b_ = rows.body[r, 0], rows.body[r, 1]
+            if a_ < 0 or b_ < 0 or bodies.fixed[a_] == bodies.fixed[b_]:
+                continue
+            side = 0 if bodies.fixed[a_] else 1  # the fixed side
+            k = rows.body[r, 1 - side]
+            _row_impulse(rows, r, side, j)  # on the fixed voxel
+            _lost(net, k, d)
+            size = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            if size == 0.0:
+                continue
+            w = max(0.0, (j[0] * d[0] + j[1] * d[1] + j[2] * d[2]) / size)
+            if sweep == 0:
+                net[k, 6] += w
+                continue
+            if w == 0.0:
+                continue
+            v = rows.voxel[r, side]
+            if impulse[v, 0] == 0.0 and impulse[v, 1] == 0.0 and impulse[v, 2] == 0.0:
+                touched[n] = v
+                n += 1
+            for a in range(3):
+                impulse[v, a] += d[a] * w / net[k, 6]
+    return n
+
+
+class Punch:
+    """The run's memory of :func:`punch_phase`: group (N,) each voxel's chunk (or the
+    voxel itself), group_offsets (G+1,) and group_voxels (N,) the voxels of each group
+    (CSR); impulse (N, 3) and touched (N,) work arrays; punched: chunks punched out."""
+
+    def __init__(self, group: np.ndarray) -> None:
+        self.group = group
+        order = np.argsort(group, kind="stable")
+        self.group_voxels = order
+        self.group_offsets = np.searchsorted(group[order], np.arange(int(group.max(
+            initial=-1)) + 2))
+        self.impulse = np.zeros((len(group), 3))
+        self.touched = np.zeros(len(group), dtype=np.int64)
+        self.net: np.ndarray | None = None
+        self.punched = 0
+
+    @classmethod
+    def of(cls, arrays: dict) -> Punch:
+        """For a VoxelModel's arrays: groups by voxel_chunk, or one per voxel."""
+        chunk = arrays.get("voxel_chunk")
+        count = len(arrays["voxel_volume"])
+        return cls(np.arange(count, dtype=np.int64) if chunk is None
+                   else np.ascontiguousarray(chunk, dtype=np.int64))
+
+
+def punch_phase(model, state, stress, punch: Punch, rows, count: int, end: int,
+                dt: float) -> bool:
+    """Phase: the chunks of founded bodies that this step's contacts (the first
+    ``count`` solved rows between fragments, then the ground's up to ``end``) pushed
+    harder than their links can carry are punched out (see the module docstring).
+    Writes links.alive, marks.broken and marks.dirty and counters.broken_links (the
+    caller splits, and solves the step's contacts again with the punched chunks
+    free: :func:`blastvox.simulate.engine.step`). stress: the run's
+    :class:`~blastvox.simulate.stress.Stress` (the links' areas and strengths).
+    Returns whether any link broke."""
+    bodies, voxels = state.bodies, state.voxels
+    if punch.net is None or len(punch.net) != len(bodies.mass):
+        punch.net = np.zeros((len(bodies.mass), 7))
+    k = fixed_contact_impulses(rows, count, end, bodies, punch.impulse, punch.touched,
+                               punch.net)
+    if k == 0:
+        return False
+    touched = np.unique(punch.touched[:k])  # a voxel whose sum passed through zero repeats
+    pushed = punch.impulse[touched].copy()
+    punch.impulse[touched] = 0.0
+    groups = punch.group[touched]
+    body = voxels.body[touched]
+    key = np.stack([body, groups], axis=1)
+    keys, which = np.unique(key, axis=0, return_inverse=True)
+    which = which.ravel()
+    total = np.zeros((len(keys), 3))
+    np.add.at(total, which, pushed)
+    force = np.linalg.norm(total, axis=1) / dt
+    springs = stress.springs
+    broke = False
+    for i in np.flatnonzero(force > 0.0):
+        b, g = int(keys[i, 0]), int(keys[i, 1])
+        members = punch.group_voxels[punch.group_offsets[g]:punch.group_offsets[g + 1]]
+        members = members[voxels.alive[members] & (voxels.body[members] == b)]
+        if not members.size or voxels.foundation[members].any():
+            continue
+        links, outward = _boundary_links(model, state, members)
+        if not links.size:
+            continue
+        along = outward @ (total[i] / np.linalg.norm(total[i]))
+        strength = np.where(along > AHEAD, springs.compressive[links],
+                            np.minimum(springs.tensile[links], springs.shear[links]))
+        capacity = float(np.sum(springs.area[links] * strength))
+        if not force[i] > capacity:
+            continue
+        state.links.alive[links] = False
+        state.marks.broken[links] = True
+        state.marks.dirty[b] = True
+        state.counters.broken_links += int(links.size)
+        punch.punched += 1
+        broke = True
+    return broke
+
+
+def _boundary_links(model, state, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The alive links from ``members`` (voxel ids, one body) to the rest of their body,
+    and each one's outward direction (K, 3), from the member to its neighbour, in the
+    world frame (the links' rest directions turned by the body's rotation)."""
+    geometry, links = model.voxels, model.links
+    offsets, ids = geometry.link_offsets, geometry.link_ids
+    starts, counts = offsets[members], offsets[members + 1] - offsets[members]
+    first = np.repeat(starts - np.cumsum(counts) + counts, counts)
+    candidates = ids[first + np.arange(int(counts.sum()))]
+    owner = np.repeat(members, counts)
+    candidates_alive = state.links.alive[candidates]
+    candidates, owner = candidates[candidates_alive], owner[candidates_alive]
+    ends = links.voxels[candidates]
+    other = np.where(ends[:, 0] == owner, ends[:, 1], ends[:, 0])
+    inside = np.isin(other, members)
+    candidates, owner, other = candidates[~inside], owner[~inside], other[~inside]
+    sign = np.where(links.voxels[candidates, 0] == owner, 1.0, -1.0)
+    body = int(state.voxels.body[members[0]])
+    rest = links.direction[candidates] * sign[:, None]
+    return candidates, rest @ state.bodies.rot[body].T
