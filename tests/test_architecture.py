@@ -57,6 +57,25 @@ def test_no_import_cycles():
             visit(name, [])
 
 
+def test_the_cli_has_no_import_cycle_even_through_lazy_imports():
+    """The entry point imports the app lazily (signal handlers first), so a command that
+    imported the entry point back made a cycle that only laziness hid (issue 33): the
+    interrupt state lives in blastvox.cli.interrupt, which both import."""
+    modules = {name: path for name, path in _modules().items()
+               if name.startswith("blastvox.cli.")}
+    graph = {name: {m for m in _imports(path, False) if m in modules and m != name}
+             for name, path in modules.items()}
+
+    def reaches(start: str, goal: str, seen: set[str]) -> bool:
+        for dep in graph[start]:
+            if dep == goal or (dep not in seen and reaches(dep, goal, seen | {dep})):
+                return True
+        return False
+
+    cyclic = sorted(name for name in graph if reaches(name, name, {name}))
+    assert not cyclic, cyclic
+
+
 def test_only_the_simulator_and_the_cli_import_the_simulator():
     for name, path in _modules().items():
         if name.startswith(("blastvox.simulate", "blastvox.cli")) or name == "blastvox.shot":

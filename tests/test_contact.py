@@ -12,8 +12,8 @@ from hypothesis import strategies as hs
 
 from blastvox.materials import MaterialLibrary
 from blastvox.simulate import engine
+from blastvox.simulate.contact.ground import balanced
 from blastvox.simulate.engine import simulate
-from blastvox.simulate.ground import balanced
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 

@@ -10,7 +10,7 @@ Two kinds of input, both small:
 * a real shot: a wooden wall blown up by ``simulate`` for 0.5 s (fire, dust,
   fireball and shock sphere on) for the animations, layers and determinism.
 
-The CLI runs in-process through its console entry point (``blastvox.cli.app.main``)
+The CLI runs in-process through its console entry point (``blastvox.cli.entry.main``)
 so that error handling, exit codes and the one-line messages are the real ones.
 """
 
@@ -36,7 +36,7 @@ FRAMES = 6
 
 def run_main(*args: str | Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     """``blastvox ARGS`` through the console entry point: (exit code, stdout, stderr)."""
-    from blastvox.cli.app import main
+    from blastvox.cli.entry import main
 
     argv = sys.argv
     sys.argv = ["blastvox", *map(str, args)]

@@ -1,5 +1,5 @@
 """Bodies stack: box contacts with face manifolds, solved together with the ground's
-(blastvox.simulate.collide, blastvox.simulate.contact_solver.solve_contacts)."""
+(blastvox.simulate.contact.fragments, blastvox.simulate.contact.solver.solve_contacts)."""
 
 from __future__ import annotations
 

@@ -62,11 +62,3 @@ def _print_version(value: bool) -> None:
 def _root(version: bool = typer.Option(False, "--version", help="Print the version and exit.",
                                        is_eager=True, callback=_print_version)) -> None:
     """Connected-voxel blast-wave destruction for shot pipelines."""
-
-
-def main() -> None:
-    """Console entry point (kept for installs whose script still names it): see
-    :func:`blastvox.cli.entry.main`."""
-    from blastvox.cli.entry import main as entry_main
-
-    entry_main()

@@ -17,7 +17,7 @@ from blastvox.bounds import (
     MAX_PARTICLES,
     MAX_STEPS,
 )
-from blastvox.cli.entry import check_interrupt
+from blastvox.cli.interrupt import check_interrupt
 from blastvox.errors import BlastvoxError
 
 

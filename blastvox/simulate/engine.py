@@ -18,9 +18,9 @@ and writes:
 5. forces: the exact blast impulse of the step on exposed faces
    (:func:`~blastvox.simulate.forces.blast_phase`);
 6. integrate velocities: blast impulse, gravity, drag;
-7. collide: fragments (:func:`~blastvox.simulate.collide.collide_phase`), then the
-   ground (:func:`~blastvox.simulate.ground.ground_phase`), at velocity level; chunks
-   of founded bodies the contacts pushed out (:func:`~blastvox.simulate.punch.punch_phase`),
+7. collide: fragments (:func:`~blastvox.simulate.contact.fragments.collide_phase`), then the
+   ground (:func:`~blastvox.simulate.contact.ground.ground_phase`), at velocity level; chunks
+   of founded bodies the contacts pushed out (:func:`~blastvox.simulate.contact.loads.punch_phase`),
    and the contacts solved again with them free;
    impact fracture of the bodies the contacts stopped hard
    (:func:`~blastvox.simulate.stress.impact_phase`); sleeping;
@@ -47,13 +47,14 @@ from blastvox.particles import particle_meta
 from blastvox.simulate import cues
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.clearing import reset_clearing
-from blastvox.simulate.collide import begin_contacts, collide_phase
 from blastvox.simulate.confinement import Rooms, find_rooms, gas_phase
+from blastvox.simulate.contact.fragments import begin_contacts, collide_phase
+from blastvox.simulate.contact.ground import ground_phase, rest_speed
+from blastvox.simulate.contact.loads import Punch, punch_phase
 from blastvox.simulate.effects import Effects
 from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
 from blastvox.simulate.forces import blast_phase
 from blastvox.simulate.fracture import fracture_phase
-from blastvox.simulate.ground import ground_phase, rest_speed
 from blastvox.simulate.integrate import integrate_positions, integrate_velocities
 from blastvox.simulate.kernels import (
     any_moving,
@@ -68,7 +69,6 @@ from blastvox.simulate.kernels import (
 from blastvox.simulate.ledger import Ledger
 from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
-from blastvox.simulate.punch import Punch, punch_phase
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import (
     SimSettings,
@@ -319,9 +319,9 @@ PUNCH_ROUNDS = 8
 
 
 def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
-    """Step n's fragment contacts (:func:`~blastvox.simulate.collide.collide_phase`),
+    """Step n's fragment contacts (:func:`~blastvox.simulate.contact.fragments.collide_phase`),
     with their dust and splits. When they pushed a chunk out of a founded body
-    (:func:`~blastvox.simulate.punch.punch_phase`), the step's contacts are solved
+    (:func:`~blastvox.simulate.contact.loads.punch_phase`), the step's contacts are solved
     again from the momenta before them, with the chunk free: the pieces that struck
     it share their momentum with it as with any free body (an immovable wall stopped
     them dead)."""
@@ -362,7 +362,7 @@ def _sustained_speed(run: Run, dt: float) -> float:
     """Velocity change (m/s) below which contacts only held a body up: the step's
     gravity with its Coulomb friction, sqrt(1 + mu^2) |g| dt, plus the contacts' own
     line between resting and striking (sleep_speed + 2 |g| dt, the rest_speed of
-    :mod:`blastvox.simulate.collide` and :mod:`blastvox.simulate.ground`)."""
+    :mod:`blastvox.simulate.contact.fragments` and :mod:`blastvox.simulate.contact.ground`)."""
     g, s = float(np.linalg.norm(run.gravity)), run.settings
     return g * dt * float(np.hypot(1.0, s.friction)) + rest_speed(s, dt)
 

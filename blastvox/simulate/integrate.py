@@ -24,7 +24,7 @@ the iteration contracts; a body spinning more than :data:`MAX_SPIN_PER_STEP`
 rad per step falls back to one explicit update (and
 :mod:`blastvox.simulate.limits` warns).
 
-Between the halves, the contact solver (:func:`blastvox.simulate.contact_solver.solve_contacts`)
+Between the halves, the contact solver (:func:`blastvox.simulate.contact.solver.solve_contacts`)
 works on velocities; what it needs of a contact row (the velocity at its point, an
 impulse there) and its position pass (:func:`separate`, split impulses: bodies moved
 apart by pseudo-velocities that are then forgotten) are at the end of this module.
@@ -178,7 +178,7 @@ def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
 
 
 # --------------------------------------------------------------------------- contacts
-# The contact solver (:func:`blastvox.simulate.contact_solver.solve_contacts`) changes the
+# The contact solver (:func:`blastvox.simulate.contact.solver.solve_contacts`) changes the
 # velocities between the two halves; its position pass moves bodies, as the second half
 # does, by pseudo-velocities it then forgets. What both need of a contact row is here.
 
@@ -285,9 +285,9 @@ def separate(bodies, rows, count, ends, ids, bw, rw, params) -> None:
     end, every corner keeping its pseudo-impulse >= 0; they move and turn the bodies
     (pos, quat, rot) and are then forgotten, so no momentum is added. A row with
     nothing to push whose bodies no push has reached yet is skipped (it would do
-    nothing). rows: :class:`~blastvox.simulate.ground.ContactRows`; ends, ids, bw, rw:
-    the solve's (see :func:`~blastvox.simulate.contact_solver.solve_contacts`); params:
-    :class:`~blastvox.simulate.ground.SolverParams`."""
+    nothing). rows: :class:`~blastvox.simulate.contact.ground.ContactRows`; ends, ids, bw, rw:
+    the solve's (see :func:`~blastvox.simulate.contact.solver.solve_contacts`); params:
+    :class:`~blastvox.simulate.contact.ground.SolverParams`."""
     dt, frame = params.dt, rows.frame
     pseudo = np.zeros((ids.shape[0], 23))
     for e in range(ids.shape[0]):  # loops, not slice copies: numba compiles a slice

@@ -1,6 +1,6 @@
 """Kernels shared by the step: small bookkeeping (rotations, link masks, sleep, the
 blast's held impulses). The contact solver that the fragment and ground phases both
-feed is :mod:`blastvox.simulate.contact_solver`.
+feed is :mod:`blastvox.simulate.contact.solver`.
 """
 
 from __future__ import annotations

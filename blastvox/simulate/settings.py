@@ -128,7 +128,7 @@ class SimSettings:
     collide with each other. friction: Coulomb mu at the ground; rest_damping:
     1/s decay of momenta in resting ground contact; sleep_speed: m/s below which
     a balanced resting body is clamped to rest; contact_sweeps: velocity sweeps of the
-    contact solver at most a step (see :mod:`blastvox.simulate.contact_solver`).
+    contact solver at most a step (see :mod:`blastvox.simulate.contact.solver`).
     fire, stress, dust, fireball, shock_sphere, camera_shake: effects on/off (an effect
     that is off costs nothing); fire_*/burn_rate: see blastvox.simulate.fire;
     budgets: particles per system; camera: (position, look_at, focal mm).

@@ -121,7 +121,7 @@ class Contacts(NamedTuple):
     and approach speeds (m/s), for dust; points (K, 3): ground contact points
     of one body (grows with the largest body); vertex_stamp (V,): body that
     last listed a corner (-1 none); memory: the contact solver's rows and what they
-    carry from step to step (:class:`~blastvox.simulate.ground.ContactMemory`),
+    carry from step to step (:class:`~blastvox.simulate.contact.ground.ContactMemory`),
     made by the first contact phase."""
 
     resting: np.ndarray
@@ -177,7 +177,7 @@ class Caches:
     clearing: each body's clearing sizes for the current wave (see
     :func:`blastvox.simulate.clearing.clearing_of`); sight: the faces' lines of
     sight in the current wave (see :class:`Exposure`); holds: work of
-    :func:`blastvox.simulate.collide.mute_member_rows`; fragment_rows: how many of the
+    :func:`blastvox.simulate.contact.fragments.mute_member_rows`; fragment_rows: how many of the
     step's solved contact rows are between fragments, and how many in all (the
     ground's follow them)."""
 

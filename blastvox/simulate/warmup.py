@@ -30,7 +30,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from blastvox.simulate import collide, contact_solver, fire, ground, integrate, kernels
+from blastvox.simulate import fire, integrate, kernels
+from blastvox.simulate.contact import fragments as collide
+from blastvox.simulate.contact import ground
+from blastvox.simulate.contact import solver as contact_solver
 
 
 def compile_ahead(run) -> Callable[[bool], None]:

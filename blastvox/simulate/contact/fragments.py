@@ -12,8 +12,8 @@ its closest point, and its half extents. The normal impulse at the centre,
 with moments about the two tangents bounded by the normal impulse times the
 patch's half extents, is exactly what forces at the patch corners can do, so a
 box rests on a face, tips over an edge and rolls on a corner. The rows, and
-the ground's (:mod:`blastvox.simulate.ground`), are solved together by
-:func:`~blastvox.simulate.contact_solver.solve_contacts`: sequential impulses, warm
+the ground's (:mod:`blastvox.simulate.contact.ground`), are solved together by
+:func:`~blastvox.simulate.contact.solver.solve_contacts`: sequential impulses, warm
 started, restitution the smaller of the two voxels', Coulomb friction,
 penetration removed by moving bodies. Impacts weaken voxels; a voxel whose
 strength runs out turns to dust.
@@ -28,8 +28,7 @@ import numpy as np
 
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
-from blastvox.simulate.contact_solver import solve_contacts
-from blastvox.simulate.ground import (
+from blastvox.simulate.contact.ground import (
     SLOP,
     ground_rows,
     grow_rows,
@@ -39,9 +38,7 @@ from blastvox.simulate.ground import (
     settle_on_ground,
     solver_params,
 )
-from blastvox.simulate.integrate import angular_velocity
-from blastvox.simulate.limits import voxel_size
-from blastvox.simulate.spatial_hash import (
+from blastvox.simulate.contact.pairs import (
     bucket,
     cell_key,
     cell_of,
@@ -50,6 +47,9 @@ from blastvox.simulate.spatial_hash import (
     rest_grid,
     static_hash,
 )
+from blastvox.simulate.contact.solver import solve_contacts
+from blastvox.simulate.integrate import angular_velocity
+from blastvox.simulate.limits import voxel_size
 from blastvox.simulate.state import Contacts
 
 
@@ -59,7 +59,7 @@ class CollideParams(NamedTuple):
     weakening: fraction of an impact's pressure taken off a voxel's yield; cell: hash
     cell, m (twice the largest box half diagonal, plus reach); reach: m, the most a
     contact looks ahead (half the largest voxel); slop: m, the solver's
-    (:func:`~blastvox.simulate.ground.solver_params`)."""
+    (:func:`~blastvox.simulate.contact.ground.solver_params`)."""
 
     dt: float
     wake_speed: float
@@ -108,7 +108,7 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
     boundary: (offsets, members) each body's boundary voxels; params:
     :class:`CollideParams`; static: :func:`static_hash`; rest: :func:`rest_grid`.
     The boundary voxels of moving bodies that may touch something
-    (:func:`~blastvox.simulate.spatial_hash.near_voxels`) go into a spatial hash
+    (:func:`~blastvox.simulate.contact.pairs.near_voxels`) go into a spatial hash
     each step; voxels of bodies at rest (fixed or asleep) come from ``static``,
     so a big standing structure costs nothing per step. Pairs whose bounding
     spheres (memory.radius) may touch within the step (:func:`_lookahead`) go to the
@@ -417,7 +417,7 @@ def _clip(poly, src, n, axis, sign, limit, dst) -> int:
 def _wake_struck(rows, count, bodies, params) -> None:
     """Wake the sleeping bodies that the first ``count`` rows strike: approach faster
     than params.rest_speed (m/s), closing the gap (but params.slop) within the step,
-    as the solver's bounces (:func:`~blastvox.simulate.contact_solver.solve_contacts`). A gentle
+    as the solver's bounces (:func:`~blastvox.simulate.contact.solver.solve_contacts`). A gentle
     touch does
     not wake (debris creeping at about the sleep speed woke its resting neighbours every
     step, and they fell asleep again the next, for ever); an asleep body is immovable."""
@@ -472,7 +472,7 @@ def contact_effects(rows, count, density, voxels, marks, resting, hits, params, 
     impact's). A voxel whose yield the pressure exceeds is marked in
     marks.destroyed (its body in marks.dirty). hits (H, 4) receives the points and
     approach speeds (m/s, for dust). Returns how many rows struck. rows:
-    :class:`~blastvox.simulate.ground.ContactRows`; density (N,): voxels' kg/m^3;
+    :class:`~blastvox.simulate.contact.ground.ContactRows`; density (N,): voxels' kg/m^3;
     resting: contacts.resting (B,)."""
     voxel_density, voxel_yield, voxel_alive = density, voxels.yield_pa, voxels.alive
     resolved = 0
@@ -591,7 +591,8 @@ def collide_phase(model, state, settings, dt: float) -> int:
     marks.destroyed and dirty, the contact flags, memory and hits. Returns how
     many of this step's contacts are in contacts.hits (for dust); a caller splits
     bodies when marks.destroyed has any. ``settings``: the run's SimSettings. The
-    ground phase then has nothing left to do (:func:`~blastvox.simulate.ground.ground_phase`).
+    ground phase then has nothing left to do
+    (:func:`~blastvox.simulate.contact.ground.ground_phase`).
     """
     s = settings
     boundary = boundary_of(model, state)

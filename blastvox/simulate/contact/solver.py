@@ -1,5 +1,5 @@
 """The contact solver that the fragment and ground phases both feed
-(:func:`solve_contacts`, on the :class:`~blastvox.simulate.ground.ContactRows` they
+(:func:`solve_contacts`, on the :class:`~blastvox.simulate.contact.ground.ContactRows` they
 gather).
 
 Sequential impulses (Catto 2005; Bullet's and Box2D's solvers): projected
@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from blastvox.jit import helper, kernel
+from blastvox.simulate.contact.pairs import bucket, hash_buckets
 from blastvox.simulate.integrate import (
     RW_ACC,
     RW_CA,
@@ -36,7 +37,6 @@ from blastvox.simulate.integrate import (
     separate,
     turn_by,
 )
-from blastvox.simulate.spatial_hash import bucket, hash_buckets
 
 #: The velocity sweeps stop once a sweep changes no contact point's normal velocity by
 #: more than this, or after params.sweeps (the scene's ``contact_sweeps``).

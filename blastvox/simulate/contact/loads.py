@@ -2,7 +2,7 @@
 carried by its links, and a chunk whose links cannot carry it is punched out.
 
 A founded body is an immovable (infinite-mass) body in the contact solve
-(:mod:`~blastvox.simulate.contact_solver`). What its contacts push into it in a step,
+(:mod:`~blastvox.simulate.contact.solver`). What its contacts push into it in a step,
 J (N s) on a voxel, is a force F = J / dt on its support, as NVIDIA Blast's stress
 solver turns the impulses applied to an actor into bond stress. The first link of
 that load path is the struck chunk's own boundary: its alive links to the rest of

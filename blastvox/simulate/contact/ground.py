@@ -1,6 +1,6 @@
 """Ground contact (Martins 2001 §5.2).
 
-Like fragment collisions (:mod:`blastvox.simulate.collide`), it acts at velocity
+Like fragment collisions (:mod:`blastvox.simulate.contact.fragments`), it acts at velocity
 level between the velocity and position halves of the step, and never adds energy:
 an impulse only removes approach velocity, or reflects it with a restitution
 coefficient e <= 1.
@@ -9,8 +9,8 @@ Ground: an infinite-mass plane at the scene's ground height. Contact points are 
 corners of a body's boundary voxels that are at or below the plane, or would reach
 it this step (speculative contacts, so fast debris cannot tunnel and resting bodies
 do not sink, without pushing positions around). They are rows of the contact solver
-(:func:`~blastvox.simulate.contact_solver.solve_contacts`), with the fragments' contacts when
-fragments collide (:func:`~blastvox.simulate.collide.collide_phase` solves both, so a
+(:func:`~blastvox.simulate.contact.solver.solve_contacts`), with the fragments' contacts when
+fragments collide (:func:`~blastvox.simulate.contact.fragments.collide_phase` solves both, so a
 stack's weight reaches the ground), alone otherwise: normal and tangential impulses
 solved together by projected Gauss-Seidel sweeps; the tangential part is Coulomb
 friction, the "pseudo-friction" of the paper: it opposes the tangential velocity and
@@ -34,7 +34,7 @@ import numpy as np
 
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
-from blastvox.simulate.contact_solver import solve_contacts
+from blastvox.simulate.contact.solver import solve_contacts
 from blastvox.simulate.integrate import angular_velocity
 from blastvox.simulate.limits import voxel_size
 
@@ -60,7 +60,7 @@ class ContactRows(NamedTuple):
     impulse (M,) N s, the normal impulse of the step, all points together; friction
     (M, 3) N s, the step's friction impulse on b, world vector (-friction on a).
     grip (M,): the row's share of the scene's friction coefficient (1; 0 for a row
-    without friction this step, see :func:`~blastvox.simulate.collide.mute_member_rows`).
+    without friction this step, see :func:`~blastvox.simulate.contact.fragments.mute_member_rows`).
     """
 
     body: np.ndarray
@@ -90,10 +90,10 @@ class ContactMemory(NamedTuple):
     count (1,) int64: how many; local (B,) int64: scratch, -1 for every body;
     half (N, 3) m: each voxel's contact box, half extents along its rest axes,
     centred on its centroid
-    (:func:`blastvox.simulate.collide.voxel_boxes`); radius (N,) m: the box's
+    (:func:`blastvox.simulate.contact.fragments.voxel_boxes`); radius (N,) m: the box's
     half diagonal; deepest (1,) m: the deepest penetration any step has seen; stats
     (4,) int64: solves, velocity sweeps, solves that used every sweep, solves done again
-    without the warm start (see :data:`~blastvox.simulate.contact_solver.ENERGY_SLACK`);
+    without the warm start (see :data:`~blastvox.simulate.contact.solver.ENERGY_SLACK`);
     size: the
     model's typical voxel, m.
     """
@@ -482,7 +482,7 @@ def ground_phase(model, state, settings, dt: float, ground: float) -> None:
     Reads the bodies' poses and the boundary; writes momenta, poses (where bodies
     sank into the plane), asleep and contacts.supported_next; counts contact points
     in the run's counters. ground: the plane's height along the model's up axis, m.
-    With fragment collisions on, :func:`~blastvox.simulate.collide.collide_phase`
+    With fragment collisions on, :func:`~blastvox.simulate.contact.fragments.collide_phase`
     has solved the ground with them and this does nothing.
     """
     if settings.collisions:
