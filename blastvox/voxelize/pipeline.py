@@ -27,6 +27,7 @@ from blastvox.voxelize import cells as cellsel
 from blastvox.voxelize.components import component_labels
 from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
 from blastvox.voxelize.diagnostics import warn_islands, warn_overlaps
+from blastvox.voxelize.fill import fill_volumes
 from blastvox.voxelize.hashing import uniform_by_key
 from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
 from blastvox.voxelize.look import LookBuilder
@@ -145,6 +146,7 @@ class _Lattice:
     link_area: np.ndarray
     boundary: np.ndarray
     parts: list = field(default_factory=list)  # the input surfaces, for the look
+    fill: np.ndarray | None = None  # (N,) m^3 of solid per cube voxel (fill.py), None: volume
 
 
 def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
@@ -225,9 +227,11 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     grid = fit_grid(bounds, spacing, up)
     progress.start(f"inside test {Path(source).name}", 1)
     conform = request.shape == "conform"
-    chosen = cellsel.choose_cells(solids, grid, conform, warn)
+    # the cells the surface crosses: conform voxels, or what cube voxels weigh (fill.py)
+    chosen = cellsel.choose_cells(solids, grid, True, warn)
     progress.advance()
-    budget.check_count(label, int(np.count_nonzero(chosen.inside | chosen.touched)),
+    voxels = chosen.inside | chosen.touched if conform else chosen.inside
+    budget.check_count(label, int(np.count_nonzero(voxels)),
                        budget_left, settings.max_voxels, settings.budget_hint)
     vertex_ids, positions, voxel_vertices = _place_vertices(
         chosen.ijk, grid, request.jitter, settings.seed, index, up)
@@ -241,14 +245,18 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     keep = chosen.inside.copy()
     conform_data = (np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros((0, 3, 3)),
                     np.zeros(0, np.uint8))
+    closed = [s for i, s in enumerate(solids) if i not in chosen.sheet_parts]
     if conform:
-        closed = [s for i, s in enumerate(solids) if i not in chosen.sheet_parts]
         keep, conform_data = _clip_conform(closed, chosen, positions, voxel_vertices, volume,
                                            progress, request.origin)
         if conform_data[0].size:
             cv, cc, ci = soup_mass_properties(conform_data[2], conform_data[1])
             volume[conform_data[0]], centroid[conform_data[0]] = cv, cc
             inertia[conform_data[0]] = ci
+        fill = None
+    else:
+        fill = _cube_fill(closed, chosen, positions, voxel_vertices, volume, keep, centroid,
+                          progress, request.origin)[keep]
     if not keep.any():
         larger = " (a larger resolution)" if request.voxel_size is None else ""
         raise MeshError(f"{source}: no voxel lies inside the mesh at voxel size "
@@ -269,7 +277,7 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                    centroid=centroid[keep], inertia=inertia[keep], conform_local=conform_local,
                    conform_offsets=conform_data[1], conform_triangles=conform_data[2],
                    conform_tags=conform_data[3], link_voxels=None, link_face=None,
-                   link_midpoint=None, link_area=None, boundary=None, parts=parts)
+                   link_midpoint=None, link_area=None, boundary=None, parts=parts, fill=fill)
     _link(lat)
     if conform:
         _merge_slivers(lat, cell_volume[keep], settings.min_conform_fraction, source, warn)
@@ -352,6 +360,29 @@ def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progres
     keep = chosen.inside & ~chosen.touched
     keep[candidates[clipped.cells]] = True
     return keep, (candidates[clipped.cells], clipped.offsets, clipped.triangles, clipped.tags)
+
+
+def _cube_fill(solids, chosen, positions, voxel_vertices, volume, keep, centroid, progress,
+               origin) -> np.ndarray:
+    """Each cell's volume of solid (m^3; see :mod:`blastvox.voxelize.fill`): the cells
+    the surface crosses clipped by the closed ``solids``, dropped ones given to the
+    nearest kept voxel. A surface that is not a closed manifold (holes, a soup: the
+    winding number still says what is inside) encloses no exact volume to clip: its
+    voxels weigh their cells."""
+    candidates = np.flatnonzero(chosen.touched)
+    if not solids or not candidates.size:
+        return volume.copy()
+    try:
+        solid = solid_manifold(solids[0].mesh, solids[0].label, origin)
+        for other in solids[1:]:
+            solid = solid + solid_manifold(other.mesh, other.label, origin)
+    except MeshError:
+        return volume.copy()
+    progress.start(f"fill ({len(candidates):,} cells)", len(candidates))
+    return fill_volumes(solid, candidates, positions[voxel_vertices[candidates]],
+                        _local_hex_triangles(voxel_vertices[candidates]),
+                        block_keys_for(chosen.ijk[candidates]), volume, keep, chosen.ijk,
+                        centroid, progress.advance)
 
 
 def _local_hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:
@@ -455,7 +486,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "voxel_volume", "voxel_centroid", "voxel_inertia", "voxel_boundary", "strength",
         "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
         "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side",
-        "link_bond", "anchored")}
+        "link_bond", "anchored", "voxel_fill")}
     voxel_base = vertex_base = tri_base = 0
     look = LookBuilder()
 
@@ -493,6 +524,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         per["voxel_ijk"].append(lat.ijk)
         per["voxel_object"].append(object_ids)
         per["voxel_volume"].append(lat.volume)
+        per["voxel_fill"].append(lat.volume if lat.fill is None else lat.fill)
         per["voxel_centroid"].append(lat.centroid)
         per["voxel_inertia"].append(lat.inertia)
         per["voxel_boundary"].append(lat.boundary)
@@ -539,8 +571,10 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
     d = arrays["voxel_centroid"][lv[:, 1]] - arrays["voxel_centroid"][lv[:, 0]]
     arrays["link_direction"] = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
     density = arrays["material_density"][arrays["voxel_material"]]
-    arrays["voxel_mass"] = arrays["voxel_volume"] * density
-    arrays["voxel_inertia"] = arrays["voxel_inertia"] * density[:, None, None]
+    fill = cat["voxel_fill"].astype(np.float64)  # the solid a voxel holds: its mass
+    arrays["voxel_mass"] = fill * density
+    arrays["voxel_inertia"] = (arrays["voxel_inertia"] * density[:, None, None]
+                               * (fill / arrays["voxel_volume"])[:, None, None])
     ground = _ground_height(settings.ground, arrays["vertices"], up)
     meta = {
         "tool_version": __version__, "up_axis": settings.up_axis, "ground_height": ground,
