@@ -94,6 +94,10 @@ def voxelize(
                              "[default: 0]."),
     max_voxels: int = typer.Option(4_000_000, "--max-voxels", help="Refuse to make more voxels "
                                    "than this."),
+    references_anywhere: bool = typer.Option(
+        False, "--references-anywhere", help="Let a mesh's side files (an OBJ's MTL and "
+        "textures, a .gltf's buffers and images) lie outside its folder; they must still "
+        "be regular files (no device, FIFO or URL)."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar or summary."),
 ) -> None:
     """Voxelize meshes into a connected-voxel model.
@@ -195,6 +199,7 @@ def voxelize(
                                     library=library)
         if output is None:
             raise BlastvoxError(f"{where}: no output file: give -o MODEL.npz")
+    settings.references_anywhere = references_anywhere
     from blastvox.io.outputs import check_npz_output, check_output
 
     label = "-o" if scene is None or output != spec.output.model else "output.model"

@@ -2,7 +2,7 @@
 
 Used by ``blastvox run`` (a stage is stale when any of them is newer than its
 output) and by wedge shot keys (:mod:`blastvox.wedge.digest`). Standard library
-only, so an up-to-date shot costs a few reads and stats.
+(and the reader policy), so an up-to-date shot costs a few reads and stats.
 """
 
 from __future__ import annotations
@@ -11,6 +11,11 @@ import json
 import re
 from pathlib import Path
 
+from blastvox.errors import InputError
+from blastvox.io.references import ReferencePolicy
+
+_POLICY = ReferencePolicy()
+
 #: An MTL texture statement: ``map_Kd [-options value] file``.
 _MTL_MAP = r"^\s*(?:map_\w+|bump|disp|decal|norm)\s+(?:-\S+\s+\S+\s+)*(.+?)\s*$"
 
@@ -18,7 +23,9 @@ _MTL_MAP = r"^\s*(?:map_\w+|bump|disp|decal|norm)\s+(?:-\S+\s+\S+\s+)*(.+?)\s*$"
 def mesh_resources(mesh: Path) -> list[Path]:
     """``mesh`` and the files it refers to that change what voxelize or export reads:
     an OBJ's ``mtllib`` files and their ``map_*`` textures, a .gltf's buffer and image
-    URIs (not ``data:`` URIs). Unreadable references are left to the mesh reader."""
+    URIs (not ``data:`` URIs). References the reader policy refuses (outside the
+    mesh's folder, a FIFO, a device, a URL: :mod:`blastvox.io.references`) are neither
+    read nor listed, and unreadable ones are left to the mesh reader, which says why."""
     found = [mesh]
     suffix = mesh.suffix.lower()
     if suffix == ".obj":
@@ -31,18 +38,28 @@ def mesh_resources(mesh: Path) -> list[Path]:
 
 
 def _referenced(path: Path, pattern: str) -> list[Path]:
+    """The files that ``path`` names (by ``pattern``) and the policy would read."""
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError:
+        text = _POLICY.read(path.parent / "_", path.name).decode("utf-8", errors="replace")
+    except (OSError, InputError):
         return []
-    names = re.findall(pattern, text, flags=re.M)
-    return [path.parent / name for name in names]
+    return [ref for name in re.findall(pattern, text, flags=re.M)
+            if (ref := _allowed(path, name)) is not None]
+
+
+def _allowed(referrer: Path, name: str) -> Path | None:
+    """referrer's reference ``name`` if the reader policy reads it, else None."""
+    try:
+        _POLICY.resolve(referrer, name)
+    except (OSError, InputError):
+        return None
+    return referrer.parent / name
 
 
 def _gltf_uris(path: Path) -> list[Path]:
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        doc = json.loads(_POLICY.read(path.parent / "_", path.name).decode("utf-8"))
+    except (OSError, ValueError, InputError):
         return []
     if not isinstance(doc, dict):
         return []
@@ -50,6 +67,7 @@ def _gltf_uris(path: Path) -> list[Path]:
     for kind in ("buffers", "images"):
         for item in doc.get(kind) or []:
             uri = item.get("uri") if isinstance(item, dict) else None
-            if isinstance(uri, str) and not uri.startswith("data:"):
-                uris.append(path.parent / uri)
+            if isinstance(uri, str) and not uri.startswith("data:") and (
+                    ref := _allowed(path, uri)) is not None:
+                uris.append(ref)
     return uris

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 import re
 import warnings
 from dataclasses import dataclass
@@ -25,6 +26,7 @@ import trimesh
 from blastvox.bounds import printable, regular_file
 from blastvox.errors import InputError, MeshError
 from blastvox.geometry.voxel_faces import VTK_CELL_FACES
+from blastvox.io.references import ReferencePolicy, ReferenceRefused
 from blastvox.voxelize import vertex_colors
 
 #: Suffixes read through meshio as volume meshes rather than through trimesh.
@@ -51,18 +53,22 @@ class Part:
     texture: bytes | None = None
 
 
-def load_parts(path: Path) -> list[Part]:
+def load_parts(path: Path, references: ReferencePolicy | None = None) -> list[Part]:
     """Read ``path`` into a list of :class:`Part` (at least one, each non-empty).
 
     The input must be a readable regular file: a directory, a device (/dev/zero),
     a FIFO or a socket is refused before it is opened, so nothing blocks or reads
-    forever. Every failure is a one-line :class:`MeshError` ``"<file>: <problem>"``.
+    forever; so must every file it refers to (an OBJ's MTL and textures, a .gltf's
+    buffers and images), under ``references`` (:mod:`blastvox.io.references`: inside
+    the mesh's folder by default). Every failure is a one-line :class:`MeshError`
+    ``"<file>: <problem>"``.
     """
     path = Path(path)
     shown = printable(path)
     data = _read(path, whole=True)
     suffix = path.suffix.lower()
-    parts = _load_volume(path) if suffix in VOLUME_SUFFIXES else _load_surface(path, data)
+    parts = (_load_volume(path) if suffix in VOLUME_SUFFIXES
+             else _load_surface(path, data, references or ReferencePolicy()))
     parts = [p for p in parts if len(p.mesh.faces) > 0]
     if not parts:
         raise MeshError(f"{shown}: contains no triangles")
@@ -142,30 +148,63 @@ def _reason(exc: BaseException) -> str:
     return " ".join(text.splitlines()[0].split()) if text else type(exc).__name__
 
 
-def _trimesh_load(path: Path, data: bytes) -> trimesh.Scene:
+class _PolicyResolver(trimesh.resolvers.FilePathResolver):
+    """trimesh's file resolver reading side files under a :class:`ReferencePolicy`. A
+    refusal is kept in ``refused`` (shared with namespaced copies): trimesh skips a
+    material it cannot read, and the caller turns the first refusal into the error."""
+
+    def __init__(self, source: str, policy: ReferencePolicy, refused: list[str]) -> None:
+        super().__init__(source, allow_anywhere=True)  # the policy judges, not trimesh
+        self.policy, self.refused = policy, refused
+
+    def get(self, name: str) -> bytes:
+        try:
+            return self.policy.read(Path(self.file_path), name)
+        except ReferenceRefused as exc:
+            self.refused.append(str(exc))
+            raise
+
+    def namespaced(self, namespace: str) -> _PolicyResolver:
+        return _PolicyResolver(os.path.join(self.parent, namespace, self.file_name),
+                               self.policy, self.refused)
+
+
+def _trimesh_load(path: Path, data: bytes, policy: ReferencePolicy) -> trimesh.Scene:
     """trimesh's loader on bytes already read. The file name is passed as the file type
     (trimesh names nodes after it) and to the resolver (side files such as .mtl and
-    .bin are read beside it); a name that is not valid UTF-8 is passed in its printable
-    form (trimesh cannot hash it), its side files are still found in its directory."""
+    .bin are read beside it, under ``policy``); a name that is not valid UTF-8 is passed
+    in its printable form (trimesh cannot hash it), its side files are still found in
+    its directory. A refused side file raises :class:`MeshError`."""
     name = printable(path)
-    resolver = trimesh.resolvers.FilePathResolver(str(path.parent / printable(path.name)))
+    refused: list[str] = []
+    resolver = _PolicyResolver(str(path.parent / printable(path.name)), policy, refused)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return trimesh.load(io.BytesIO(data), file_type=name, force="scene", process=False,
-                            resolver=resolver)
+        try:
+            loaded = trimesh.load(io.BytesIO(data), file_type=name, force="scene",
+                                  process=False, resolver=resolver)
+        except Exception:
+            if refused:
+                raise MeshError(refused[0]) from None
+            raise
+    if refused:
+        raise MeshError(refused[0])
+    return loaded
 
 
-def _load_surface(path: Path, data: bytes) -> list[Part]:
+def _load_surface(path: Path, data: bytes, policy: ReferencePolicy) -> list[Part]:
     shown = printable(path)
     try:
         try:
-            loaded = _trimesh_load(path, data)
+            loaded = _trimesh_load(path, data, policy)
         except ModuleNotFoundError as exc:
             if exc.name != "charset_normalizer":
                 raise
             # text that is not UTF-8: trimesh would guess its encoding with a package
             # we do not need; Latin-1 (the usual legacy one) decodes any byte
-            loaded = _trimesh_load(path, data.decode("latin-1").encode("utf-8"))
+            loaded = _trimesh_load(path, data.decode("latin-1").encode("utf-8"), policy)
+    except MeshError:
+        raise
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise MeshError(f"{shown}: cannot read mesh ({_reason(exc)})") from None
     if not isinstance(loaded, trimesh.Scene):

@@ -20,6 +20,7 @@ from blastvox.bounds import MAX_COORDINATE_M, printable
 from blastvox.errors import MeshError
 from blastvox.geometry.frames import up_index
 from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG, hex_triangles
+from blastvox.io.references import ReferencePolicy
 from blastvox.materials import MaterialLibrary, material_table, perturbed
 from blastvox.model import VoxelModel
 from blastvox.voxelize import budget, chunks
@@ -110,6 +111,7 @@ class VoxelizeSettings:
     recorded: dict = field(default_factory=dict)  # settings to record in the file
     budget_hint: str = budget.HINT  # how a refusal says to raise the budget
     min_conform_fraction: float = MIN_CONFORM_FRACTION
+    references_anywhere: bool = False  # may a mesh's side files lie outside its folder?
 
 
 class Progress:
@@ -202,7 +204,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                   budget_left: int, progress: Progress, warn) -> _Lattice:
     source = printable(request.mesh)
     progress.start(f"reading {Path(source).name}", 1)
-    parts = load_parts(Path(request.mesh))
+    parts = load_parts(Path(request.mesh),
+                       ReferencePolicy(anywhere=settings.references_anywhere))
     for message in missing_textures(Path(request.mesh)):
         warn(message)
     if request.transform is not None:

@@ -1,0 +1,93 @@
+"""One reader policy for the files a file refers to (issue 36): an OBJ's ``mtllib`` and
+the textures an MTL names, a .gltf's buffer and image URIs.
+
+A reference is read only if it is a regular file (never a device, a FIFO, a socket
+or a directory: /dev/zero is read forever, a FIFO blocks), inside the referring
+file's folder (after symlinks: ``../../etc/passwd`` or a link to /dev/zero is
+refused) unless the user allows more (``blastvox voxelize --references-anywhere``),
+never a URL (``http://``, ``file://``: nothing is fetched), and at most
+:data:`MAX_REFERENCE_BYTES` (checked before reading). A refusal is one line naming
+the referring file, the reference and the rule, and the flag that allows it where
+one does.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import stat
+from dataclasses import dataclass
+from pathlib import Path
+
+from blastvox.bounds import printable
+from blastvox.errors import InputError
+
+#: The largest file a reference may name (bytes): a texture or a buffer of a few
+#: hundred MB is already a very large asset.
+MAX_REFERENCE_BYTES = 1 << 30
+#: A URI with a scheme (``http:``, ``https:``, ``file:``, ``ftp:``...); one-letter
+#: schemes are Windows drive letters (``C:/...``), which the folder rule judges.
+_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]+:")
+#: The flag that lifts the folder rule.
+ANYWHERE_FLAG = "--references-anywhere"
+
+
+class ReferenceRefused(InputError):
+    """A file refers to something the reader policy does not read."""
+
+
+@dataclass(frozen=True)
+class ReferencePolicy:
+    """What references may be read: anywhere, False: only inside the referring file's
+    folder; max_bytes: the largest file."""
+
+    anywhere: bool = False
+    max_bytes: int = MAX_REFERENCE_BYTES
+
+    def resolve(self, referrer: Path, name: str) -> Path:
+        """The file ``name`` (as written in ``referrer``) names, checked: see the module
+        docstring. Raises :class:`ReferenceRefused`, or FileNotFoundError for a regular
+        reference to a missing file (the loaders treat a missing texture as absent)."""
+        where = f"{printable(referrer)}: refers to {printable(name)!r}"
+        if name.startswith("data:"):
+            raise ReferenceRefused(f"{where}: a data: URI is decoded by the loader, not read")
+        if _SCHEME.match(name):
+            raise ReferenceRefused(f"{where}: a URL; blastvox reads files only, nothing is "
+                                   "fetched (download it beside the mesh)")
+        folder = referrer.parent.resolve()
+        target = (referrer.parent / name).resolve()
+        try:
+            info = os.stat(target)
+        except FileNotFoundError:
+            info = None
+        if info is not None and not stat.S_ISREG(info.st_mode):  # whatever the flag
+            from blastvox.io.outputs import file_kind
+
+            raise ReferenceRefused(f"{where}: {printable(target)} is {file_kind(info.st_mode)}"
+                                   ", not a regular file")
+        if not self.anywhere and not target.is_relative_to(folder):
+            raise ReferenceRefused(f"{where}: outside the folder of {printable(referrer.name)}"
+                                   f" ({printable(target)}); copy it beside the file, or "
+                                   f"pass {ANYWHERE_FLAG}")
+        if info is None:  # a missing file, for the loader to skip (and warn)
+            raise FileNotFoundError(2, "no such file", str(target))
+        if info.st_size > self.max_bytes:
+            raise ReferenceRefused(f"{where}: {info.st_size:,} bytes, more than the "
+                                   f"{self.max_bytes:,} a reference may be")
+        return target
+
+    def read(self, referrer: Path, name: str) -> bytes:
+        """The bytes of the file ``name`` names (see :meth:`resolve`), opened without
+        blocking and checked again once open (a file swapped for a FIFO after the check
+        is refused, not waited on)."""
+        target = self.resolve(referrer, name)
+        fd = os.open(target, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise ReferenceRefused(f"{printable(referrer)}: refers to {printable(name)!r}"
+                                       ": not a regular file")
+            data = fh.read(self.max_bytes + 1)
+        if len(data) > self.max_bytes:
+            raise ReferenceRefused(f"{printable(referrer)}: refers to {printable(name)!r}: "
+                                   f"more than the {self.max_bytes:,} bytes a reference may be")
+        return data

@@ -1,0 +1,134 @@
+"""Files that point elsewhere (issue 36): what a mesh refers to is read under one
+policy (blastvox.io.references): regular files only, inside the mesh's folder unless
+``--references-anywhere``, never a device, a FIFO or a URL, size-capped. A refusal
+is one line naming the mesh, the reference and the rule; nothing hangs, nothing is
+written. Both ``voxelize`` and the shot keys of ``run``/``wedge`` hold to it."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+import trimesh
+from bad_input import assert_clean_failure, run_blastvox
+
+from blastvox.io.references import ReferencePolicy, ReferenceRefused
+from blastvox.io.resources import mesh_resources
+
+
+def _obj(folder: Path, mtllib: str, texture: str | None = None) -> Path:
+    """A textured box OBJ in ``folder`` naming ``mtllib``; with ``texture``, a box.mtl
+    beside it that names it (so ``mtllib`` should be box.mtl)."""
+    box = trimesh.creation.box(extents=(1.0, 0.5, 1.0))
+    path = folder / "box.obj"
+    path.write_text(f"mtllib {mtllib}\nusemtl skin\n"
+                    + trimesh.exchange.obj.export_obj(box, include_texture=False))
+    if texture is not None:
+        (folder / "box.mtl").write_text(f"newmtl skin\nKd 1 1 1\nmap_Kd {texture}\n")
+    return path
+
+
+def _voxelize(folder: Path, *extra: str):
+    return run_blastvox("voxelize", "box.obj", "-o", "m.npz", "--voxel-size", "0.25",
+                        "-q", *extra, cwd=folder)
+
+
+@pytest.mark.parametrize("mtllib, words", [
+    ("/dev/zero", ["/dev/zero", "not a regular file"]),
+    ("../outside.mtl", ["outside.mtl", "outside the folder", "--references-anywhere"]),
+    ("http://example.com/box.mtl", ["http://example.com/box.mtl", "URL"]),
+])
+def test_an_obj_whose_mtllib_points_elsewhere_is_refused(tmp_path, mtllib, words):
+    """`mtllib /dev/zero` read until 4 GB of RSS; `../outside.mtl` and a URL were
+    followed. Each is refused in one line naming the OBJ and the reference."""
+    work = tmp_path / "shot"
+    work.mkdir()
+    (tmp_path / "outside.mtl").write_text("newmtl skin\nKd 1 0 0\n")
+    _obj(work, mtllib)
+    outcome = _voxelize(work)
+    assert_clean_failure(outcome, ["box.obj"], words=words, seconds=30.0)
+    assert not (work / "m.npz").exists()
+
+
+def test_an_mtllib_that_is_a_fifo_does_not_hang(tmp_path):
+    """An OBJ whose `mtllib` is a FIFO hung voxelize for 60 s+ (and Ctrl-C then exited
+    0 with the output written): refused at once, before anything opens it."""
+    _obj(tmp_path, "box.mtl")
+    os.mkfifo(tmp_path / "box.mtl")
+    outcome = _voxelize(tmp_path)
+    assert_clean_failure(outcome, ["box.obj", "box.mtl"], words=["FIFO"], seconds=30.0)
+    assert not (tmp_path / "m.npz").exists()
+
+
+def test_a_texture_outside_the_folder_is_refused_unless_allowed(tmp_path):
+    """An MTL's `map_Kd ../../etc/passwd`-style texture outside the mesh's folder is
+    refused; --references-anywhere reads it (a real PNG there is used)."""
+    work = tmp_path / "shot"
+    work.mkdir()
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (200, 30, 30)).save(tmp_path / "skin.png")
+    _obj(work, "box.mtl", "../skin.png")
+    outcome = _voxelize(work)
+    assert_clean_failure(outcome, ["box.obj", "skin.png"], words=["outside the folder"])
+    assert _voxelize(work, "--references-anywhere").code == 0
+    assert (work / "m.npz").is_file()
+
+
+def test_a_symlink_to_a_device_is_refused(tmp_path):
+    """A texture that is a symlink to /dev/zero, inside the folder, is judged by what
+    it points to."""
+    os.symlink("/dev/zero", tmp_path / "skin.png")
+    _obj(tmp_path, "box.mtl", "skin.png")
+    outcome = _voxelize(tmp_path)
+    assert_clean_failure(outcome, ["box.obj", "skin.png"], words=["not a regular file"])
+
+
+def test_a_missing_texture_still_only_warns(tmp_path):
+    """A texture that is simply not there is the loader's to skip (the part keeps its
+    base colour, with a warning), as before: not a refusal."""
+    _obj(tmp_path, "box.mtl", "gone.png")
+    assert _voxelize(tmp_path).code == 0
+
+
+def test_shot_keys_do_not_read_what_the_policy_refuses(tmp_path):
+    """run's staleness check and wedge's shot keys list a mesh's side files: a FIFO or
+    a file outside the folder is left out, never opened (wedge --dry-run opened an
+    MTL's `map_Kd ../../etc/passwd` to hash it)."""
+    work = tmp_path / "shot"
+    work.mkdir()
+    (tmp_path / "secret.png").write_bytes(b"not yours")
+    mesh = _obj(work, "box.mtl", "../secret.png")
+    assert mesh_resources(mesh) == [mesh, work / "box.mtl"]
+    (work / "box.mtl").unlink()
+    os.mkfifo(work / "box.mtl")
+    assert mesh_resources(mesh) == [mesh]
+
+
+def test_the_policy_caps_the_size_before_reading(tmp_path):
+    """A reference larger than the cap is refused from its size, unread."""
+    (tmp_path / "big.bin").write_bytes(b"\0" * 2048)
+    policy = ReferencePolicy(max_bytes=1024)
+    with pytest.raises(ReferenceRefused, match="2,048 bytes"):
+        policy.read(tmp_path / "scene.gltf", "big.bin")
+    assert ReferencePolicy().read(tmp_path / "scene.gltf", "big.bin") == b"\0" * 2048
+
+
+@pytest.mark.parametrize("uri, words", [
+    ("/dev/zero", ["/dev/zero", "not a regular file"]),
+    ("../../etc/passwd", ["../../etc/passwd", "outside the folder"]),
+    ("https://example.com/box.bin", ["https://example.com/box.bin", "URL"]),
+])
+def test_a_gltf_whose_buffer_points_elsewhere_is_refused(tmp_path, uri, words):
+    """A .gltf buffer uri /dev/zero, ../../etc/passwd or a URL: one line, exit 1."""
+    import json
+
+    trimesh.creation.box().export(tmp_path / "box.gltf")
+    doc = json.loads((tmp_path / "box.gltf").read_text())
+    doc["buffers"][0]["uri"] = uri
+    (tmp_path / "box.gltf").write_text(json.dumps(doc))
+    outcome = run_blastvox("voxelize", "box.gltf", "-o", "m.npz", "--voxel-size", "0.25",
+                           "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["box.gltf"], words=words, seconds=30.0)
+    assert not (tmp_path / "m.npz").exists()
