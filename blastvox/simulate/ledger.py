@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from blastvox.jit import kernel
+from blastvox.simulate.contact.loads import row_impulse
 from blastvox.simulate.integrate import moving
 
 TERMS = ("initial", "blast", "released", "gravity_drag", "ground", "foundations", "damping",
@@ -73,19 +74,15 @@ def contact_momentum(rows, end, bodies, out) -> None:
     """out (2, 3): what the first ``end`` solved rows gave free bodies (N s) from the
     ground (row 0) and from fixed bodies (row 1); rows between free bodies cancel."""
     out[:] = 0.0
+    j = np.empty(3)
     for r in range(end):
         for side in range(2):
-            k = rows.body[r, side]
-            if k < 0 or bodies.fixed[k]:
+            k, o = rows.body[r, side], rows.body[r, 1 - side]
+            if k < 0 or bodies.fixed[k] or (o >= 0 and not bodies.fixed[o]):
                 continue
-            o = rows.body[r, 1 - side]
-            if o >= 0 and not bodies.fixed[o]:
-                continue
-            row = 0 if o < 0 else 1
-            sign = 1.0 if side == 1 else -1.0
+            row_impulse(rows, r, side, j)
             for a in range(3):
-                out[row, a] += sign * (rows.impulse[r] * rows.frame[r, 0, a]
-                                       + rows.friction[r, a])
+                out[0 if o < 0 else 1, a] += j[a]
 
 
 class Ledger:

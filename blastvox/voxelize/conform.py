@@ -14,7 +14,7 @@ not the whole solid, so each boolean touches only nearby triangles.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import manifold3d as m3d
@@ -64,12 +64,13 @@ def _hex_manifold(corners: np.ndarray, tris: np.ndarray) -> m3d.Manifold:
     return m3d.Manifold(mesh)
 
 
-def clip_volumes(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
-                 block_keys: np.ndarray,
-                 advance: Callable[[int], None] | None = None) -> np.ndarray:
-    """The volume (m^3) of each candidate cell inside ``solid``, (K,): arguments as for
-    :func:`clip_cells`, which this measures without keeping the clipped surfaces."""
-    volume = np.zeros(len(corners))
+def clipped_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
+                  block_keys: np.ndarray, advance: Callable[[int], None] | None = None
+                  ) -> Iterator[tuple[int, m3d.Manifold]]:
+    """Each candidate cell k intersected with ``solid``, (k, clipped), skipping the empty
+    ones, block by block (the cells of a block are clipped against the same pre-clipped
+    piece of the solid, which keeps each clip small); arguments as for
+    :func:`clip_cells`."""
     order = np.argsort(block_keys, kind="stable")
     bounds = np.sort(np.unique(block_keys[order], return_index=True)[1])
     for group in np.split(order, bounds[1:]):
@@ -85,7 +86,17 @@ def clip_volumes(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarra
         for k in group:
             clipped = _hex_manifold(corners[k], local_tris[k].astype(np.uint64)) ^ piece
             if not clipped.is_empty():
-                volume[k] = clipped.volume()
+                yield int(k), clipped
+
+
+def clip_volumes(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
+                 block_keys: np.ndarray,
+                 advance: Callable[[int], None] | None = None) -> np.ndarray:
+    """The volume (m^3) of each candidate cell inside ``solid``, (K,): arguments as for
+    :func:`clip_cells`, which this measures without keeping the clipped surfaces."""
+    volume = np.zeros(len(corners))
+    for k, clipped in clipped_cells(solid, corners, local_tris, block_keys, advance):
+        volume[k] = clipped.volume()
     return volume
 
 
@@ -103,29 +114,14 @@ def clip_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
     """
     kept, offsets, tri_chunks, tag_chunks = [], [0], [], []
     surface_ids = np.asarray(_original_ids(solid), dtype=np.int64)
-    order = np.argsort(block_keys, kind="stable")
-    bounds = np.sort(np.unique(block_keys[order], return_index=True)[1])
-    groups = np.split(order, bounds[1:])
-    for group in groups:
-        lo = corners[group].reshape(-1, 3).min(axis=0)
-        hi = corners[group].reshape(-1, 3).max(axis=0)
-        pad = 1e-6 * float(np.max(hi - lo))
-        box = m3d.Manifold.cube(tuple(hi - lo + 2 * pad)).translate(tuple(lo - pad))
-        piece = solid ^ box
-        if advance is not None:
-            advance(len(group))
-        if piece.is_empty():
+    for k, clipped in clipped_cells(solid, corners, local_tris, block_keys, advance):
+        if clipped.volume() <= min_volume[k]:
             continue
-        for k in group:
-            cell = _hex_manifold(corners[k], local_tris[k].astype(np.uint64))
-            clipped = cell ^ piece
-            if clipped.is_empty() or clipped.volume() <= min_volume[k]:
-                continue
-            tris, tags = _tagged_triangles(clipped.to_mesh64(), surface_ids)
-            kept.append(k)
-            tri_chunks.append(tris)
-            tag_chunks.append(tags)
-            offsets.append(offsets[-1] + len(tris))
+        tris, tags = _tagged_triangles(clipped.to_mesh64(), surface_ids)
+        kept.append(k)
+        tri_chunks.append(tris)
+        tag_chunks.append(tags)
+        offsets.append(offsets[-1] + len(tris))
     if not kept:
         return ConformCells(np.zeros(0, np.int64), np.zeros(1, np.int64),
                             np.zeros((0, 3, 3)), np.zeros(0, np.uint8))

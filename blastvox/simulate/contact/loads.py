@@ -35,7 +35,7 @@ AHEAD = math.cos(math.radians(45.0))
 
 
 @helper
-def _row_impulse(rows, r, side, out) -> None:
+def row_impulse(rows, r, side, out) -> None:
     """out (3,): the impulse (N s, normal and friction) row r gave its side (0: a, 1: b)."""
     sign = 1.0 if side == 1 else -1.0
     for a in range(3):
@@ -84,7 +84,7 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net) -> i
             o = rows.body[r, 1 - side]
             if r < count and (o < 0 or not bodies.fixed[o]):
                 continue  # a free piece's push: a load that passes on
-            _row_impulse(rows, r, side, j)
+            row_impulse(rows, r, side, j)
             for a in range(3):
                 net[k, a if r < count else 3 + a] += j[a]
     for sweep in range(2):  # the weights' sums, then the shares
@@ -95,7 +95,7 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net) -> i
                 continue
             side = 0 if bodies.fixed[a_] else 1  # the fixed side
             k = rows.body[r, 1 - side]
-            _row_impulse(rows, r, side, j)  # on the fixed voxel
+            row_impulse(rows, r, side, j)  # on the fixed voxel
             _lost(net, k, d)
             size = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
             if size == 0.0:
