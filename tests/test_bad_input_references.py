@@ -132,3 +132,25 @@ def test_a_gltf_whose_buffer_points_elsewhere_is_refused(tmp_path, uri, words):
                            "-q", cwd=tmp_path)
     assert_clean_failure(outcome, ["box.gltf"], words=words, seconds=30.0)
     assert not (tmp_path / "m.npz").exists()
+
+
+@pytest.mark.parametrize("uri, words", [
+    ("../../etc/passwd", ["outside the folder"]),
+    ("/dev/zero", ["not a regular file"]),
+])
+def test_diff_of_a_gltf_does_not_read_what_its_buffers_point_at(tmp_path, uri, words):
+    """`blastvox diff` of a .gltf whose buffer uri was ../../etc/passwd printed that file's
+    bytes as accessor values; /dev/zero read until MemoryError. Now: one line naming the
+    file, the reference and the rule, exit 2 (files that could not be compared)."""
+    import json
+
+    trimesh.creation.box().export(tmp_path / "a.gltf")
+    doc = json.loads((tmp_path / "a.gltf").read_text())
+    doc["buffers"][0]["uri"] = uri
+    (tmp_path / "b.gltf").write_text(json.dumps(doc))
+    outcome = run_blastvox("diff", "a.gltf", "b.gltf", cwd=tmp_path)
+    assert outcome.code == 2, outcome.stderr
+    lines = outcome.stderr.strip().splitlines()
+    assert len(lines) == 1 and "b.gltf" in lines[0] and uri in lines[0], lines
+    for word in words:
+        assert word in lines[0], lines

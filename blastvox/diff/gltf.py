@@ -16,6 +16,7 @@ from blastvox.diff.common import (
     DiffError,
     _Collector,
 )
+from blastvox.io.references import ReferencePolicy, ReferenceRefused
 
 _COMPONENT = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _WIDTH = {"SCALAR": (1, 1), "VEC2": (1, 2), "VEC3": (1, 3), "VEC4": (1, 4),
@@ -78,13 +79,14 @@ def _load_gltf(path: Path) -> tuple[dict[str, Any], list[bytes]]:
                 buffers.append(base64.b64decode(uri.split(",", 1)[1], validate=True))
             except (IndexError, ValueError) as exc:
                 raise DiffError(f"{path}: buffers[{i}] has a bad data uri ({exc})") from None
-        else:
-            file = path.parent / unquote(uri)
+        else:  # a side file, under the reader policy (no device, FIFO, URL or escape)
             try:
-                buffers.append(file.read_bytes())
+                buffers.append(ReferencePolicy().read(path, unquote(uri)))
+            except ReferenceRefused as exc:
+                raise DiffError(f"{exc} (buffers[{i}])") from None
             except OSError as exc:
-                raise DiffError(f"{path}: buffers[{i}] file {file} cannot be read "
-                                f"({exc.strerror or exc})") from None
+                raise DiffError(f"{path}: buffers[{i}] file {path.parent / unquote(uri)} "
+                                f"cannot be read ({exc.strerror or exc})") from None
     return doc, buffers
 
 
