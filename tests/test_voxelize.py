@@ -388,3 +388,28 @@ def test_a_mesh_with_holes_weighs_its_cells(data_dir):
     a = model.arrays
     np.testing.assert_allclose(a["voxel_mass"],
                                a["voxel_volume"] * a["material_density"][a["voxel_material"]])
+
+
+def test_overlaps_among_many_objects_are_found_by_their_boxes():
+    """warn_overlaps compares only objects whose boxes overlap (1,000 separate cubes
+    compared every pair: 33 s of a 48 s voxelize). 30 cubes in a row, each overlapping
+    the next by one cell, and 30 apart: the 29 overlapping pairs are found, the first
+    20 named, the rest counted in one line; the separate ones say nothing."""
+    from blastvox.voxelize.diagnostics import MAX_OVERLAP_WARNINGS, warn_overlaps
+    from blastvox.voxelize.lattice import Grid
+
+    def cube(x0: float, name: str):
+        grid = Grid(origin=np.array([x0, 0.0, 0.0]), spacing=np.array([0.25] * 3),
+                    shape=(4, 4, 4))
+        ijk = np.argwhere(np.ones((4, 4, 4), dtype=bool))
+        centroid = grid.origin + (ijk + 0.5) * grid.spacing
+        return name, grid, ijk, centroid, np.full(len(ijk), 0.25 ** 3)
+
+    lines: list[str] = []
+    row = [cube(0.75 * k, f"row{k}") for k in range(30)]  # 1 m cubes, 0.25 m overlap
+    far = [cube(100.0 + 2.0 * k, f"far{k}") for k in range(30)]
+    warn_overlaps(row + far, lines.append)
+    assert len(lines) == MAX_OVERLAP_WARNINGS + 1
+    assert lines[0].startswith("row1 overlaps row0: 16 of its voxels")
+    assert lines[-1].startswith(f"{29 - MAX_OVERLAP_WARNINGS} more pairs of objects overlap")
+    assert not any("far" in line for line in lines)

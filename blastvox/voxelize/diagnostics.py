@@ -43,17 +43,64 @@ def warn_overlaps(objects: list[tuple[str, Grid, np.ndarray, np.ndarray, np.ndar
                   warn: Callable[[str], None]) -> None:
     """Warn about each pair of objects whose voxels overlap. objects: per requested mesh,
     (name, its grid, its voxels' cells (N, 3) int, centroids (N, 3) m, volumes (N,) m^3).
-    A voxel of the second whose centroid lies in a cell the first fills is inside it."""
-    for i, (name_a, grid_a, ijk_a, _, _) in enumerate(objects):
-        filled = np.ravel_multi_index(ijk_a.T, grid_a.shape)
-        for name_b, _, _, centroid_b, volume_b in objects[i + 1:]:
-            cell = np.floor((centroid_b - grid_a.origin) / grid_a.spacing).astype(np.int64)
-            within = np.all((cell >= 0) & (cell < np.asarray(grid_a.shape)), axis=1)
-            inside = np.zeros(len(cell), dtype=bool)
-            inside[within] = np.isin(np.ravel_multi_index(cell[within].T, grid_a.shape),
-                                     filled)
-            if inside.any():
-                warn(f"{name_b} overlaps {name_a}: {int(inside.sum()):,} of its voxels "
-                     f"({float(volume_b[inside].sum()):.3g} m3) lie inside it; once they "
-                     "move, the overlapping pieces push each other apart and throw debris: "
-                     "model them apart, or as one mesh")
+    A voxel of the second whose centroid lies in a cell the first fills is inside it.
+
+    Only pairs whose bounding boxes overlap are compared (sweep and prune along x), so
+    a thousand separate objects cost a sort, not half a million comparisons (1,000
+    cubes: 33 s of a 48 s voxelize before); at most :data:`MAX_OVERLAP_WARNINGS` pairs
+    are named, then one line counts the rest."""
+    boxes = np.array([_box(grid, ijk) for _, grid, ijk, _, _ in objects]).reshape(-1, 2, 3)
+    warned = 0
+    for i, j in _touching_pairs(boxes):
+        name_a, grid_a, ijk_a, _, _ = objects[i]
+        name_b, _, _, centroid_b, volume_b = objects[j]
+        inside = _inside(grid_a, ijk_a, centroid_b)
+        if not inside.any():
+            continue
+        warned += 1
+        if warned <= MAX_OVERLAP_WARNINGS:
+            warn(f"{name_b} overlaps {name_a}: {int(inside.sum()):,} of its voxels "
+                 f"({float(volume_b[inside].sum()):.3g} m3) lie inside it; once they "
+                 "move, the overlapping pieces push each other apart and throw debris: "
+                 "model them apart, or as one mesh")
+    if warned > MAX_OVERLAP_WARNINGS:
+        warn(f"{warned - MAX_OVERLAP_WARNINGS:,} more pairs of objects overlap (the first "
+             f"{MAX_OVERLAP_WARNINGS} are named above)")
+
+
+#: The overlapping pairs named one by one; the rest are counted in one line.
+MAX_OVERLAP_WARNINGS = 20
+
+
+def _box(grid: Grid, ijk: np.ndarray) -> np.ndarray:
+    """(2, 3) m: the box of the cells ``ijk`` fills in ``grid``."""
+    if not len(ijk):
+        return np.array([[np.inf] * 3, [-np.inf] * 3])
+    lo = grid.origin + ijk.min(axis=0) * grid.spacing
+    return np.array([lo, grid.origin + (ijk.max(axis=0) + 1) * grid.spacing])
+
+
+def _touching_pairs(boxes: np.ndarray) -> list[tuple[int, int]]:
+    """The pairs (i < j) of boxes (K, 2, 3) that overlap, in (i, j) order: sweep and
+    prune along x."""
+    order = np.argsort(boxes[:, 0, 0], kind="stable")
+    pairs = []
+    active: list[int] = []
+    for k in order.tolist():
+        lo_x = boxes[k, 0, 0]
+        active = [a for a in active if boxes[a, 1, 0] >= lo_x]
+        for a in active:
+            if np.all(boxes[a, 0] <= boxes[k, 1]) and np.all(boxes[k, 0] <= boxes[a, 1]):
+                pairs.append((min(a, k), max(a, k)))
+        active.append(k)
+    return sorted(pairs)
+
+
+def _inside(grid_a: Grid, ijk_a: np.ndarray, centroid_b: np.ndarray) -> np.ndarray:
+    """(M,) bool: which centroids (M, 3) lie in a cell that ijk_a fills in grid_a."""
+    filled = np.ravel_multi_index(ijk_a.T, grid_a.shape)
+    cell = np.floor((centroid_b - grid_a.origin) / grid_a.spacing).astype(np.int64)
+    within = np.all((cell >= 0) & (cell < np.asarray(grid_a.shape)), axis=1)
+    inside = np.zeros(len(cell), dtype=bool)
+    inside[within] = np.isin(np.ravel_multi_index(cell[within].T, grid_a.shape), filled)
+    return inside
