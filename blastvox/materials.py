@@ -177,7 +177,12 @@ def read_toml(path: Path, error: type[BlastvoxError]) -> dict[str, Any]:
     try:
         regular_file(path, "TOML file", MAX_TOML_BYTES)
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
+            data = tomllib.load(fh)
+        _check_depth(data, shown, error)
+        return data
+    except RecursionError:  # tomllib parses nested arrays and tables recursively
+        raise error(f"{shown}: nested more than Python can parse; a scene or materials "
+                    f"file nests at most {MAX_TOML_DEPTH} levels") from None
     except FileNotFoundError:
         raise error(f"{shown}: file not found") from None
     except IsADirectoryError:
@@ -194,6 +199,25 @@ def read_toml(path: Path, error: type[BlastvoxError]) -> dict[str, Any]:
         if match:
             text = f"at {match.group(1)}: {text[: match.start()]}"
         raise error(f"{shown}: TOML syntax error {text}") from None
+
+
+#: The deepest nesting of tables and arrays a TOML input may have (a scene nests 4).
+MAX_TOML_DEPTH = 32
+
+
+def _check_depth(data: Any, shown: str, error: type[BlastvoxError]) -> None:
+    """Refuse TOML data nested deeper than :data:`MAX_TOML_DEPTH` (walked without
+    recursion: later stages walk it recursively)."""
+    stack = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if depth > MAX_TOML_DEPTH:
+            raise error(f"{shown}: nested more than {MAX_TOML_DEPTH} levels deep (tables and "
+                        "arrays); a scene or materials file nests a few")
+        children = value.values() if isinstance(value, dict) else (
+            value if isinstance(value, list) else ())
+        stack.extend((child, depth + 1) for child in children
+                     if isinstance(child, dict | list))
 
 
 def _number(value: Any, where: str) -> float:

@@ -511,3 +511,26 @@ def test_a_conform_refusal_names_the_setting_that_asked_for_it(tmp_path: Path) -
         outcome = run_blastvox("voxelize", "suzanne.ply", "--resolution", "20", "--shape",
                                "conform", "-q", "-o", "m.npz", cwd=tmp_path)
     assert_clean_failure(outcome, ["suzanne.ply", "--shape conform"], words=["--shape cube"])
+
+
+def test_a_ply_whose_face_names_a_missing_vertex_is_one_line(tmp_path):
+    """Issue 36: a PLY (or glTF) face index past the vertex list was an IndexError
+    traceback from deep in the voxelizer; now one line naming the file and the index."""
+    header = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+              "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+              "end_header\n")
+    body = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 99\n"
+    (tmp_path / "bad.ply").write_text(header + body)
+    outcome = run_blastvox("voxelize", "bad.ply", "-o", "m.npz", "--resolution", "8",
+                           cwd=tmp_path)
+    assert_clean_failure(outcome, ["bad.ply", "99"], words=["4 vertices"])
+    assert not (tmp_path / "m.npz").exists()
+
+
+@pytest.mark.parametrize("depth, words", [(40, ["32 levels"]), (6000, ["nested more"])])
+def test_a_scene_nested_too_deep_is_one_line(tmp_path, depth, words):
+    """A scene TOML nested 5,000+ deep was a RecursionError traceback (tomllib parses
+    recursively); 40 deep would recurse in the stages after it. One line each."""
+    (tmp_path / "deep.toml").write_text("a = " + "[" * depth + "]" * depth + "\n")
+    outcome = run_blastvox("run", "deep.toml", cwd=tmp_path)
+    assert_clean_failure(outcome, ["deep.toml"], words=words)

@@ -216,6 +216,7 @@ def _load_surface(path: Path, data: bytes, policy: ReferencePolicy) -> list[Part
         geom = loaded.geometry[geom_name]
         if not isinstance(geom, trimesh.Trimesh):
             continue  # point clouds and paths carry no volume
+        _check_faces(shown, str(name), np.asarray(geom.faces), len(geom.vertices))
         mesh = trimesh.Trimesh(vertices=np.asarray(geom.vertices, dtype=np.float64),
                                faces=np.asarray(geom.faces), process=False)
         mesh.apply_transform(transform)
@@ -226,6 +227,16 @@ def _load_surface(path: Path, data: bytes, policy: ReferencePolicy) -> list[Part
         parts.append(Part(mesh=mesh, name=printable(str(name)), material=material,
                           source=path, uv=uv, texture=texture))
     return parts
+
+
+def _check_faces(shown: str, part: str, faces: np.ndarray, vertex_count: int) -> None:
+    """Refuse a part whose faces name vertices it does not have (a PLY or glTF whose
+    indices run past its vertex list: an IndexError deep in the voxelizer before)."""
+    if faces.size and (faces.min() < 0 or faces.max() >= vertex_count):
+        bad = int(faces.max()) if faces.max() >= vertex_count else int(faces.min())
+        raise MeshError(f"{shown}: part {printable(part)!r}: a face names vertex {bad:,}, "
+                        f"but the part has {vertex_count:,} vertices (0 to "
+                        f"{vertex_count - 1:,})")
 
 
 def _baked_colors(geom: trimesh.Trimesh, mesh: trimesh.Trimesh
