@@ -7,8 +7,10 @@ Importing this package is cheap; heavy modules are imported by the stages.
 Importing it before numpy also keeps numpy off its AVX-512 loops
 (``NPY_DISABLE_CPU_FEATURES``, unless already set): their exp, log, power and
 trigonometric functions round differently from the AVX2 ones, and a shot's
-chaotic fracture turns one ulp into different pieces, so a cache baked on an
-AVX-512 machine would not match a golden file baked on another machine.
+chaotic fracture turns one ulp into different pieces. The simulator does not rely
+on it: its inputs' cube roots, powers and the cues' transcendentals go through
+libm (:mod:`blastvox.blast._numeric`), so ``simulate()`` gives the CLI's bytes
+after numpy, scipy or trimesh were imported first (``tests/test_golden.py``).
 """
 
 import os as _os

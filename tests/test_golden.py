@@ -91,3 +91,28 @@ def test_blastvox_keeps_numpy_off_its_avx512_loops() -> None:
                           text=True, env=env, timeout=120, check=True)
     enabled = done.stdout.strip()
     assert "AVX512" not in enabled and "X86_V4" not in enabled, enabled
+
+
+def test_the_library_after_numpy_scipy_and_trimesh_gives_the_cli_s_bytes(tmp_path):
+    """Issue 37: a process that imported numpy (with scipy and trimesh) before blastvox
+    kept numpy's AVX-512 loops, whose cube root and powers round differently: the papers'
+    building had 748 pieces at 1 s against the CLI's 586. The simulator's inputs no
+    longer go through numpy's dispatched loops (blastvox.blast._numeric), so the house
+    simulated through the CLI's own entry point after those imports is the CLI's bytes.
+    (On a CPU without AVX-512 both orders run the same loops; the test still holds.)"""
+    where = _bake(tmp_path, "house") / "model.npz"
+    plain = tmp_path / "plain.npz"
+    first = tmp_path / "first.npz"
+    scene = str(ROOT / "examples" / "house" / "scene.toml")
+    run = subprocess.run([*BLASTVOX, "simulate", str(where), "--scene", scene, "-o",
+                          str(plain), "-q"], capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr
+    code = ("import numpy, scipy.sparse, trimesh, sys\n"
+            "from blastvox.cli.entry import run\n"
+            f"sys.exit(run(['simulate', {str(where)!r}, '--scene', {scene!r}, '-o', "
+            f"{str(first)!r}, '-q']))\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=900, env={**__import__("os").environ,
+                                           "NPY_DISABLE_CPU_FEATURES": ""})
+    assert run.returncode == 0, run.stderr
+    assert first.read_bytes() == plain.read_bytes()

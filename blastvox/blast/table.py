@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from blastvox.blast._numeric import exp10
 from blastvox.blast.atmosphere import C0_M_S
 from blastvox.blast.friedlander import decay_coefficient, exceedance_nb, impulse_nb
 from blastvox.blast.kingery_bulmash import Z_MAX, Z_MIN, reference_parameters
@@ -29,7 +30,7 @@ _STEP = (_LOG_HI - _LOG_LO) / (_GRID - 1)
 
 def reference_grid() -> np.ndarray:
     """The (GRID,) scaled distances of :func:`reference_table` (m/kg^(1/3)), Z_MIN to Z_MAX."""
-    z = 10.0 ** np.linspace(_LOG_LO, _LOG_HI, _GRID)
+    z = exp10(np.linspace(_LOG_LO, _LOG_HI, _GRID))
     z[0], z[-1] = Z_MIN, Z_MAX
     return z
 

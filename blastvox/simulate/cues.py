@@ -12,8 +12,11 @@ it does not look mechanical. Charges add up.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from blastvox.blast._numeric import libm
 from blastvox.blast.charge import blast_parameters
 
 _TAU_S = 0.25
@@ -29,7 +32,8 @@ def shock_opacity(radius: np.ndarray, tnt_kg: np.ndarray) -> np.ndarray:
         live = r > 0
         if live.any():
             ps = blast_parameters(r[live], w).peak_overpressure_pa
-            out[live, c] = np.clip(np.log10(np.maximum(ps, 1e-9) / 1e3) / 3.0, 0.0, 1.0)
+            out[live, c] = np.clip(libm(math.log10, np.maximum(ps, 1e-9) / 1e3) / 3.0, 0.0,
+                                   1.0)
     return out
 
 
@@ -44,7 +48,8 @@ def camera_shake(camera_position: np.ndarray, times: np.ndarray, charge_position
         amplitude = min(0.02 * np.sqrt(float(p.peak_overpressure_pa) / 1e3), 0.5)
         s = times - arrival
         after = s >= 0
-        envelope = np.where(after, amplitude * np.exp(-np.where(after, s, 0.0) / _TAU_S), 0.0)
+        envelope = np.where(after, amplitude * libm(math.exp, -np.where(after, s, 0.0) / _TAU_S),
+                            0.0)
         phase = 2 * np.pi * _FREQ_HZ[None, :] * np.maximum(s, 0)[:, None] + _PHASE[None, :]
-        offset += envelope[:, None] * np.sin(phase) * after[:, None]
+        offset += envelope[:, None] * libm(math.sin, phase) * after[:, None]
     return offset

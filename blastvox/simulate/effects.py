@@ -8,8 +8,11 @@ motion; each system draws from its own seeded stream.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from blastvox.blast._numeric import cbrt, libm
 from blastvox.simulate.particles import Emitter
 
 
@@ -29,7 +32,7 @@ class Effects:
         velocity = bodies.lin[b] / bodies.mass[b][:, None]
         centre = world_centres(model, state, voxels)
         mass = model.voxels.mass
-        size = np.cbrt(mass[voxels] / np.maximum(mass.max(), 1e-30))
+        size = cbrt(mass[voxels] / np.maximum(mass.max(), 1e-30))
         pos = np.repeat(centre, per, axis=0) + rng.normal(0.0, 0.2, (len(voxels) * per, 3)) \
             * np.repeat(2 * model.voxels.contact_radius[voxels], per)[:, None]
         vel = np.repeat(velocity, per, axis=0) + rng.normal(0.0, 1.0, (len(voxels) * per, 3))
@@ -84,11 +87,12 @@ class Effects:
             angle = rng.uniform(0.0, 2 * np.pi, count)
             pos = np.repeat(charges.position[c:c + 1], count, axis=0)
             pos[:, axis] = ground
-            pos[:, others[0]] += ring * np.cos(angle)
-            pos[:, others[1]] += ring * np.sin(angle)
+            cos, sin = libm(math.cos, angle), libm(math.sin, angle)
+            pos[:, others[0]] += ring * cos
+            pos[:, others[1]] += ring * sin
             out = np.zeros((count, 3))
-            out[:, others[0]] = np.cos(angle)
-            out[:, others[1]] = np.sin(angle)
+            out[:, others[0]] = cos
+            out[:, others[1]] = sin
             self.emitter.emit("dust", t, pos, 4.0 * out + 2.0 * up[None, :])
 
     def fireball(self, charges, t0: float, t1: float) -> None:

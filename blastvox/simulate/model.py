@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blastvox.blast._numeric import cbrt
 from blastvox.geometry.voxel_faces import SURFACE_TAG
 from blastvox.jit import kernel
 from blastvox.model import VoxelModel
@@ -165,7 +166,7 @@ def build_model(model: VoxelModel) -> SimModel:
     corners = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int64)
     voxel_centroid = np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64)
     ground = model.meta.get("ground_height")
-    contact_radius = 0.5 * np.cbrt(np.maximum(a["voxel_volume"], 0.0))
+    contact_radius = 0.5 * cbrt(np.maximum(a["voxel_volume"], 0.0))
     grid_cell = 8.0 * float(np.median(contact_radius)) if n else 1.0
     grid_cell = grid_cell if grid_cell > 0.0 else 1.0
     link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)

@@ -33,6 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blastvox.blast._numeric import cbrt
 from blastvox.jit import helper, kernel
 
 MAX_CELLS = 1 << 23   #: the grid's cell budget (16 MiB of int16 counts)
@@ -110,7 +111,7 @@ def typical_edge(volume: np.ndarray, conform: np.ndarray, vertices: np.ndarray,
     whole = volume[~conform]
     whole = whole[whole > 0.0]
     if whole.size:
-        return float(np.median(np.cbrt(whole)))
+        return float(np.median(cbrt(whole)))
     if len(corners):
         box = vertices[corners]
         edge = (box.max(axis=1) - box.min(axis=1)).min(axis=1)

@@ -27,6 +27,7 @@ from blastvox.blast import (
     reference_table,
     tnt_equivalent,
 )
+from blastvox.blast._numeric import cbrt
 from blastvox.blast.face_load import face_tables
 from blastvox.blast.kingery_bulmash import AIR, SURFACE
 
@@ -121,7 +122,7 @@ def build_charges(specs, up: np.ndarray | None = None,
     position = np.array([s.position for s in specs], dtype=np.float64).reshape(-1, 3)
     tnt = np.array([s.mass_kg * tnt_equivalent(s.explosive) for s in specs],
                    dtype=np.float64)
-    scale = np.cbrt(tnt)
+    scale = cbrt(tnt)
     burst = np.array([_burst(s, p, w, up, ground) for s, p, w in zip(specs, position, scale,
                                                                       strict=True)],
                      dtype=np.int64)
