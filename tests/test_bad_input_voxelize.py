@@ -534,3 +534,16 @@ def test_a_scene_nested_too_deep_is_one_line(tmp_path, depth, words):
     (tmp_path / "deep.toml").write_text("a = " + "[" * depth + "]" * depth + "\n")
     outcome = run_blastvox("run", "deep.toml", cwd=tmp_path)
     assert_clean_failure(outcome, ["deep.toml"], words=words)
+
+
+@pytest.mark.parametrize("count", [0, 1000])
+def test_a_binary_stl_whose_header_count_lies_says_so(tmp_path, count):
+    """Issue 36: a binary STL whose header's triangle count lies was called empty
+    ("contains no triangles": it holds 12); the line now says both counts."""
+    trimesh.creation.box().export(tmp_path / "box.stl")
+    data = bytearray((tmp_path / "box.stl").read_bytes())
+    data[80:84] = count.to_bytes(4, "little")
+    (tmp_path / "lie.stl").write_bytes(bytes(data))
+    outcome = run_blastvox("voxelize", "lie.stl", "-o", "m.npz", "--resolution", "8",
+                           cwd=tmp_path)
+    assert_clean_failure(outcome, ["lie.stl", f"{count:,} triangles", "holds 12"])

@@ -67,6 +67,8 @@ def load_parts(path: Path, references: ReferencePolicy | None = None) -> list[Pa
     shown = printable(path)
     data = _read(path, whole=True)
     suffix = path.suffix.lower()
+    if suffix == ".stl":
+        _check_binary_stl(shown, data)
     parts = (_load_volume(path) if suffix in VOLUME_SUFFIXES
              else _load_surface(path, data, references or ReferencePolicy()))
     parts = [p for p in parts if len(p.mesh.faces) > 0]
@@ -227,6 +229,20 @@ def _load_surface(path: Path, data: bytes, policy: ReferencePolicy) -> list[Part
         parts.append(Part(mesh=mesh, name=printable(str(name)), material=material,
                           source=path, uv=uv, texture=texture))
     return parts
+
+
+def _check_binary_stl(shown: str, data: bytes) -> None:
+    """Refuse a binary STL whose header's triangle count is not what the file holds
+    (84 bytes of header and count, then 50 bytes a triangle): it said "contains no
+    triangles" of a file holding 12. An ASCII STL (text from "solid") is left alone."""
+    if len(data) < 84 or (data[:5].lower() == b"solid" and b"facet" in data[:1024]):
+        return
+    count = int.from_bytes(data[80:84], "little")
+    held, rest = divmod(len(data) - 84, 50)
+    if count != held and rest == 0:
+        raise MeshError(f"{shown}: binary STL header says {count:,} triangles, but the file "
+                        f"holds {held:,} ({len(data):,} bytes: 84 + 50 a triangle); "
+                        "re-export it")
 
 
 def _check_faces(shown: str, part: str, faces: np.ndarray, vertex_count: int) -> None:
