@@ -46,13 +46,13 @@ def run_kernel(kernel: Callable[..., None], outputs: int,
 @kernel
 def _cbrt_kernel(x, out) -> None:
     for i in range(x.shape[0]):
-        out[i] = np.cbrt(x[i])
+        out[0, i] = np.cbrt(x[i])
 
 
 @kernel
 def _exp10_kernel(x, out) -> None:
     for i in range(x.shape[0]):
-        out[i] = 10.0 ** x[i]
+        out[0, i] = 10.0 ** x[i]
 
 
 def cbrt(values: Any) -> np.ndarray:
@@ -62,25 +62,19 @@ def cbrt(values: Any) -> np.ndarray:
     import for the CPU's features (AVX-512 or AVX2 loops round differently), so a shot
     run after numpy was imported with AVX-512 on differed from the CLI's, whose import
     of blastvox turns it off (issue 37). The simulator's inputs go through these."""
-    x = np.ascontiguousarray(values, dtype=np.float64)
-    out = np.empty_like(x)
-    _cbrt_kernel(x.reshape(-1), out.reshape(-1))
-    return out
+    return run_kernel(_cbrt_kernel, 1, values)[0]
 
 
 def exp10(values: Any) -> np.ndarray:
     """10 ** ``values`` (any shape, float64) from libm in a compiled loop (see
     :func:`cbrt`)."""
-    x = np.ascontiguousarray(values, dtype=np.float64)
-    out = np.empty_like(x)
-    _exp10_kernel(x.reshape(-1), out.reshape(-1))
-    return out
+    return run_kernel(_exp10_kernel, 1, values)[0]
 
 
 def libm(function: Callable[[float], float], values: Any) -> np.ndarray:
-    """``function`` (a scalar :mod:`math` function) of each of ``values``, any shape, as
-    float64: small arrays whose numpy loop would round by the CPU numpy dispatched to
-    (see :func:`cbrt`)."""
+    """``function`` (a scalar :mod:`math` function) of each of ``values`` (any shape),
+    float64: for small arrays whose numpy loop would round as the CPU numpy dispatched
+    to does (see :func:`cbrt`)."""
     x = np.asarray(values, dtype=np.float64)
     return np.fromiter((function(v) for v in x.ravel().tolist()), dtype=np.float64,
                        count=x.size).reshape(x.shape)

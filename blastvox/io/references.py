@@ -48,7 +48,7 @@ class ReferencePolicy:
         """The file ``name`` (as written in ``referrer``) names, checked: see the module
         docstring. Raises :class:`ReferenceRefused`, or FileNotFoundError for a regular
         reference to a missing file (the loaders treat a missing texture as absent)."""
-        where = f"{printable(referrer)}: refers to {printable(name)!r}"
+        where = _where(referrer, name)
         if name.startswith("data:"):
             raise ReferenceRefused(f"{where}: a data: URI is decoded by the loader, not read")
         if _SCHEME.match(name):
@@ -84,10 +84,14 @@ class ReferencePolicy:
         fd = os.open(target, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
         with os.fdopen(fd, "rb") as fh:
             if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-                raise ReferenceRefused(f"{printable(referrer)}: refers to {printable(name)!r}"
-                                       ": not a regular file")
+                raise ReferenceRefused(f"{_where(referrer, name)}: not a regular file")
             data = fh.read(self.max_bytes + 1)
         if len(data) > self.max_bytes:
-            raise ReferenceRefused(f"{printable(referrer)}: refers to {printable(name)!r}: "
-                                   f"more than the {self.max_bytes:,} bytes a reference may be")
+            raise ReferenceRefused(f"{_where(referrer, name)}: more than the "
+                                   f"{self.max_bytes:,} bytes a reference may be")
         return data
+
+
+def _where(referrer: Path, name: str) -> str:
+    """The start of a refusal: the referring file and the reference as written."""
+    return f"{printable(referrer)}: refers to {printable(name)!r}"

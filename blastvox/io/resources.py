@@ -40,7 +40,7 @@ def mesh_resources(mesh: Path) -> list[Path]:
 def _referenced(path: Path, pattern: str) -> list[Path]:
     """The files that ``path`` names (by ``pattern``) and the policy would read."""
     try:
-        text = _POLICY.read(path.parent / "_", path.name).decode("utf-8", errors="replace")
+        text = _POLICY.read(path, path.name).decode("utf-8", errors="replace")
     except (OSError, InputError):
         return []
     return [ref for name in re.findall(pattern, text, flags=re.M)
@@ -58,7 +58,7 @@ def _allowed(referrer: Path, name: str) -> Path | None:
 
 def _gltf_uris(path: Path) -> list[Path]:
     try:
-        doc = json.loads(_POLICY.read(path.parent / "_", path.name).decode("utf-8"))
+        doc = json.loads(_POLICY.read(path, path.name).decode("utf-8"))
     except (OSError, ValueError, InputError):
         return []
     if not isinstance(doc, dict):

@@ -222,8 +222,8 @@ class Run:
             stress=(stress := start_stress(model.arrays, len(state.bodies.mass),
                                            settings.stress)),
             # founded bodies' contact loads need the links' strengths, and something to hit
-            punch=(Punch.of(model.arrays) if stress is not None and settings.collisions
-                   else None),
+            punch=(Punch.of(stress.chunk, sm.n_voxels)
+                   if stress is not None and settings.collisions else None),
             **_rooms(sm, state, charges))
 
     def effects_on(self) -> dict[str, bool]:
@@ -327,7 +327,8 @@ def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
     them dead)."""
     model, state, s = run.model, run.state, run.settings
     count = state.n_bodies
-    lin, ang = state.bodies.lin[:count].copy(), state.bodies.ang[:count].copy()
+    if run.punch is not None:  # what the contacts are solved again from
+        lin, ang = state.bodies.lin[:count].copy(), state.bodies.ang[:count].copy()
     for attempt in range(PUNCH_ROUNDS):
         resolved = collide_phase(model, state, s, run.dt)
         if s.dust and resolved:

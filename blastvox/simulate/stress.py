@@ -500,14 +500,20 @@ def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
     return np.concatenate(head + [cell // cell_size(count)], axis=1)
 
 
+def voxel_links(model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every link of the voxels ``members`` (K,) from the model's CSR, once per end among
+    them: link ids (J,) and the member each was listed for (J,)."""
+    offsets, ids = model.voxels.link_offsets, model.voxels.link_ids
+    starts, counts = offsets[members], offsets[members + 1] - offsets[members]
+    first = np.repeat(starts - np.cumsum(counts) + counts, counts)
+    return ids[first + np.arange(int(counts.sum()))], np.repeat(members, counts)
+
+
 def links_among(model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The links with both ends among ``members`` (ascending voxel ids): their ids
     (K,), ascending, and their ends renumbered as places in ``members`` (K, 2). A
     small body's solve then costs what it holds, not what the model holds."""
-    offsets, ids = model.voxels.link_offsets, model.voxels.link_ids
-    starts, counts = offsets[members], offsets[members + 1] - offsets[members]
-    first = np.repeat(starts - np.cumsum(counts) + counts, counts)
-    links = np.unique(ids[first + np.arange(int(counts.sum()))])
+    links = np.unique(voxel_links(model, members)[0])
     ends = model.links.voxels[links]
     place = np.minimum(np.searchsorted(members, ends), len(members) - 1)
     within = (members[place] == ends).all(axis=1)

@@ -14,6 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from blastvox.voxelize.conform import clip_volumes
+from blastvox.voxelize.topology import face_neighbours, index_grid
+
 #: A kept voxel never weighs less than this fraction of its cell (the contract wants
 #: a positive mass; a voxel whose centre is inside holds half its cell or so).
 MIN_FILL = 1e-3
@@ -24,17 +27,16 @@ WHOLE = 1e-5
 
 def fill_volumes(solid, candidates: np.ndarray, corners: np.ndarray, local_tris: np.ndarray,
                  block_keys: np.ndarray, cell_volume: np.ndarray, keep: np.ndarray,
-                 ijk: np.ndarray, centroid: np.ndarray, advance=None) -> np.ndarray:
-    """Each cell's volume of solid (m^3), (N,), for N cells (lattice indices ijk (N, 3),
-    centroids (N, 3) m) of which ``keep`` (N,) are voxels: ``cell_volume`` (N,) but at
-    the ``candidates`` (K,) (the cells the surface crosses; corners (K, 8, 3) m,
-    local_tris (K, 12, 3) and block_keys (K,) as for
+                 ijk: np.ndarray, shape: tuple[int, int, int], centroid: np.ndarray,
+                 advance=None) -> np.ndarray:
+    """Each cell's volume of solid (m^3), (N,), for N cells (lattice indices ijk (N, 3)
+    in a grid of ``shape``, centroids (N, 3) m) of which ``keep`` (N,) are voxels:
+    ``cell_volume`` (N,) but at the ``candidates`` (K,) (the cells the surface
+    crosses; corners (K, 8, 3) m, local_tris (K, 12, 3) and block_keys (K,) as for
     :func:`~blastvox.voxelize.conform.clip_cells`), where it is the cell's volume
     inside ``solid`` (a manifold3d Manifold). What a dropped candidate holds is shared
     equally by its kept face neighbours (a gap cell between two parts feeds both), or
     given to the nearest kept voxel if none; dropped cells end at 0."""
-    from blastvox.voxelize.conform import clip_volumes
-
     fill = cell_volume.astype(np.float64).copy()
     if not len(candidates) or not keep.any():
         return fill
@@ -46,36 +48,23 @@ def fill_volumes(solid, candidates: np.ndarray, corners: np.ndarray, local_tris:
     fill[candidates] = np.where(whole, cell_volume[candidates], np.where(empty, 0.0, inside))
     dropped = candidates[~keep[candidates] & (fill[candidates] > 0.0)]
     if dropped.size:
-        _hand_on(fill, dropped, keep, ijk, centroid)
+        _hand_on(fill, dropped, keep, ijk, shape, centroid)
     fill[~keep] = 0.0
     np.maximum(fill, MIN_FILL * cell_volume, out=fill, where=keep)
     return fill
 
 
 def _hand_on(fill: np.ndarray, dropped: np.ndarray, keep: np.ndarray, ijk: np.ndarray,
-             centroid: np.ndarray) -> None:
+             shape: tuple[int, int, int], centroid: np.ndarray) -> None:
     """Add the fill of the ``dropped`` cells to kept ones (see :func:`fill_volumes`)."""
     kept = np.flatnonzero(keep)
-    span = ijk.max(axis=0) + 3
-    def key(cells: np.ndarray) -> np.ndarray:
-        c = cells + 1  # neighbours of the lowest cells stay >= 0
-        return (c[:, 0] * span[1] + c[:, 1]) * span[2] + c[:, 2]
-    order = np.argsort(key(ijk[kept]))
-    sorted_keys = key(ijk[kept])[order]
-    neighbour = np.full((len(dropped), 6), -1, dtype=np.int64)
-    for f, step in enumerate(((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1),
-                              (0, 0, -1))):
-        k = key(ijk[dropped] + np.array(step))
-        at = np.minimum(np.searchsorted(sorted_keys, k), len(sorted_keys) - 1)
-        found = sorted_keys[at] == k
-        neighbour[found, f] = kept[order[at[found]]]
-    count = (neighbour >= 0).sum(axis=1)
-    has = count > 0
-    rows, faces = np.nonzero(neighbour >= 0)
-    np.add.at(fill, neighbour[rows, faces], (fill[dropped] / np.maximum(count, 1))[rows])
-    if not has.all():
+    local = face_neighbours(ijk[dropped], index_grid(ijk[kept], shape))  # places in kept
+    count = (local >= 0).sum(axis=1)
+    rows, faces = np.nonzero(local >= 0)
+    np.add.at(fill, kept[local[rows, faces]], (fill[dropped] / np.maximum(count, 1))[rows])
+    lonely = dropped[count == 0]
+    if lonely.size:
         from scipy.spatial import cKDTree
 
-        lonely = dropped[~has]
         _, nearest = cKDTree(centroid[kept]).query(centroid[lonely])
         np.add.at(fill, kept[nearest], fill[lonely])

@@ -258,8 +258,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
             inertia[conform_data[0]] = ci
         fill = None
     else:
-        fill = _cube_fill(closed, chosen, positions, voxel_vertices, volume, keep, centroid,
-                          progress, request.origin)[keep]
+        fill = _cube_fill(closed, chosen, grid, positions, voxel_vertices, volume, keep,
+                          centroid, progress, request.origin)[keep]
     if not keep.any():
         larger = " (a larger resolution)" if request.voxel_size is None else ""
         raise MeshError(f"{source}: no voxel lies inside the mesh at voxel size "
@@ -365,8 +365,8 @@ def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progres
     return keep, (candidates[clipped.cells], clipped.offsets, clipped.triangles, clipped.tags)
 
 
-def _cube_fill(solids, chosen, positions, voxel_vertices, volume, keep, centroid, progress,
-               origin) -> np.ndarray:
+def _cube_fill(solids, chosen, grid, positions, voxel_vertices, volume, keep, centroid,
+               progress, origin) -> np.ndarray:
     """Each cell's volume of solid (m^3; see :mod:`blastvox.voxelize.fill`): the cells
     the surface crosses clipped by the closed ``solids``, dropped ones given to the
     nearest kept voxel. A surface that is not a closed manifold (holes, a soup: the
@@ -385,7 +385,7 @@ def _cube_fill(solids, chosen, positions, voxel_vertices, volume, keep, centroid
     return fill_volumes(solid, candidates, positions[voxel_vertices[candidates]],
                         _local_hex_triangles(voxel_vertices[candidates]),
                         block_keys_for(chosen.ijk[candidates]), volume, keep, chosen.ijk,
-                        centroid, progress.advance)
+                        grid.shape, centroid, progress.advance)
 
 
 def _local_hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:

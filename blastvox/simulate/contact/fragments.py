@@ -449,11 +449,16 @@ TOUCHING = 1e-3
 
 
 @helper
+def _edge(half, va, vb) -> float:
+    """The smaller edge (m) of voxels va's and vb's contact boxes (half (N, 3) m)."""
+    return 2.0 * min(half[va, 0], half[va, 1], half[va, 2], half[vb, 0], half[vb, 1],
+                     half[vb, 2])
+
+
+@helper
 def _touching_gap(half, va, vb) -> float:
     """Gap (m) below which voxels va and vb touch (:data:`TOUCHING`)."""
-    edge = 2.0 * min(half[va, 0], half[va, 1], half[va, 2], half[vb, 0], half[vb, 1],
-                     half[vb, 2])
-    return TOUCHING * edge
+    return TOUCHING * _edge(half, va, vb)
 
 
 @kernel
@@ -519,7 +524,11 @@ def mute_member_rows(rows, count, bodies, voxels, held_p, since, holds, half, de
     its foundation still holds the rest (a wall bends out before its supports give
     way, and the part still held leaves with the impulse it took when its links
     fail: :func:`~blastvox.simulate.kernels.release_held`). Their rows get no corners
-    (rows.used = 0: no normal impulse, so no friction). Against an immovable body, a
+    (rows.used = 0: no normal impulse, so no friction) until the piece is ``depth``
+    of the smaller voxel's edge into the member. Two pieces that both broke off in the
+    current waves touch without friction (rows.grip = 0): the wave gave the parts of
+    one member different speeds and spins, and their friction locked a wall's pieces
+    against those caught at a house's corners. Against an immovable body, a
     wall's first pieces to break free, pressed by the wave against the part still
     founded, gave their momentum to the ground, more the finer the step (a founded
     brick wall's debris: 9,030 N s at dt 1/240 s, 2,388 at 1/10,000). Once the waves
@@ -539,9 +548,8 @@ def mute_member_rows(rows, count, bodies, voxels, held_p, since, holds, half, de
                 rows.grip[r] = 0.0
             continue
         fixed, free = (a, b) if bodies.fixed[a] else (b, a)
-        if holds[fixed] and bodies.born[free] >= since and rows.gap[r] > -depth * 2.0 * min(
-                half[rows.voxel[r, 0], 0], half[rows.voxel[r, 0], 1], half[rows.voxel[r, 0], 2],
-                half[rows.voxel[r, 1], 0], half[rows.voxel[r, 1], 1], half[rows.voxel[r, 1], 2]):
+        if holds[fixed] and bodies.born[free] >= since and \
+                rows.gap[r] > -depth * _edge(half, rows.voxel[r, 0], rows.voxel[r, 1]):
             rows.used[r] = 0
 
 

@@ -28,6 +28,7 @@ import math
 import numpy as np
 
 from blastvox.jit import helper, kernel
+from blastvox.simulate.stress import voxel_links
 
 #: A link carries a chunk's load in compression when its outward direction is within
 #: this angle's cosine (45 degrees) of the load.
@@ -132,10 +133,9 @@ class Punch:
         self.punched = 0
 
     @classmethod
-    def of(cls, arrays: dict) -> Punch:
-        """For a VoxelModel's arrays: groups by voxel_chunk, or one per voxel."""
-        chunk = arrays.get("voxel_chunk")
-        count = len(arrays["voxel_volume"])
+    def of(cls, chunk: np.ndarray | None, count: int) -> Punch:
+        """For a model of ``count`` voxels: groups by chunk (N,) (the stress solver's
+        :attr:`~blastvox.simulate.stress.Stress.chunk`), or one per voxel."""
         return cls(np.arange(count, dtype=np.int64) if chunk is None
                    else np.ascontiguousarray(chunk, dtype=np.int64))
 
@@ -198,19 +198,15 @@ def _boundary_links(model, state, members: np.ndarray) -> tuple[np.ndarray, np.n
     """The alive links from ``members`` (voxel ids, one body) to the rest of their body,
     and each one's outward direction (K, 3), from the member to its neighbour, in the
     world frame (the links' rest directions turned by the body's rotation)."""
-    geometry, links = model.voxels, model.links
-    offsets, ids = geometry.link_offsets, geometry.link_ids
-    starts, counts = offsets[members], offsets[members + 1] - offsets[members]
-    first = np.repeat(starts - np.cumsum(counts) + counts, counts)
-    candidates = ids[first + np.arange(int(counts.sum()))]
-    owner = np.repeat(members, counts)
-    candidates_alive = state.links.alive[candidates]
-    candidates, owner = candidates[candidates_alive], owner[candidates_alive]
+    links = model.links
+    candidates, owner = voxel_links(model, members)
+    alive = state.links.alive[candidates]
+    candidates, owner = candidates[alive], owner[alive]
     ends = links.voxels[candidates]
-    other = np.where(ends[:, 0] == owner, ends[:, 1], ends[:, 0])
-    inside = np.isin(other, members)
-    candidates, owner, other = candidates[~inside], owner[~inside], other[~inside]
-    sign = np.where(links.voxels[candidates, 0] == owner, 1.0, -1.0)
+    first = ends[:, 0] == owner
+    outside = ~np.isin(np.where(first, ends[:, 1], ends[:, 0]), members)
+    candidates, first = candidates[outside], first[outside]
+    sign = np.where(first, 1.0, -1.0)
     body = int(state.voxels.body[members[0]])
     rest = links.direction[candidates] * sign[:, None]
     return candidates, rest @ state.bodies.rot[body].T
