@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-
 from _machine import machine  # benchmarks/ is on sys.path when run as a script
+
 from blastvox.blast.kingery_bulmash import SURFACE, burst_parameters
 from blastvox.simulate.engine import simulate
 from blastvox.simulate.settings import ChargeSpec, SimSettings
