@@ -119,7 +119,8 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net) -> i
 class Punch:
     """The run's memory of :func:`punch_phase`: group (N,) each voxel's chunk (or the
     voxel itself), group_offsets (G+1,) and group_voxels (N,) the voxels of each group
-    (CSR); impulse (N, 3) and touched (N,) work arrays; punched: chunks punched out."""
+    (CSR); impulse (N, 3) and touched (N,) work arrays; punched: chunks punched out;
+    floor and version: see :func:`punch_phase`."""
 
     def __init__(self, group: np.ndarray) -> None:
         self.group = group
@@ -130,6 +131,10 @@ class Punch:
         self.impulse = np.zeros((len(group), 3))
         self.touched = np.zeros(len(group), dtype=np.int64)
         self.net: np.ndarray | None = None
+        # the least each (body, group) carries whichever way it is pushed (N), while the
+        # links stand as at topology version ``version``: smaller pushes skip the links
+        self.floor: dict[tuple[int, int], float] = {}
+        self.version = -1
         self.punched = 0
 
     @classmethod
@@ -160,25 +165,31 @@ def punch_phase(model, state, stress, punch: Punch, rows, count: int, end: int,
     touched = np.unique(punch.touched[:k])  # a voxel whose sum passed through zero repeats
     pushed = punch.impulse[touched].copy()
     punch.impulse[touched] = 0.0
-    groups = punch.group[touched]
-    body = voxels.body[touched]
-    key = np.stack([body, groups], axis=1)
-    keys, which = np.unique(key, axis=0, return_inverse=True)
-    which = which.ravel()
+    span = len(punch.group_offsets) - 1  # (body, group) as one key: body * span + group
+    keys, which = np.unique(voxels.body[touched] * span + punch.group[touched],
+                            return_inverse=True)
     total = np.zeros((len(keys), 3))
-    np.add.at(total, which, pushed)
+    np.add.at(total, which.ravel(), pushed)
     force = np.linalg.norm(total, axis=1) / dt
     springs = stress.springs
+    if punch.version != state.counters.topology_version:  # links changed: floors too
+        punch.floor.clear()
+        punch.version = state.counters.topology_version
     broke = False
     for i in np.flatnonzero(force > 0.0):
-        b, g = int(keys[i, 0]), int(keys[i, 1])
+        b, g = divmod(int(keys[i]), span)
+        if force[i] <= punch.floor.get((b, g), 0.0):
+            continue  # carried whichever way it pushes: rubble resting on a floor
         members = punch.group_voxels[punch.group_offsets[g]:punch.group_offsets[g + 1]]
         members = members[voxels.alive[members] & (voxels.body[members] == b)]
         if not members.size or voxels.foundation[members].any():
+            punch.floor[(b, g)] = math.inf  # held by the ground: never punched
             continue
         links, outward = _boundary_links(model, state, members)
         if not links.size:
             continue
+        punch.floor[(b, g)] = float(np.sum(springs.area[links] * np.minimum(
+            springs.compressive[links], np.minimum(springs.tensile[links], springs.shear[links]))))
         along = outward @ (total[i] / np.linalg.norm(total[i]))
         strength = np.where(along > AHEAD, springs.compressive[links],
                             np.minimum(springs.tensile[links], springs.shear[links]))
