@@ -12,6 +12,7 @@ file left behind, within a time bound.
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import hashlib
 import io
 import os
@@ -100,3 +101,15 @@ def unchanged(directory: Path, inputs: Iterable[Path] = (), allow: Iterable[str]
     added = listing(directory) - before_files - set(allow)
     assert not added, f"left behind: {sorted(added)}"
     assert snapshot(inputs) == before_hash, "an input was modified"
+
+
+@contextlib.contextmanager
+def deadline(seconds: float = 10.0):
+    """End the test process (with every thread's stack on stderr) if the block runs past
+    ``seconds``: a regression that blocks in C (USD opening a FIFO) then costs seconds,
+    not a hung suite (under xdist the worker is replaced and the test reported)."""
+    faulthandler.dump_traceback_later(seconds, exit=True)
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()

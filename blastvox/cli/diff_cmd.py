@@ -19,6 +19,10 @@ def diff(
                               help="Print at most this many differences."),
     verbose: bool = typer.Option(False, "-v", "--verbose",
                                  help='Print "same" when the files agree.'),
+    references_anywhere: bool = typer.Option(
+        False, "--references-anywhere", help="Let the files a USD layer or a .gltf refers "
+        "to (sublayers, references, payloads, clips, textures, buffers) lie outside the "
+        "folder of A or B; they must still be regular files (no device, FIFO or URL)."),
 ) -> None:
     """Compare A with B: exit 0 if they agree within the tolerances, 1 if they differ
     (the first differences are printed, one per line: path, attribute, frame, both
@@ -28,12 +32,20 @@ def diff(
     types, authored attributes (default and every time sample), connections and
     relationship targets. glTF: the JSON (except buffer layout and generator) and
     every accessor decoded.
+
+    What the files refer to (USD sublayers, references, payloads, clips and textures,
+    a .gltf's buffers) is read only if it is a regular file inside the folder of the
+    file that names it (--references-anywhere: any folder), never a URL; anything else
+    is refused (exit 2) before it is opened.
     """
     from blastvox.diff import DiffError, diff_files
     from blastvox.errors import BlastvoxError
+    from blastvox.io.references import ReferencePolicy
 
+    policy = ReferencePolicy(anywhere=references_anywhere)
     try:
-        differences = diff_files(a, b, atol=atol, rtol=rtol, limit=limit + 1)
+        differences = diff_files(a, b, atol=atol, rtol=rtol, limit=limit + 1,
+                                 references=policy)
     except BlastvoxError:
         raise
     except Exception as exc:  # a crash must not look like "different" (exit 1) in CI

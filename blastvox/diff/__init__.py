@@ -55,6 +55,7 @@ from blastvox.diff.gltf import _diff_gltf
 from blastvox.diff.npz import _diff_npz
 from blastvox.diff.usd import _diff_usd
 from blastvox.errors import BlastvoxError
+from blastvox.io.references import ReferencePolicy
 
 __all__ = [
     "DEFAULT_ATOL",
@@ -78,11 +79,15 @@ def kind_of(path: str | Path) -> str | None:
 
 
 def diff_files(a: str | Path, b: str | Path, atol: float = DEFAULT_ATOL,
-               rtol: float = DEFAULT_RTOL, limit: int | None = 20) -> list[Difference]:
+               rtol: float = DEFAULT_RTOL, limit: int | None = 20,
+               references: ReferencePolicy | None = None) -> list[Difference]:
     """The differences between files ``a`` and ``b`` (at most ``limit``; None: all).
 
     Raises :class:`DiffError` (one line) if either file is missing or unreadable,
-    if they are of different kinds, or if a tolerance is negative.
+    if they are of different kinds, if a tolerance is negative, or if either refers to
+    a file (a USD layer's sublayers, references, payloads, clips and assets, a .gltf's
+    buffers) that the reader policy ``references`` refuses (default: regular files in
+    the file's folder, :mod:`blastvox.io.references`), checked before anything opens it.
     """
     a, b = Path(a), Path(b)
     for name, tol in (("atol", atol), ("rtol", rtol)):
@@ -106,7 +111,10 @@ def diff_files(a: str | Path, b: str | Path, atol: float = DEFAULT_ATOL,
     out = _Collector(atol, rtol, limit)
     compare = {"npz": _diff_npz, "usd": _diff_usd, "gltf": _diff_gltf}[kinds[0]]
     try:
-        compare(a, b, out)
+        if kinds[0] == "npz":
+            compare(a, b, out)
+        else:
+            compare(a, b, out, references or ReferencePolicy())
     except _Full:
         pass
     except BlastvoxError as exc:

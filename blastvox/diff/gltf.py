@@ -25,7 +25,7 @@ _NORMALIZE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0, 5125: 4294
 _GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 
 
-def _load_gltf(path: Path) -> tuple[dict[str, Any], list[bytes]]:
+def _load_gltf(path: Path, policy: ReferencePolicy) -> tuple[dict[str, Any], list[bytes]]:
     """The document and every buffer's bytes of a .glb or a .gltf (with its files)."""
     try:
         data = path.read_bytes()
@@ -81,9 +81,9 @@ def _load_gltf(path: Path) -> tuple[dict[str, Any], list[bytes]]:
                 raise DiffError(f"{path}: buffers[{i}] has a bad data uri ({exc})") from None
         else:  # a side file, under the reader policy (no device, FIFO, URL or escape)
             try:
-                buffers.append(ReferencePolicy().read(path, unquote(uri)))
+                buffers.append(policy.read(path, unquote(uri), kind=f"buffers[{i}]"))
             except ReferenceRefused as exc:
-                raise DiffError(f"{exc} (buffers[{i}])") from None
+                raise DiffError(str(exc)) from None
             except OSError as exc:
                 raise DiffError(f"{path}: buffers[{i}] file {path.parent / unquote(uri)} "
                                 f"cannot be read ({exc.strerror or exc})") from None
@@ -230,9 +230,9 @@ def _gltf_skip(path: str) -> bool:
     return path.startswith("accessors[") and last == "byteOffset"
 
 
-def _diff_gltf(a: Path, b: Path, out: _Collector) -> None:
-    doc_a, buf_a = _load_gltf(a)
-    doc_b, buf_b = _load_gltf(b)
+def _diff_gltf(a: Path, b: Path, out: _Collector, policy: ReferencePolicy) -> None:
+    doc_a, buf_a = _load_gltf(a, policy)
+    doc_b, buf_b = _load_gltf(b, policy)
     # decode first, so an unreadable file is an error (exit 2), not a difference
     acc_a = [_accessor(a, doc_a, buf_a, i) for i in range(len(_list(doc_a, "accessors")))]
     acc_b = [_accessor(b, doc_b, buf_b, i) for i in range(len(_list(doc_b, "accessors")))]

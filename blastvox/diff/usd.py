@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -15,6 +16,8 @@ from blastvox.diff.common import (
     DiffError,
     _Collector,
 )
+from blastvox.errors import BlastvoxError
+from blastvox.io.references import ReferencePolicy
 
 
 def _open_stage(path: Path) -> Any:
@@ -23,12 +26,25 @@ def _open_stage(path: Path) -> Any:
     except ImportError:
         raise DiffError("comparing USD files needs the USD Python bindings "
                         "(pip install usd-core)") from None
+    # USD's warnings while composing (a layer it could not open, a sublayer cycle) are
+    # C++ lines on stderr after which the stage is composed without what failed: they
+    # are kept here, and the stage's composition errors refuse the comparison
+    trap = getattr(Tf, "DiagnosticTrap", contextlib.nullcontext)
     try:
-        stage = Usd.Stage.Open(str(path), Usd.Stage.LoadAll)
+        with trap() as kept:
+            stage = Usd.Stage.Open(str(path), Usd.Stage.LoadAll)
+            errors = list(stage.GetCompositionErrors()) if stage is not None else []
+            if errors and kept is not None:
+                kept.Clear()  # said in one line below instead
     except Tf.ErrorException as exc:
         raise DiffError(f"{path}: not a readable USD file ({_first_line(exc)})") from None
     if stage is None:
         raise DiffError(f"{path}: not a readable USD file")
+    if errors:
+        more = f" (and {len(errors) - 1:,} more)" if len(errors) > 1 else ""
+        message = " ".join(str(errors[0]).split())
+        raise DiffError(f"{path}: USD could not compose it: {message}{more}; diff compares "
+                        "only stages that compose without errors")
     return stage
 
 
@@ -69,7 +85,11 @@ def _usd_value(v: Any) -> Any:
         return repr(v)
 
 
-def _diff_usd(a: Path, b: Path, out: _Collector) -> None:
+def _diff_usd(a: Path, b: Path, out: _Collector, policy: ReferencePolicy) -> None:
+    from blastvox.diff.usd_refs import check_usd_references
+
+    for path in (a, b):  # before USD opens anything they name
+        check_usd_references(path, policy)
     sa, sb = _open_stage(a), _open_stage(b)
     _usd_stage_metadata(sa, sb, out)
     prims_a = {str(p.GetPath()): p for p in sa.TraverseAll()}
@@ -207,6 +227,12 @@ def _asset_digest(value: Any) -> str | None:
     resolved = value.resolvedPath
     if not resolved:
         return "missing"
+    if not resolved.endswith("]"):  # a file (not in a package): judged again as read
+        try:
+            data = ReferencePolicy(anywhere=True).read(Path(resolved), resolved)
+        except (OSError, BlastvoxError) as exc:
+            return f"unread ({exc})"
+        return f"{len(data)} bytes, sha256 {hashlib.sha256(data).hexdigest()[:12]}"
     asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
     if asset is None:
         return "missing"

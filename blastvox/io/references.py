@@ -44,17 +44,24 @@ class ReferencePolicy:
     anywhere: bool = False
     max_bytes: int = MAX_REFERENCE_BYTES
 
-    def resolve(self, referrer: Path, name: str) -> Path:
+    def resolve(self, referrer: Path, name: str, *, within: Path | None = None,
+                shown: str | None = None, kind: str | None = None) -> Path:
         """The file ``name`` (as written in ``referrer``) names, checked: see the module
         docstring. Raises :class:`ReferenceRefused`, or FileNotFoundError for a regular
-        reference to a missing file (the loaders treat a missing texture as absent)."""
-        where = _where(referrer, name)
+        reference to a missing file (the loaders treat a missing texture as absent).
+
+        within: the file whose folder bounds every reference (a USD layer's layers refer
+        to more layers: all must stay in the folder of the file the user named; default
+        ``referrer``); shown: how the refusal names the referrer (default its path);
+        kind: what the reference is (``sublayer``, ``payload``...), said after it."""
+        where = _where(shown if shown is not None else referrer, name, kind)
+        within = referrer if within is None else within
         if name.startswith("data:"):
             raise ReferenceRefused(f"{where}: a data: URI is decoded by the loader, not read")
         if _SCHEME.match(name):
             raise ReferenceRefused(f"{where}: a URL; blastvox reads files only, nothing is "
-                                   "fetched (download it beside the mesh)")
-        folder = referrer.parent.resolve()
+                                   "fetched (download it beside the file that names it)")
+        folder = within.parent.resolve()
         target = (referrer.parent / name).resolve()
         try:
             info = os.stat(target)
@@ -66,7 +73,7 @@ class ReferencePolicy:
             raise ReferenceRefused(f"{where}: {printable(target)} is {file_kind(info.st_mode)}"
                                    ", not a regular file")
         if not self.anywhere and not target.is_relative_to(folder):
-            raise ReferenceRefused(f"{where}: outside the folder of {printable(referrer.name)}"
+            raise ReferenceRefused(f"{where}: outside the folder of {printable(within.name)}"
                                    f" ({printable(target)}); copy it beside the file, or "
                                    f"pass {ANYWHERE_FLAG}")
         if info is None:  # a missing file, for the loader to skip (and warn)
@@ -76,22 +83,26 @@ class ReferencePolicy:
                                    f"{self.max_bytes:,} a reference may be")
         return target
 
-    def read(self, referrer: Path, name: str) -> bytes:
-        """The bytes of the file ``name`` names (see :meth:`resolve`), opened without
-        blocking and checked again once open (a file swapped for a FIFO after the check
-        is refused, not waited on)."""
-        target = self.resolve(referrer, name)
+    def read(self, referrer: Path, name: str, *, within: Path | None = None,
+             shown: str | None = None, kind: str | None = None) -> bytes:
+        """The bytes of the file ``name`` names (see :meth:`resolve`, whose keywords it
+        takes), opened without blocking and checked again once open (a file swapped for a
+        FIFO after the check is refused, not waited on)."""
+        target = self.resolve(referrer, name, within=within, shown=shown, kind=kind)
+        where = _where(shown if shown is not None else referrer, name, kind)
         fd = os.open(target, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
         with os.fdopen(fd, "rb") as fh:
             if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-                raise ReferenceRefused(f"{_where(referrer, name)}: not a regular file")
+                raise ReferenceRefused(f"{where}: not a regular file")
             data = fh.read(self.max_bytes + 1)
         if len(data) > self.max_bytes:
-            raise ReferenceRefused(f"{_where(referrer, name)}: more than the "
-                                   f"{self.max_bytes:,} bytes a reference may be")
+            raise ReferenceRefused(f"{where}: more than the {self.max_bytes:,} bytes a "
+                                   "reference may be")
         return data
 
 
-def _where(referrer: Path, name: str) -> str:
-    """The start of a refusal: the referring file and the reference as written."""
-    return f"{printable(referrer)}: refers to {printable(name)!r}"
+def _where(referrer: Path | str, name: str, kind: str | None = None) -> str:
+    """The start of a refusal: the referring file and the reference as written (and
+    what it is)."""
+    said = f" ({kind})" if kind else ""
+    return f"{printable(referrer)}: refers to {printable(name)!r}{said}"
