@@ -16,6 +16,8 @@ from blastvox.diff.common import (
     DiffError,
     _Collector,
 )
+from blastvox.errors import MeshError
+from blastvox.io.mesh_checks import check_gltf_nodes
 from blastvox.io.references import ReferencePolicy, ReferenceRefused
 
 _COMPONENT = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
@@ -60,6 +62,8 @@ def _load_gltf(path: Path, policy: ReferencePolicy) -> tuple[dict[str, Any], lis
         doc = json.loads(text)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DiffError(f"{path}: not a valid glTF JSON document ({exc})") from None
+    except RecursionError:
+        raise DiffError(f"{path}: its JSON is nested too deep to read") from None
     if not isinstance(doc, dict):
         raise DiffError(f"{path}: not a glTF document (the JSON is not an object)")
     asset = doc.get("asset")
@@ -67,6 +71,10 @@ def _load_gltf(path: Path, policy: ReferencePolicy) -> tuple[dict[str, Any], lis
     if not isinstance(version, str) or not version.startswith("2."):
         raise DiffError(f"{path}: not a glTF 2.0 document (asset.version is "
                         f"{version!r}; the specification requires it)")
+    try:  # a node its own ancestor, two parents, absurd depth: one line, as voxelize says
+        check_gltf_nodes(str(path), doc)
+    except MeshError as exc:
+        raise DiffError(str(exc)) from None
     buffers = []
     for i, buf in enumerate(_list(doc, "buffers")):
         uri = buf.get("uri") if isinstance(buf, dict) else None

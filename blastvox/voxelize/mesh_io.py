@@ -26,6 +26,7 @@ import trimesh
 from blastvox.bounds import printable, regular_file
 from blastvox.errors import InputError, MeshError
 from blastvox.geometry.voxel_faces import VTK_CELL_FACES
+from blastvox.io import mesh_checks
 from blastvox.io.references import ReferencePolicy, ReferenceRefused
 from blastvox.voxelize import vertex_colors
 
@@ -69,6 +70,12 @@ def load_parts(path: Path, references: ReferencePolicy | None = None) -> list[Pa
     suffix = path.suffix.lower()
     if suffix == ".stl":
         _check_binary_stl(shown, data)
+    elif suffix in (".gltf", ".glb"):
+        doc = mesh_checks.gltf_document(shown, data)
+        if doc is not None:
+            mesh_checks.check_gltf_nodes(shown, doc)
+    elif suffix == ".ply":
+        mesh_checks.check_ply_counts(shown, data)
     parts = (_load_volume(path) if suffix in VOLUME_SUFFIXES
              else _load_surface(path, data, references or ReferencePolicy()))
     parts = [p for p in parts if len(p.mesh.faces) > 0]
