@@ -32,16 +32,13 @@ Every prim renders: a particle system never has an empty ``positions`` sample (a
 empty point cloud crashed Blender 5.0's Cycles at frame 0): a frame without particles
 holds a single instance of scale 0, and the instancer is invisible at those frames.
 
-Speed: every call into the USD Python bindings costs microseconds, and creating
-a spec costs more than setting a value, so the scene's structure (all prims,
-attribute declarations, metadata, relationships) is written as usda text and
-parsed in one ``ImportFromString``; the bulk data then goes in through the Sdf
-layer API from numpy (``Vt.*Array.FromNumpy``) inside one ``Sdf.ChangeBlock``.
-Transform samples are kept only at the ends of runs of equal values, so USD's
-linear interpolation reproduces the cache at every frame. The layer is exported
-to a temporary file beside the output (whose name ends in the real suffix, so
-USD picks the format) and moved into place. The same cache and options give the
-same bytes.
+The whole layer is written through the Sdf API inside one ``Sdf.ChangeBlock``: prim,
+attribute and relationship specs one call each, values from numpy (``Vt.*Array.FromNumpy``)
+and time samples in bulk (:mod:`blastvox.export.usd_pieces`). Transform samples are kept
+only at the ends of runs of equal values, so USD's linear interpolation reproduces the
+cache at every frame. The layer is exported to a temporary file beside the output (whose
+name ends in the real suffix, so USD picks the format) and moved into place. The same
+cache and options give the same bytes.
 """
 
 from __future__ import annotations
@@ -58,36 +55,15 @@ from blastvox.cache import SimCache
 from blastvox.errors import OutputError
 from blastvox.export.damage_textures import damage_textures
 from blastvox.export.options import ExportOptions
-from blastvox.export.pieces import (
-    animation,
-    object_groups,
-    piece_meshes,
-    piece_objects,
-    velocities,
-)
+from blastvox.export.pieces import animation, piece_meshes, piece_objects, velocities
 from blastvox.export.usd_effects import write_camera, write_particles, write_shock
-from blastvox.export.usd_specs import (
-    ROOT,
-    object_prim_names,
-    points_extent,
-    run_ends_pf,
-    usda_string,
-    vec3f,
-)
+from blastvox.export.usd_pieces import write_instancer, write_materials, write_xforms
+from blastvox.export.usd_specs import ROOT, object_prim_names, vec3f
 from blastvox.export.uv import face_uvs, texture_names
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change
 from blastvox.geometry.transforms import rest_to_world
 from blastvox.io.atomic import atomic_path
-
-ROUGHNESS = 0.8
-NANO_LIMIT = 9.0e9  # m: |translation| * 1e9 must fit an int64
-_T = Sdf.ValueTypeNames
-#: usda time-sample rows (frame, integer components): nanometres, 1e-9 quaternion
-#: components, micro-units (1e-6 m/s, 1e-6 deg/s)
-ROW_NANO = "                %d: (%de-9, %de-9, %de-9),\n"
-ROW_QUAT = "                %d: (%de-9, %de-9, %de-9, %de-9),\n"
-ROW_MICRO = "                %d: (%de-6, %de-6, %de-6),\n"
 
 
 def _fps(cache: SimCache) -> float:
@@ -137,10 +113,6 @@ def _finite_hold(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def _usda_float(x: float) -> str:
-    return repr(float(x))
-
-
 # ----------------------------------------------------------------------------- writer
 
 class _Writer:
@@ -171,10 +143,13 @@ class _Writer:
 
     def build(self) -> Sdf.Layer:
         layer = self.layer
-        if not layer.ImportFromString(self._skeleton()):
-            raise RuntimeError("USD export: the generated scene text did not parse")
         with Sdf.ChangeBlock():
             root = layer.pseudoRoot
+            shot = Sdf.PrimSpec(root, ROOT[1:], Sdf.SpecifierDef, "Xform")
+            write_materials(self, shot)
+            self.damage_paths: list = [None] * self.pieces
+            instancer = (write_instancer(self, shot) if self.instancer
+                         else write_xforms(self, shot))
             root.SetInfo("upAxis", self.options.up_axis)
             root.SetInfo("metersPerUnit", 1.0)
             layer.defaultPrim = ROOT[1:]
@@ -188,11 +163,9 @@ class _Writer:
                 "blastvox": {"pieces": self.pieces, "frames": self.frames,
                              "layout": self.options.layout},
             }
-            self._mesh_values()
             self._damage_samples()
             if self.instancer:
-                self._instancer_samples()
-            shot = layer.GetPrimAtPath(ROOT)
+                self._instancer_samples(instancer)
             write_particles(self, shot)
             write_shock(self, shot)
             write_camera(self, shot)
@@ -243,268 +216,23 @@ class _Writer:
         self.used_materials = (np.unique(m.material) if t else
                                np.unique(self.cache.model.voxel_material)).tolist()
 
-    # -- structure as usda text
-    def _material_path(self, m: int, damage: bool) -> str:
+    # -- names
+    def material_path(self, m: int, damage: bool) -> str:
         return f"{ROOT}/Materials/{self.material_names[m]}{'_damage' if damage else ''}"
 
-    def _skeleton(self) -> str:
-        out = ["#usda 1.0\n\n", f'def Xform "{ROOT[1:]}"\n{{\n',
-               '    def Scope "Materials"\n    {\n']
-        for m in self.used_materials:
-            out.append(self._material_text(self._material_path(m, False), self.colors[m]))
-            if m in self.damage_textures:
-                out.append(self._texture_material_text(
-                    self._material_path(m, True), self.damage_textures[m].name))
-            else:
-                out.append(self._material_text(self._material_path(m, True),
-                                               self.damage_colors[m]))
-        for k in np.unique(self.look.texture[self.look.texture >= 0]).tolist():
-            out.append(self._texture_material_text(self._texture_material_path(k),
-                                                   self.texture_names[k]))
-        out.append("    }\n\n")
-        out.append(self._instancer_text() if self.instancer else self._xforms_text())
-        out.append("}\n")
-        return "".join(out)
+    def texture_material_path(self, k: int) -> str:
+        return f"{ROOT}/Materials/texture_{self.texture_names[k]}"
 
-    @staticmethod
-    def _material_text(path: str, color: np.ndarray) -> str:
-        name = path.rsplit("/", 1)[1]
-        rgb = ", ".join(_usda_float(c) for c in color)
-        return (f'        def Material "{name}"\n        {{\n'
-                f"            token outputs:surface.connect = "
-                f"<{path}/PreviewSurface.outputs:surface>\n\n"
-                f'            def Shader "PreviewSurface"\n            {{\n'
-                f'                uniform token info:id = "UsdPreviewSurface"\n'
-                f"                color3f inputs:diffuseColor = ({rgb})\n"
-                f"                float inputs:metallic = 0\n"
-                f"                float inputs:roughness = {ROUGHNESS}\n"
-                f"                token outputs:surface\n            }}\n        }}\n")
-
-    def _texture_material_text(self, path: str, texture: str) -> str:
-        """Material ``path``: a UsdPreviewSurface whose diffuse colour is a UsdUVTexture of
-        ``<texture_dir>/<texture>.png`` beside the cache, read at the mesh's ``st``."""
-        name = path.rsplit("/", 1)[1]
-        asset = f"./{self.texture_dir}/{texture}.png"
-        return (f'        def Material "{name}"\n        {{\n'
-                f"            token outputs:surface.connect = "
-                f"<{path}/PreviewSurface.outputs:surface>\n\n"
-                f'            def Shader "PreviewSurface"\n            {{\n'
-                f'                uniform token info:id = "UsdPreviewSurface"\n'
-                f"                color3f inputs:diffuseColor.connect = "
-                f"<{path}/Texture.outputs:rgb>\n"
-                f"                float inputs:metallic = 0\n"
-                f"                float inputs:roughness = {ROUGHNESS}\n"
-                f"                token outputs:surface\n            }}\n\n"
-                f'            def Shader "Texture"\n            {{\n'
-                f'                uniform token info:id = "UsdUVTexture"\n'
-                f"                asset inputs:file = {_usda_asset(asset)}\n"
-                f'                token inputs:sourceColorSpace = "sRGB"\n'
-                f"                float2 inputs:st.connect = <{path}/UV.outputs:result>\n"
-                f'                token inputs:wrapS = "repeat"\n'
-                f'                token inputs:wrapT = "repeat"\n'
-                f"                float3 outputs:rgb\n            }}\n\n"
-                f'            def Shader "UV"\n            {{\n'
-                f'                uniform token info:id = "UsdPrimvarReader_float2"\n'
-                f'                string inputs:varname = "st"\n'
-                f"                float2 outputs:result\n            }}\n        }}\n")
-
-    def _mesh_text(self, name: str, p: int, indent: str) -> str:
-        """A piece's Mesh: declarations only (values are set through the Sdf API)."""
-        t0, t1 = int(self.meshes.offsets[p]), int(self.meshes.offsets[p + 1])
-        i = indent
-        lines = [f'{i}def Mesh "{name}"']
-        if t1 > t0:
-            lines.append(f'{i}(\n{i}    prepend apiSchemas = ["MaterialBindingAPI"]\n{i})')
-        lines.append(f"{i}{{")
-        lines.append(
-            f"{i}    float3[] extent\n{i}    int[] faceVertexCounts\n"
-            f"{i}    int[] faceVertexIndices\n"
-            f'{i}    normal3f[] normals (\n{i}        interpolation = "faceVarying"\n{i}    )\n'
-            f"{i}    point3f[] points\n"
-            f'{i}    float[] primvars:damage (\n{i}        interpolation = "uniform"\n{i}    )\n'
-            f'{i}    color3f[] primvars:displayColor (\n{i}        interpolation = "uniform"\n'
-            f"{i}    )\n"
-            f'{i}    texCoord2f[] primvars:st (\n{i}        interpolation = "faceVarying"\n'
-            f"{i}    )\n"
-            f'{i}    uniform token subdivisionScheme = "none"')
-        if t1 > t0:
-            lines.append(f"{i}    rel material:binding = "
-                         f"<{self._material_path(int(self.main_material[p]), False)}>")
-            lines.append(f'{i}    uniform token subsetFamily:materialBind:familyType = '
-                         f'"partition"')
-            for g in range(int(self.subset_piece_offsets[p]),
-                           int(self.subset_piece_offsets[p + 1])):
-                name, target = self._subset(int(self.subset_key[g]))
-                lines.append(self._subset_text(name, target, i + "    "))
-        lines.append(f"{i}}}\n")
-        return "\n".join(lines)
-
-    def _subset(self, key: int) -> tuple[str, str]:
+    def subset(self, key: int) -> tuple[str, str]:
         """(subset name, material path) of a subset key (see _prepare_meshes)."""
         if key >= self.texture_key:
             name = self.texture_names[key - self.texture_key]
-            return f"textured_{name}", self._texture_material_path(key - self.texture_key)
+            return f"textured_{name}", self.texture_material_path(key - self.texture_key)
         material, damage = divmod(key, 2)
         return (("damage_" if damage else "surface_") + self.material_names[material],
-                self._material_path(material, bool(damage)))
-
-    def _texture_material_path(self, k: int) -> str:
-        return f"{ROOT}/Materials/texture_{self.texture_names[k]}"
-
-    @staticmethod
-    def _subset_text(name: str, material_path: str, i: str) -> str:
-        return (f'\n{i}def GeomSubset "{name}" (\n'
-                f'{i}    prepend apiSchemas = ["MaterialBindingAPI"]\n{i})\n{i}{{\n'
-                f'{i}    uniform token elementType = "face"\n'
-                f'{i}    uniform token familyName = "materialBind"\n'
-                f"{i}    int[] indices\n"
-                f"{i}    rel material:binding = <{material_path}>\n"
-                f"{i}}}")
-
-    def _xforms_text(self) -> str:
-        """The piece Xforms with their transform and visibility samples, as text.
-
-        Text because the USD parser reads ~10^6 numbers faster than Python can make
-        ~10^5 ``SetTimeSample`` calls. Numbers go in as integers of nanometres
-        (translations) and 1e-9 (quaternion components), e.g. ``1234567891e-9``:
-        formatting integers is twice as fast as formatting floats, and 1e-9 is far
-        below the cache's float32 resolution (positions beyond +-NANO_LIMIT m are
-        clamped)."""
-        f_count = self.frames
-        pos, ori = self._animation_arrays()
-        frame = np.broadcast_to(np.arange(f_count, dtype=np.int64)[:, None, None],
-                                (f_count, self.pieces, 1))
-        pos_n = np.rint(np.clip(pos, -NANO_LIMIT, NANO_LIMIT) * 1e9).astype(np.int64)
-        ori_n = np.rint(ori.astype(np.float32) * 1e9).astype(np.int64)
-        translate = np.concatenate([frame, pos_n], axis=-1).transpose(1, 0, 2)      # (P, F, 4)
-        orient = np.concatenate([frame, ori_n], axis=-1).transpose(1, 0, 2)         # (P, F, 5)
-        live = np.arange(f_count)[None, :] < np.maximum(self.end, 1)[:, None]       # (P, F)
-        keep_t = run_ends_pf(translate[..., 1:], live)
-        keep_o = run_ends_pf(orient[..., 1:], live)
-        velocity = self._velocity_rows(live)
-        out = []
-        for pieces in object_groups(self.objects).values():
-            out.append(f'    def Xform "{self.object_prims[pieces[0]]}"\n    {{\n')
-            for p in pieces:
-                out.append(self._xform_text(p, translate, orient, keep_t[p], keep_o[p],
-                                            velocity))
-            out.append("    }\n\n")
-        return "".join(out)
-
-    def _velocity_rows(self, live: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Per-piece velocity samples as integers of 1e-6 m/s and 1e-6 deg/s,
-        ``(frame, x, y, z)`` rows (P, F, 4) and which frames to keep (P, F)."""
-        linear, angular = velocities(self.anim)
-        frame = np.broadcast_to(np.arange(self.frames, dtype=np.int64)[:, None, None],
-                                (self.frames, self.pieces, 1))
-        out = []
-        for v in (linear, np.degrees(angular)):
-            v_n = np.rint(np.clip(np.nan_to_num(v), -NANO_LIMIT, NANO_LIMIT) * 1e6)
-            rows = np.concatenate([frame, v_n.astype(np.int64)], axis=-1).transpose(1, 0, 2)
-            out += [rows, run_ends_pf(rows[..., 1:], live)]
-        return tuple(out)
-
-    def _xform_text(self, p: int, translate: np.ndarray, orient: np.ndarray,
-                    kt: np.ndarray, ko: np.ndarray, velocity: tuple[np.ndarray, ...]) -> str:
-        """One piece's Xform: constant primvars, velocity samples, transform samples
-        (kept at the ends of runs) and, for a piece that vanishes, visibility and scale."""
-        f_count = self.frames
-        out = [f'        def Xform "piece_{p:05d}"\n        {{\n',
-               self._piece_primvars_text(p, "            ")]
-        for name, (v, keep) in (("velocity", velocity[0:2]),
-                                ("angularVelocity", velocity[2:4])):
-            out.append(f"            vector3f primvars:blastvox:{name}.timeSamples = {{\n")
-            out.append((ROW_MICRO * int(keep[p].sum())) % tuple(v[p][keep[p]].ravel().tolist()))
-            out.append("            }\n")
-        end = int(self.end[p])
-        if end < f_count:
-            first = '                0: "inherited",\n' if end > 0 else ""
-            out.append(f"            token visibility.timeSamples = {{\n{first}"
-                       f'                {end}: "invisible",\n            }}\n')
-        out.append("            quatf xformOp:orient.timeSamples = {\n")
-        out.append((ROW_QUAT * int(ko.sum())) % tuple(orient[p][ko].ravel().tolist()))
-        out.append("            }\n            double3 xformOp:translate.timeSamples = {\n")
-        out.append((ROW_NANO * int(kt.sum())) % tuple(translate[p][kt].ravel().tolist()))
-        ops = '"xformOp:translate", "xformOp:orient"'
-        if end < f_count:
-            # Blender's USD importer ignores visibility: shrink to nothing as well
-            # held at 1 up to the frame before (samples interpolate linearly)
-            keep = "".join(f"                {f}: (1, 1, 1),\n"
-                           for f in sorted({0, end - 1}) if 0 <= f < end)
-            out.append("            }\n            float3 xformOp:scale.timeSamples = {\n"
-                       f"{keep}                {end}: (0, 0, 0),\n")
-            ops += ', "xformOp:scale"'
-        out.append("            }\n"
-                   f"            uniform token[] xformOpOrder = [{ops}]\n\n")
-        # the mesh carries the piece's name, so importers that merge an Xform with
-        # its only child (Blender) keep it
-        out.append(self._mesh_text(f"piece_{p:05d}", p, "            "))
-        out.append("        }\n\n")
-        return "".join(out)
-
-    def _piece_primvars_text(self, p: int, indent: str) -> str:
-        """Constant primvars of piece p for lighters and scripts: its index (stable for
-        the same inputs and seed), mass (kg) and the object it was cut from."""
-        return (f"{indent}int primvars:blastvox:piece = {p}\n"
-                f"{indent}double primvars:blastvox:mass = {float(self.cache.piece_mass[p])!r}\n"
-                f"{indent}string primvars:blastvox:object = {usda_string(self.objects[p])}\n")
-
-    def _instancer_text(self) -> str:
-        targets = ",\n".join(f"            <{ROOT}/Pieces/Prototypes/piece_{p:05d}>"
-                             for p in range(self.pieces))
-        out = ['    def PointInstancer "Pieces"\n    {\n',
-               "        float3[] extent\n        int64[] invisibleIds\n        int64[] ids\n"
-               "        vector3f[] velocities\n        vector3f[] angularVelocities\n"
-               "        double[] primvars:blastvox:mass (\n"
-               '            interpolation = "vertex"\n        )\n'
-               "        string[] primvars:blastvox:object (\n"
-               '            interpolation = "vertex"\n        )\n'
-               "        quath[] orientations\n        quatf[] orientationsf\n"
-               "        point3f[] positions\n"
-               "        int[] protoIndices\n",
-               f"        rel prototypes = [\n{targets}\n        ]\n\n" if self.pieces else "",
-               '        def Scope "Prototypes"\n        {\n']
-        for p in range(self.pieces):
-            out.append(self._mesh_text(f"piece_{p:05d}", p, "            "))
-            out.append("\n")
-        out.append("        }\n    }\n")
-        return "".join(out)
+                self.material_path(material, bool(damage)))
 
     # -- values
-    def _mesh_path(self, p: int) -> Sdf.Path:
-        if self.instancer:
-            return Sdf.Path(f"{ROOT}/Pieces/Prototypes/piece_{p:05d}")
-        return Sdf.Path(f"{ROOT}/{self.object_prims[p]}/piece_{p:05d}/piece_{p:05d}")
-
-    def _mesh_values(self) -> None:
-        m = self.meshes
-        get = self.layer.GetAttributeAtPath
-        self.damage_paths = []
-        for p in range(self.pieces):
-            path = self._mesh_path(p)
-            prop = path.AppendProperty
-            t0, t1 = int(m.offsets[p]), int(m.offsets[p + 1])
-            v0, v1 = int(self.point_offsets[p]), int(self.point_offsets[p + 1])
-            points = self.points[v0:v1]
-            get(prop("points")).default = vec3f(points)
-            get(prop("extent")).default = points_extent(points)
-            get(prop("faceVertexCounts")).default = Vt.IntArray(t1 - t0, 3)
-            get(prop("faceVertexIndices")).default = Vt.IntArray.FromNumpy(
-                self.indices[3 * t0:3 * t1])
-            get(prop("normals")).default = vec3f(self.normals[3 * t0:3 * t1])
-            get(prop("primvars:displayColor")).default = vec3f(self.face_color[t0:t1])
-            get(prop("primvars:st")).default = Vt.Vec2fArray.FromNumpy(
-                np.ascontiguousarray(self.look.uv[t0:t1].reshape(-1, 2)))
-            damage = prop("primvars:damage")
-            get(damage).default = Vt.FloatArray(t1 - t0, 0.0)
-            self.damage_paths.append(damage)
-            for g in range(int(self.subset_piece_offsets[p]),
-                           int(self.subset_piece_offsets[p + 1])):
-                faces = self.subset_order[self.subset_start[g]:self.subset_start[g + 1]]
-                subset = path.AppendChild(self._subset(int(self.subset_key[g]))[0])
-                get(subset.AppendProperty("indices")).default = Vt.IntArray.FromNumpy(
-                    self.local_face[faces])
-
     def _damage_samples(self) -> None:
         """Time samples of each piece's per-face damage primvar, in one pass over the
         frames: a sample where a piece's damage changes, plus one on the frame before
@@ -541,17 +269,17 @@ class _Writer:
                 set_sample(self.damage_paths[p], float(f), Vt.FloatArray.FromNumpy(current))
                 last[p] = (f, current)
 
-    def _animation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+    def animation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         pos = _finite_hold(self.anim.position)
         ori = quaternion.sign_continuous(_finite_hold(self.anim.orientation))
         return pos, ori
 
-    def _instancer_samples(self) -> None:
+    def _instancer_samples(self, spec: Sdf.PrimSpec) -> None:
         p_count = self.pieces
-        inst = Sdf.Path(f"{ROOT}/Pieces")
+        inst = spec.path
         self.layer.GetAttributeAtPath(inst.AppendProperty("protoIndices")).default = \
             Vt.IntArray.FromNumpy(np.arange(p_count, dtype=np.int32))
-        pos, ori = self._animation_arrays()
+        pos, ori = self.animation_arrays()
         # the corners of each prototype's box, turned and moved per frame, bound the instances
         lo = np.zeros((p_count, 3))
         hi = np.zeros((p_count, 3))
@@ -632,14 +360,6 @@ def write_usd(cache: SimCache, path: Path, options: ExportOptions) -> None:
             with contextlib.suppress(OSError):
                 directory.rmdir()
         raise
-
-
-def _usda_asset(path: str) -> str:
-    """An asset path as usda text: ``@path@``, or ``@@@path@@@`` (with ``@@@`` inside
-    escaped) when it holds an ``@`` (an output named ``shot@v2.usdc``)."""
-    if "@" not in path:
-        return f"@{path}@"
-    return "@@@" + path.replace("@@@", "\\@@@") + "@@@"
 
 
 def _write_textures(files: list[tuple[str, bytes]], directory: Path) -> list[Path]:

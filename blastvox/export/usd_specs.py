@@ -41,11 +41,6 @@ def xform_order(prim: Sdf.PrimSpec, ops: list[str]) -> None:
     spec.default = Vt.TokenArray(ops)
 
 
-def usda_string(text: str) -> str:
-    """``text`` as a double-quoted usda string literal."""
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
-
-
 def object_prim_names(objects: list[str]) -> list[str]:
     """A valid, unique prim name for each piece's object name (P,): the name made a USD
     identifier (``Tf.MakeValidIdentifier``), ``object`` for an empty one, and a
