@@ -42,13 +42,7 @@ def connect(scheduler: str | None, workers: int,
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
-        try:
-            client = Client(scheduler, timeout=f"{timeout_s}s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            reason = str(exc).split("\n")[0] or type(exc).__name__
-            raise WedgeError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
-                             f"({reason})") from None
-        with client:
+        with client_of(scheduler, timeout_s) as client:
             yield client
         return
     with _workers_ignore_ctrl_c():
@@ -56,6 +50,45 @@ def connect(scheduler: str | None, workers: int,
                                dashboard_address=":0", silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
         yield client
+
+
+def client_of(scheduler: str, timeout_s: float) -> Any:
+    """A client of the existing ``scheduler``, connected within ``timeout_s`` or one
+    WedgeError line naming the address and the cause (:mod:`blastvox.wedge.probe` asks
+    first; Dask's own connection is bounded by a watchdog, since it can wait past its
+    timeout)."""
+    from dask.distributed import Client
+
+    from blastvox.wedge.probe import probe
+
+    left = probe(scheduler, timeout_s)
+    made: dict[str, Any] = {}
+
+    def make() -> None:
+        try:
+            made["client"] = Client(scheduler, timeout=f"{left}s")
+        except BaseException as exc:  # handed to the caller's thread
+            made["error"] = exc
+
+    thread = threading.Thread(target=make, name="blastvox-connect", daemon=True)
+    thread.start()
+    thread.join(left + 2.0)
+    if thread.is_alive():
+        raise WedgeError(f"--scheduler {scheduler}: the scheduler accepted the connection "
+                         f"but did not finish Dask's handshake within {timeout_s:g} s "
+                         "(--connect-timeout)")
+    exc = made.get("error")
+    if isinstance(exc, MemoryError):
+        raise WedgeError(f"--scheduler {scheduler}: it answers, but not in Dask's protocol "
+                         "(its reply read as a frame larger than memory); not a Dask "
+                         "scheduler") from None
+    if exc is not None:
+        if not isinstance(exc, Exception):
+            raise exc
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise WedgeError(f"--scheduler {scheduler}: cannot connect to the Dask scheduler "
+                         f"({reason})") from None
+    return made["client"]
 
 
 def local_workers(asked: int | None, shots: int) -> int:
