@@ -8,10 +8,12 @@ order, no timestamps) and write atomically.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 
 from blastvox.cache import SimCache
-from blastvox.errors import BlastvoxError
+from blastvox.errors import BlastvoxError, OutputError
 from blastvox.export.options import ExportOptions
 from blastvox.geometry.frames import UP_AXES
 
@@ -53,9 +55,7 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
 
             write_usdz(cache, path, options)
         else:
-            from blastvox.export.usd import write_usd
-
-            write_usd(cache, path, options)
+            _write_usd_staged(cache, path, options)
     elif suffix in GLTF_SUFFIXES:
         if options.layout == "instancer":
             raise BlastvoxError(f"{path}: --layout instancer is USD only; glTF takes xforms "
@@ -75,3 +75,49 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
     else:
         raise BlastvoxError(f"{path}: unknown export format {suffix or '(no suffix)'!r}; use "
                             f"{', '.join(USD_SUFFIXES + GLTF_SUFFIXES)}")
+
+
+def _write_usd_staged(cache: SimCache, path: Path, options: ExportOptions) -> None:
+    """write_usd into a private folder beside ``path``, then its textures folder and the
+    file moved into place, the folder first (issue 36): a failed export (a full disk,
+    Ctrl-C, an error) leaves the previous export and its textures as they were, and no
+    temporary behind (a killed one's is removed by the next export); USD's errors are
+    one line."""
+    import os
+
+    from blastvox.export.usd import write_usd
+    from blastvox.io.atomic import staged_directory, swapped_in
+    from blastvox.io.outputs import refuse_special
+
+    _, textures = side_outputs(path)
+    with staged_directory(path) as staging, _usd_errors(path):
+        staged = staging / path.name
+        try:
+            write_usd(cache, staged, options)
+        except OutputError as exc:  # name the file where it was to go, not the staging
+            where = "" if path.parent == Path(".") else f"{path.parent}{os.sep}"
+            raise OutputError(str(exc).replace(f"{staging}{os.sep}", where)) from None
+        new = staging / textures.name if textures is not None else None
+        swap = (swapped_in(new, textures) if new is not None and new.is_dir()
+                else contextlib.nullcontext())
+        try:
+            with swap:
+                refuse_special(path, "output")  # it may have become a device meanwhile
+                os.replace(staged, path)
+        except OSError as exc:
+            raise OutputError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+@contextlib.contextmanager
+def _usd_errors(path: Path) -> Iterator[None]:
+    """USD's error (a Tf.ErrorException holding every C++ error: 9,963 lines for a full
+    disk) as one OutputError line: the first error's own words."""
+    from pxr import Tf
+
+    try:
+        yield
+    except Tf.ErrorException as exc:
+        first = str(exc.args[0]) if exc.args else str(exc)
+        first = next((line for line in first.splitlines() if line.strip()), first)
+        said = first.split(" : ", 1)[-1].strip().strip("'\" ")
+        raise OutputError(f"{path}: cannot write ({' '.join(said.split())})") from None

@@ -12,6 +12,7 @@ files it had finished.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import socket
@@ -38,12 +39,15 @@ CHUNKY_VOXELS = 8
 
 def run_shot(spec: ShotSpec) -> dict[str, Any]:
     """Run ``spec``'s shot (missing stages only); its result record (see :func:`record`)."""
+    from blastvox.io.atomic import clean_stale
     from blastvox.scene import scene_from_dict
     from blastvox.shot import build_shot
 
     directory = Path(spec.directory)
-    for stale in directory.glob(".*.partial"):  # a write cut short when its worker was killed
-        stale.unlink(missing_ok=True)
+    clean_stale(directory)  # writes cut short when their worker was killed; never a live one's
+    earlier = _earlier_result(spec)
+    for owner in corrupted(spec, earlier) if earlier is not None else []:
+        owner.unlink(missing_ok=True)  # its stage (and those after it) runs again
     lines: list[str] = []
     seconds: dict[str, float] = {}
     started = time.perf_counter()
@@ -74,8 +78,9 @@ def run_shot(spec: ShotSpec) -> dict[str, Any]:
     result = record(spec, status, error, stats, seconds, time.perf_counter() - started)
     try:
         _write_text(directory / LOG, "\n".join(lines) + "\n")
-        if status == "ran":
-            _write_text(directory / RESULT, json.dumps(result, indent=1, sort_keys=True) + "\n")
+        if status == "ran":  # with its files' digests, checked before it is called done
+            _write_text(directory / RESULT, json.dumps({**result, "files": file_digests(spec)},
+                                                       indent=1, sort_keys=True) + "\n")
     except BlastvoxError as exc:  # a full disk, a read-only directory: the shot is not done
         result = record(spec, "failed", str(exc), stats, seconds, time.perf_counter() - started)
     return result
@@ -96,22 +101,103 @@ def record(spec: ShotSpec, status: str, error: str | None, stats: dict[str, Any]
 
 def cached_result(spec: ShotSpec) -> dict[str, Any] | None:
     """The result of a shot that finished in an earlier wedge (status "cached"), or None
-    if it has not (no readable ``result.json`` for this key, or an output is missing)."""
-    directory = Path(spec.directory)
-    try:
-        result = json.loads((directory / RESULT).read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(result, dict) or result.get("key") != spec.key:
+    if it has not (no readable ``result.json`` for this key, an output is missing, or
+    one is not the file the shot finished with: its size and SHA-256 are recorded at
+    completion and checked here, so a corrupted ``sim.npz`` runs its shot again)."""
+    result = _earlier_result(spec)
+    if result is None:
         return None
     output = spec.scene["output"]
     needed = [output["model"], output["cache"], *output.get("export", [])]
     if spec.preview:
-        needed.append(str(directory / PREVIEW))
-    if not all(Path(p).is_file() for p in needed):
+        needed.append(str(Path(spec.directory) / PREVIEW))
+    if not all(Path(p).is_file() for p in needed) or corrupted(spec, result):
         return None
+    result.pop("files", None)
     return {**result, "status": "cached", "params": spec.params, "shot": spec.index,
             "directory": spec.directory}
+
+
+def _earlier_result(spec: ShotSpec) -> dict[str, Any] | None:
+    """The shot's ``result.json`` if it is one of this key, else None."""
+    try:
+        result = json.loads((Path(spec.directory) / RESULT).read_text())
+    except (OSError, ValueError):
+        return None
+    return result if isinstance(result, dict) and result.get("key") == spec.key else None
+
+
+def _shot_files(spec: ShotSpec) -> list[tuple[Path, Path]]:
+    """(output, file) of every file a finished shot consists of: the model, the cache,
+    each export with the files it writes beside it (a .gltf's .bin, a USD file's
+    textures), the preview; ``output`` is the file whose stage makes ``file``."""
+    from blastvox.export.api import side_outputs
+
+    output = spec.scene["output"]
+    files = [(Path(output["model"]),) * 2, (Path(output["cache"]),) * 2]
+    for export in map(Path, output.get("export", [])):
+        files.append((export, export))
+        buffer, textures = side_outputs(export)
+        if buffer is not None:
+            files.append((export, buffer))
+        if textures is not None and textures.is_dir():
+            files += [(export, f) for f in sorted(textures.rglob("*")) if f.is_file()]
+    if spec.preview:
+        files.append((Path(spec.directory) / PREVIEW,) * 2)
+    return files
+
+
+def _digest(path: Path) -> dict[str, Any] | None:
+    import hashlib
+
+    try:
+        with open(path, "rb") as fh:
+            return {"bytes": os.fstat(fh.fileno()).st_size,
+                    "sha256": hashlib.file_digest(fh, "sha256").hexdigest()}
+    except OSError:
+        return None
+
+
+def _name(spec: ShotSpec, path: Path) -> str:
+    """``path`` as recorded: relative to the shot's folder when inside it."""
+    with contextlib.suppress(ValueError):
+        return Path(path).relative_to(spec.directory).as_posix()
+    return str(path)
+
+
+def file_digests(spec: ShotSpec) -> dict[str, dict[str, Any]]:
+    """The size and SHA-256 of each of the shot's files (and the output that makes it,
+    ``of``), as its result records them at completion."""
+    recorded = {}
+    for owner, path in _shot_files(spec):
+        digest = _digest(path)
+        if digest is not None:
+            recorded[_name(spec, path)] = {**digest, "of": _name(spec, owner)}
+    return recorded
+
+
+def corrupted(spec: ShotSpec, result: dict[str, Any]) -> list[Path]:
+    """The outputs whose files are not those ``result`` recorded (missing, another size
+    or digest); [] for a result that recorded none (written before files were)."""
+    recorded = result.get("files")
+    if not isinstance(recorded, dict):
+        return []
+    bad: list[Path] = []
+    for name, was in recorded.items():
+        if not isinstance(was, dict):
+            continue
+        path = Path(spec.directory) / name
+        owner = Path(spec.directory) / str(was.get("of", name))
+        if owner in bad:
+            continue
+        try:
+            size = path.stat().st_size
+        except OSError:
+            size = None
+        if size != was.get("bytes") or _digest(path) != {"bytes": was.get("bytes"),
+                                                           "sha256": was.get("sha256")}:
+            bad.append(owner)
+    return bad
 
 
 def cache_stats(cache: Any) -> dict[str, Any]:
