@@ -54,6 +54,8 @@ MAKE_COMMAND = "make blender-venv"
 TIMEOUT = 300  # s per Blender run (about 2 s here)
 TOL = 1e-3  # m
 FPS = 24
+#: the scene camera: position, look-at (model frame, Z up) and a 50 mm lens
+CAMERA = ((1.0, -9.0, 1.5), (0.0, 0.0, 1.0), 50.0)
 # Blender's Y-up -> Z-up conversion: (x, y, z) -> (x, -z, y)
 BLENDER_FROM_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
@@ -123,7 +125,7 @@ def shot(tmp_path_factory) -> Shot:
     trimesh.creation.box(extents=(2, 0.5, 2)).export(tmp / "wall.stl")
     model = voxelize([ObjectRequest(mesh=tmp / "wall.stl", voxel_size=(0.25,) * 3,
                                     material="brick")], VoxelizeSettings(up_axis="Z"))
-    cache = simulate(model, SimSettings(duration=0.5, fps=FPS,
+    cache = simulate(model, SimSettings(duration=0.5, fps=FPS, camera=CAMERA,
                                         charges=(ChargeSpec((0, -2.0, 1.0), 40.0),)))
     assert cache.model.meta["up_axis"] == "Z"
     export(cache, tmp / "shot.usdc")
@@ -192,8 +194,10 @@ def test_pieces_hang_under_their_object(shot: Shot, gltf: dict, usd: dict, kind:
 def test_gltf_import(shot: Shot, gltf: dict) -> None:
     assert gltf["format"] == "gltf"
     assert gltf["piece_count"] == shot.pieces
-    # glTF has no frame range: the scene keeps the empty factory scene's 1..250, and the
-    # animation (one action) spans frames 0..F-1 (frame = time x 24 fps, no offset)
+    # glTF has no frame range, and Blender 5.0's importer never sets the scene's (its
+    # io_scene_gltf2/blender/imp writes keys at time x fps and reads scene extras as
+    # custom properties only): the scene keeps the empty factory scene's 1..250, and
+    # the animation (one action) spans frames 0..F-1 (frame = time x 24 fps, no offset)
     assert (gltf["frame_start"], gltf["frame_end"]) == (1, 250)
     assert gltf["fps"] == FPS
     assert gltf["actions"] == 1
@@ -250,8 +254,40 @@ def test_gltf_skinned_layout_imports_as_one_object(shot: Shot, gltf: dict, tmp_p
     export(shot.cache, path, ExportOptions(layout="skinned"))
     report = _blender(path, [shot.mid, shot.late])
     assert report["objects"].get("ARMATURE") == 1 and report["piece_count"] == 0
-    # the root and object empties, the armature (its skin), the mesh, a bone shape
-    assert sum(report["objects"].values()) <= 5, report["objects"]
+    # the root and object empties, the armature (its skin), the mesh, a bone shape and
+    # the scene camera
+    assert sum(report["objects"].values()) <= 6, report["objects"]
     for f in (shot.mid, shot.late):
         np.testing.assert_allclose(report["scene_bounds"][str(f)],
                                    gltf["scene_bounds"][str(f)], atol=TOL)
+
+
+@pytest.mark.parametrize("kind", ["gltf", "usd"])
+def test_piece_data_arrives_as_custom_properties(shot: Shot, gltf: dict, usd: dict,
+                                                 kind: str) -> None:
+    """Each piece object carries its index, mass and source object as custom properties
+    of the same names from both formats: glTF node extras, USD ``userProperties:``
+    (Blender drops the namespace), for scripts, drivers and a shader's Attribute node
+    (type Object)."""
+    report = {"gltf": gltf, "usd": usd}[kind]
+    name = shot.cache.model.meta["objects"][0]["name"]
+    got = report["properties"]
+    assert len(got) == shot.pieces
+    for p in range(shot.pieces):
+        props = got[shot.name(p)]
+        assert props["piece"] == p and props["object"] == name, props
+        assert props["mass_kg"] == pytest.approx(float(shot.cache.piece_mass[p]), rel=1e-12)
+
+
+def test_cameras_frame_alike(gltf: dict, usd: dict) -> None:
+    """The scene camera frames the same from both formats at Blender's default render
+    (1920 x 1080): 36 mm of film across behind the scene's lens. USD arrives with its
+    filmback and a horizontal fit, glTF with its yfov and a vertical fit (the importer
+    ignores aspectRatio), so the glTF's yfov is the 16:9 frame's (it was 24 mm of a 3:2
+    frame: 19 % wider in Blender)."""
+    (cam_usd,), (cam_gltf,) = usd["cameras"], gltf["cameras"]
+    assert cam_usd["render"] == cam_gltf["render"] == [1920, 1080]
+    assert cam_usd["sensor_fit"] == "HORIZONTAL" and cam_gltf["sensor_fit"] == "VERTICAL"
+    width = 2 * np.arctan(18.0 / CAMERA[2])
+    np.testing.assert_allclose(cam_usd["fov"], cam_gltf["fov"], rtol=1e-5)
+    assert cam_usd["fov"][0] == pytest.approx(width, rel=1e-5)

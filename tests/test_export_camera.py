@@ -36,12 +36,13 @@ def test_usd_camera_translation_carries_the_shake(cache, tmp_path):
     stage = Usd.Stage.Open(str(path))
     cam = UsdGeom.Camera(stage.GetPrimAtPath("/Shot/Camera"))
     # UsdGeomCamera's lens and filmback are in tenths of a scene unit: on this metre
-    # stage a 50 mm lens is 0.5 and a 36 x 24 mm filmback 0.36 x 0.24 (Blender read
-    # 50 as a 5000 mm lens); the field of view is the one of 50 mm on 36 mm film
+    # stage a 50 mm lens is 0.5 and a 36 x 20.25 mm (16:9) filmback 0.36 x 0.2025
+    # (Blender read 50 as a 5000 mm lens); the field of view is the one of 50 mm on
+    # 36 mm film
     assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
     assert cam and cam.GetFocalLengthAttr().Get() == pytest.approx(0.5)
     assert cam.GetHorizontalApertureAttr().Get() == pytest.approx(0.36)
-    assert cam.GetVerticalApertureAttr().Get() == pytest.approx(0.24)
+    assert cam.GetVerticalApertureAttr().Get() == pytest.approx(0.2025)
     fov = cam.GetCamera(0).GetFieldOfView(Gf.Camera.FOVHorizontal)
     assert fov == pytest.approx(np.degrees(2 * np.arctan(18.0 / 50.0)), rel=1e-5)
     change = frame_change("Z", "Y")
@@ -62,7 +63,12 @@ def test_gltf_camera_node(cache, tmp_path):
     length = struct.unpack_from("<I", data, 12)[0]
     doc = json.loads(data[20:20 + length])
     node = next(n for n in doc["nodes"] if n.get("name") == "camera")
-    assert doc["cameras"][node["camera"]]["type"] == "perspective"
+    lens = doc["cameras"][node["camera"]]
+    assert lens["type"] == "perspective"
+    # the USD export's frame: 36 mm wide at 16:9 behind a 50 mm lens
+    assert lens["perspective"]["aspectRatio"] == pytest.approx(16 / 9)
+    half_width = lens["perspective"]["aspectRatio"] * np.tan(lens["perspective"]["yfov"] / 2)
+    assert half_width == pytest.approx(18.0 / CAMERA[2])
     change = frame_change("Z", "Y")
     np.testing.assert_allclose(node["translation"],
                                (np.asarray(CAMERA[0]) + cache.camera_offset[0]) @ change.T,

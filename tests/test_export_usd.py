@@ -466,6 +466,13 @@ def test_piece_xforms_carry_index_mass_and_object(synthetic, tmp_path):
         assert primvars.GetPrimvar("blastvox:piece").Get() == p
         assert primvars.GetPrimvar("blastvox:mass").Get() == synthetic.piece_mass[p]
         assert primvars.GetPrimvar("blastvox:object").Get() == names[p]
+        # and as custom userProperties, which Blender imports as custom properties
+        # named as the glTF export's node extras
+        prim = stage.GetPrimAtPath(PIECE[p])
+        for key, value in (("piece", p), ("mass_kg", synthetic.piece_mass[p]),
+                           ("object", names[p])):
+            attr = prim.GetAttribute(f"userProperties:{key}")
+            assert attr.IsCustom() and attr.Get() == value
     assert validate_usd(tmp_path / "shot.usda") == []
 
 

@@ -82,6 +82,11 @@ LINEAR_FILTER, LINEAR_MIPMAP_LINEAR, REPEAT = 9729, 9987, 10497
 SAMPLER = {"magFilter": LINEAR_FILTER, "minFilter": LINEAR_MIPMAP_LINEAR,
            "wrapS": REPEAT, "wrapT": REPEAT}
 ROUGHNESS = 0.8
+#: the camera's film (mm): 36 mm wide at 16:9, as the USD export's filmback
+#: (usd_effects.FILMBACK_MM). Blender's glTF importer keeps yfov with a vertical fit
+#: and ignores aspectRatio, so at its default 16:9 render it frames what the USD
+#: import (36 mm, horizontal fit) frames
+FILM_MM = (36.0, 20.25)
 SHOCK_COLOR = (1.0, 0.55, 0.15, 0.15)
 SPHERE_SEGMENTS, SPHERE_RINGS = 32, 16
 _GLB_MAGIC, _GLB_JSON, _GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
@@ -308,7 +313,8 @@ def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[d
         channel(len(nodes) - 1, "translation", t_acc,
                 b.accessor(view, 0, FLOAT, len(offset), "VEC3"))
     return [{"name": "camera", "type": "perspective", "perspective": {
-        "yfov": float(2.0 * np.arctan(24.0 / (2.0 * focal))), "aspectRatio": 1.5,
+        "yfov": float(2.0 * np.arctan(FILM_MM[1] / (2.0 * focal))),
+        "aspectRatio": FILM_MM[0] / FILM_MM[1],
         "znear": 0.1, "zfar": 10000.0}}]
 
 

@@ -35,7 +35,10 @@ PARTICLE_LOOKS = {"dust": {"opacity": 0.35, "emissive": 0.0},
 #: UsdGeomCamera measures lens and filmback in tenths of a scene unit; the stage is in
 #: metres (metersPerUnit 1), so 1 mm is 1 / MM_PER_TENTH_METRE of that unit.
 MM_PER_TENTH_METRE = 100.0
-FILMBACK_MM = (36.0, 24.0)
+#: the filmback: 36 mm wide at 16:9, the frame of ``blastvox preview`` and of Blender's
+#: default render (1920 x 1080). Blender's USD importer fits the width (sensor_fit
+#: HORIZONTAL); the glTF export's yfov is the same frame's (gltf.FILM_MM).
+FILMBACK_MM = (36.0, 20.25)
 
 
 # ----------------------------------------------------------------------------- particles

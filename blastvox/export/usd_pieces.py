@@ -173,7 +173,8 @@ def write_mesh(w, parent: Sdf.PrimSpec, name: str, p: int) -> None:
 
 def write_xforms(w, shot: Sdf.PrimSpec) -> None:
     """Layout "xforms": an Xform per scene object holding an Xform per piece (constant
-    primvars piece, mass and object; time-sampled velocity and angularVelocity
+    primvars piece, mass and object, and the same as custom ``userProperties:``, which
+    Blender imports as the object's custom properties; time-sampled velocity and angularVelocity
     primvars, translate, orient and, for a piece that vanishes, visibility and a scale
     to 0) whose child Mesh carries the piece's name (importers that merge an Xform
     with its only child, Blender's, keep it)."""
@@ -190,6 +191,14 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
             _attr(xform, "primvars:blastvox:piece", _T.Int, p)
             _attr(xform, "primvars:blastvox:mass", _T.Double, float(mass[p]))
             _attr(xform, "primvars:blastvox:object", _T.String, w.objects[p])
+            # the same as custom properties, which Blender's importer reads (its own
+            # convention for them: the namespace is dropped): piece, mass_kg and object,
+            # the names the glTF export's node extras give them
+            for key, type_name, value in (("piece", _T.Int, p), ("mass_kg", _T.Double,
+                                                                 float(mass[p])),
+                                          ("object", _T.String, w.objects[p])):
+                Sdf.AttributeSpec(xform, f"userProperties:{key}", type_name, _VARYING,
+                                  True).default = value
             for key, type_name in (("primvars:blastvox:velocity", _T.Vector3f),
                                    ("primvars:blastvox:angularVelocity", _T.Vector3f)):
                 paths[key][p] = _attr(xform, key, type_name).path

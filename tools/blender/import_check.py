@@ -27,6 +27,9 @@ writes to stdout, are sent to stderr)::
      "action_frame_range": [a, b] | null,       # union of the actions' frame ranges
      "transform_caches": C,     # Transform Cache constraints (USD transform animation)
      "scene_bounds": {"FRAME": [[x0, y0, z0], [x1, y1, z1]] | null},  # all shown meshes
+     "properties": {"piece_00000": {"piece": 0, "mass_kg": m, "object": "wall"}, ...},
+     "cameras": [{"name", "lens_mm", "sensor_fit", "sensor_mm": [w, h],
+                  "render": [x, y], "fov": [horizontal, vertical] (radians)}],
      "frames": {"FRAME": {"piece_00000": {
          "location": [x, y, z],     # evaluated matrix_world.translation (Blender Z-up world)
          "rotation": [w, x, y, z],  # evaluated matrix_world's rotation, unit quaternion
@@ -54,6 +57,8 @@ import numpy as np
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 GLTF_SUFFIXES = (".gltf", ".glb")
 PREFIX = "piece_"
+#: the piece data both exports give each piece object as custom properties
+PIECE_PROPERTIES = ("piece", "mass_kg", "object")
 
 
 def _import(path: Path, options: dict) -> str:
@@ -97,6 +102,24 @@ def _bounds(obj, depsgraph) -> list | None:
         return None
     return [np.min([b[0] for b in boxes], axis=0).tolist(),
             np.max([b[1] for b in boxes], axis=0).tolist()]
+
+
+def _camera(obj, scene) -> dict:
+    """A camera's lens, sensor and fit, and the horizontal and vertical fields of view
+    (radians) it frames at the scene's render size."""
+    cam = obj.data
+    r = scene.render
+    aspect = (r.resolution_x * r.pixel_aspect_x) / (r.resolution_y * r.pixel_aspect_y)
+    fit = cam.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if aspect >= 1 else "VERTICAL"
+    half = cam.sensor_width / 2 / cam.lens if fit == "HORIZONTAL" else (
+        (cam.sensor_height if cam.sensor_fit == "VERTICAL" else cam.sensor_width) / 2 / cam.lens)
+    tan_x, tan_y = (half, half / aspect) if fit == "HORIZONTAL" else (half * aspect, half)
+    return {"name": obj.name, "lens_mm": cam.lens, "sensor_fit": cam.sensor_fit,
+            "sensor_mm": [cam.sensor_width, cam.sensor_height],
+            "render": [r.resolution_x, r.resolution_y],
+            "fov": [2 * float(np.arctan(tan_x)), 2 * float(np.arctan(tan_y))]}
 
 
 def _parse(argv: list[str]) -> tuple[list[str], dict]:
@@ -148,6 +171,11 @@ def main(argv: list[str]) -> int:
         "transform_caches": sum(1 for o in scene.objects for c in o.constraints
                                 if c.type == "TRANSFORM_CACHE"),
         "frames": {},
+        # each piece object's custom properties of the piece data (USD userProperties,
+        # glTF node extras)
+        "properties": {o.name: {k: o[k] for k in PIECE_PROPERTIES if k in o.keys()}
+                       for o in pieces},
+        "cameras": [_camera(o, scene) for o in scene.objects if o.type == "CAMERA"],
     }
     for frame in frames:
         scene.frame_set(frame)
