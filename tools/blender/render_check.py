@@ -4,7 +4,7 @@ Run by the Blender venv's python (``.venv-blender``: ``make blender-venv``), not
 the project's::
 
     .venv-blender/bin/python tools/blender/render_check.py FILE OUT_DIR FRAME [FRAME ...]
-        [--size WxH] [--samples N]
+        [--size WxH] [--samples N] [--motion-blur]
 
 What an artist does with a cache, in a script: FILE (.usd/.usda/.usdc or
 .gltf/.glb) is imported into an empty scene with the importer's defaults (as
@@ -123,13 +123,15 @@ def _render(scene: bpy.types.Scene, frame: int, out: Path) -> dict:
 
 
 def main(argv: list[str]) -> None:
-    args, size, samples = [], (96, 54), 4
+    args, size, samples, blur = [], (96, 54), 4, False
     it = iter(argv)
     for arg in it:
         if arg == "--size":
             size = tuple(int(v) for v in next(it).lower().split("x"))
         elif arg == "--samples":
             samples = int(next(it))
+        elif arg == "--motion-blur":
+            blur = True
         else:
             args.append(arg)
     path, out_dir, frames = Path(args[0]), Path(args[1]), [int(f) for f in args[2:]]
@@ -150,6 +152,11 @@ def main(argv: list[str]) -> None:
     scene.cycles.samples = samples
     scene.cycles.use_denoising = False
     scene.render.film_transparent = True
+    # Cycles' motion blur, shutter open a whole frame: it blurs what moves between the
+    # frame's sub-steps as the importers evaluate them (USD transform caches at
+    # sub-frames, glTF keyframes interpolated)
+    scene.render.use_motion_blur = blur
+    scene.render.motion_blur_shutter = 1.0
     scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     scene.render.image_settings.file_format = "PNG"
