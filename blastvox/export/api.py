@@ -53,7 +53,8 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
         if suffix == ".usdz":
             from blastvox.export.usdz import write_usdz
 
-            write_usdz(cache, path, options)
+            with _usd_errors(path):
+                write_usdz(cache, path, options)
         else:
             _write_usd_staged(cache, path, options)
     elif suffix in GLTF_SUFFIXES:
