@@ -86,16 +86,19 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
 
 
 def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] = print,
-              warn: Callable[[str], None] | None = None) -> list[str]:
+              warn: Callable[[str], None] | None = None,
+              references_anywhere: bool = False) -> list[str]:
     """Bring the scene's outputs up to date; returns the stages that ran.
 
     Stage modules are imported only when their stage runs, so an up-to-date
-    shot costs a few stat calls.
+    shot costs a few stat calls. ``references_anywhere``: a mesh's side files may lie
+    outside its folder (:mod:`blastvox.io.references`).
     """
     from blastvox.scene import load_scene
 
     scene_path = Path(scene_path)
-    return build_shot(load_scene(scene_path), scene_path, force=force, log=log, warn=warn)
+    return build_shot(load_scene(scene_path), scene_path, force=force, log=log, warn=warn,
+                      references_anywhere=references_anywhere)
 
 
 def check_simulation(scene: Scene, source: str) -> Any:
@@ -113,7 +116,8 @@ def check_simulation(scene: Scene, source: str) -> Any:
 
 def build_shot(scene: Scene, scene_path: Path, force: bool = False,
                log: Callable[[str], None] = print, warn: Callable[[str], None] | None = None,
-               seconds: dict[str, float] | None = None) -> list[str]:
+               seconds: dict[str, float] | None = None,
+               references_anywhere: bool = False) -> list[str]:
     """Bring the outputs of ``scene`` (read from ``scene_path``, whose name the model
     records) up to date, as :func:`run_scene`; returns the stages that ran.
 
@@ -128,10 +132,12 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
     exports = out.export if isinstance(out.export, list) else (
         [out.export] if out.export is not None else [])
     ran: list[str] = []
+    from blastvox.io.references import ReferencePolicy
     from blastvox.io.resources import mesh_resources
 
+    policy = ReferencePolicy(anywhere=references_anywhere)
     voxel_inputs = [scene_path] + [path for o in scene.objects
-                                   for path in mesh_resources(Path(o.mesh))]
+                                   for path in mesh_resources(Path(o.mesh), policy)]
     if scene.materials_file is not None:
         voxel_inputs.append(Path(scene.materials_file))
     _check_outputs(out.model, out.cache, exports, voxel_inputs, out.layout)
@@ -145,6 +151,7 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
         started = time.perf_counter()
         settings = settings_from_scene(scene)
         settings.recorded = {"scene": scene_path.name}
+        settings.references_anywhere = references_anywhere
         model = voxelize(requests_from_scene(scene), settings, warn=warn)
         model.save(out.model)
         seconds["voxelize"] = time.perf_counter() - started

@@ -154,3 +154,27 @@ def test_diff_of_a_gltf_does_not_read_what_its_buffers_point_at(tmp_path, uri, w
     assert len(lines) == 1 and "b.gltf" in lines[0] and uri in lines[0], lines
     for word in words:
         assert word in lines[0], lines
+
+
+def test_run_takes_references_anywhere_too(tmp_path):
+    """The refusal names --references-anywhere; `run` takes it (it had no such flag), and
+    then counts the texture outside among the voxelize stage's inputs."""
+    work = tmp_path / "shot"
+    work.mkdir()
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (200, 30, 30)).save(tmp_path / "skin.png")
+    _obj(work, "box.mtl", "../skin.png")
+    (work / "scene.toml").write_text(
+        '[[objects]]\nmesh = "box.obj"\nvoxel_size = 0.25\n[[charges]]\n'
+        'position = [0, -2, 0.5]\nmass_kg = 1\n[simulation]\nduration = 0.05\n'
+        '[output]\nmodel = "o/m.npz"\ncache = "o/s.npz"\n')
+    outcome = run_blastvox("run", "scene.toml", "-q", cwd=work)
+    assert_clean_failure(outcome, ["box.obj", "skin.png", "--references-anywhere"],
+                         words=["outside the folder"])
+    assert run_blastvox("run", "scene.toml", "-q", "--references-anywhere", cwd=work).code == 0
+    again = run_blastvox("run", "scene.toml", "--references-anywhere", cwd=work)
+    assert "up to date" in again.stderr
+    os.utime(tmp_path / "skin.png", (2e9, 2e9))  # the texture outside changed
+    again = run_blastvox("run", "scene.toml", "--references-anywhere", cwd=work)
+    assert "voxelize" in again.stderr, again.stderr

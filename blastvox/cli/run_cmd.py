@@ -14,6 +14,10 @@ def run(
     force: bool = typer.Option(False, "-B", "--force", help="Run every stage even if its "
                                "output is up to date."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing but errors."),
+    references_anywhere: bool = typer.Option(
+        False, "--references-anywhere", help="Let a mesh's side files (an OBJ's MTL and "
+        "textures, a .gltf's buffers and images) lie outside its folder; they must still "
+        "be regular files (no device, FIFO or URL)."),
 ) -> None:
     """Run voxelize -> simulate -> export as the scene says, skipping up-to-date stages.
 
@@ -33,7 +37,8 @@ def run(
     with cli_warnings(console):
         ran = run_scene(scene, force=force, log=log,
                         warn=lambda m: console.print(f"blastvox: warning: {m}", markup=False,
-                                                  highlight=False))
+                                                  highlight=False),
+                        references_anywhere=references_anywhere)
     if ran and not quiet:
         console.print(f"{scene}: {', '.join(ran)} in {time.perf_counter() - started:.2f} s",
                       markup=False, highlight=False)

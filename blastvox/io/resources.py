@@ -20,45 +20,47 @@ _POLICY = ReferencePolicy()
 _MTL_MAP = r"^\s*(?:map_\w+|bump|disp|decal|norm)\s+(?:-\S+\s+\S+\s+)*(.+?)\s*$"
 
 
-def mesh_resources(mesh: Path) -> list[Path]:
+def mesh_resources(mesh: Path, policy: ReferencePolicy | None = None) -> list[Path]:
     """``mesh`` and the files it refers to that change what voxelize or export reads:
     an OBJ's ``mtllib`` files and their ``map_*`` textures, a .gltf's buffer and image
     URIs (not ``data:`` URIs). References the reader policy refuses (outside the
     mesh's folder, a FIFO, a device, a URL: :mod:`blastvox.io.references`) are neither
-    read nor listed, and unreadable ones are left to the mesh reader, which says why."""
+    read nor listed, and unreadable ones are left to the mesh reader, which says why.
+    ``policy``: the reader policy (default: inside the mesh's folder)."""
+    policy = policy or _POLICY
     found = [mesh]
     suffix = mesh.suffix.lower()
     if suffix == ".obj":
-        for mtl in _referenced(mesh, r"^\s*mtllib\s+(.+?)\s*$"):
+        for mtl in _referenced(mesh, r"^\s*mtllib\s+(.+?)\s*$", policy):
             found.append(mtl)
-            found += _referenced(mtl, _MTL_MAP)
+            found += _referenced(mtl, _MTL_MAP, policy)
     elif suffix == ".gltf":
-        found += _gltf_uris(mesh)
+        found += _gltf_uris(mesh, policy)
     return found
 
 
-def _referenced(path: Path, pattern: str) -> list[Path]:
+def _referenced(path: Path, pattern: str, policy: ReferencePolicy) -> list[Path]:
     """The files that ``path`` names (by ``pattern``) and the policy would read."""
     try:
-        text = _POLICY.read(path, path.name).decode("utf-8", errors="replace")
+        text = policy.read(path, path.name).decode("utf-8", errors="replace")
     except (OSError, InputError):
         return []
     return [ref for name in re.findall(pattern, text, flags=re.M)
-            if (ref := _allowed(path, name)) is not None]
+            if (ref := _allowed(path, name, policy)) is not None]
 
 
-def _allowed(referrer: Path, name: str) -> Path | None:
+def _allowed(referrer: Path, name: str, policy: ReferencePolicy) -> Path | None:
     """referrer's reference ``name`` if the reader policy reads it, else None."""
     try:
-        _POLICY.resolve(referrer, name)
+        policy.resolve(referrer, name)
     except (OSError, InputError):
         return None
     return referrer.parent / name
 
 
-def _gltf_uris(path: Path) -> list[Path]:
+def _gltf_uris(path: Path, policy: ReferencePolicy) -> list[Path]:
     try:
-        doc = json.loads(_POLICY.read(path, path.name).decode("utf-8"))
+        doc = json.loads(policy.read(path, path.name).decode("utf-8"))
     except (OSError, ValueError, InputError):
         return []
     if not isinstance(doc, dict):
@@ -68,6 +70,6 @@ def _gltf_uris(path: Path) -> list[Path]:
         for item in doc.get(kind) or []:
             uri = item.get("uri") if isinstance(item, dict) else None
             if isinstance(uri, str) and not uri.startswith("data:") and (
-                    ref := _allowed(path, uri)) is not None:
+                    ref := _allowed(path, uri, policy)) is not None:
                 uris.append(ref)
     return uris
