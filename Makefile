@@ -75,7 +75,7 @@ previews: $(STAMP)
 	done
 	$(BIN)/blastvox blast --charge 10 --distance 1,5,20 --plot docs/images/blast.png > /dev/null
 
-## bench: run every benchmark (about 20 minutes on 2 cores) and rewrite docs/benchmarks.md
+## bench: run every benchmark (about 30 minutes on 2 cores) and rewrite docs/benchmarks.md
 ## with their tables (and docs/images/tradeoff.png); progress goes to the terminal
 BENCH_DOC := docs/benchmarks.md
 bench: $(STAMP)
@@ -99,6 +99,8 @@ bench: $(STAMP)
 	  section Performance performance.py; \
 	  $(BIN)/python benchmarks/performance.py > "$$out.perf"; sed 's/^## /### /' "$$out.perf"; \
 	  section Export export.py; $(BIN)/python benchmarks/export.py; \
+	  section 'USD against glTF at 20,000 pieces' export_usd.py; \
+	  $(BIN)/python benchmarks/export_usd.py; \
 	  section Preview preview.py; $(BIN)/python benchmarks/preview.py; \
 	  section 'Wedges on Dask' wedge.py; $(BIN)/python benchmarks/wedge.py; \
 	  section 'Speed/accuracy trade' 'tradeoff.py --plot docs/images/tradeoff.png'; \
