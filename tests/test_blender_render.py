@@ -368,11 +368,11 @@ def fast_piece(tmp_path_factory: pytest.TempPathFactory) -> SimCache:
 def test_motion_blur_smears_a_fast_piece(fast_piece: SimCache, tmp_path: Path,
                                          suffix: str) -> None:
     """Cycles' motion blur reads the piece's motion from both formats: Blender evaluates
-    the USD transform cache and the glTF keys at the shutter's sub-frames (piece
-    velocities are not what it reads: it imports mesh ``velocities`` as a deformation
-    in the piece's own frame, zero for a rigid piece, and a PointInstancer's not at
-    all), so the mid-shot frame rendered with blur on differs from it rendered with blur
-    off: the cube is smeared sideways into a wider, partly transparent band."""
+    the USD transform cache and the glTF keys at the shutter's sub-frames (it would add
+    a mesh's ``velocities`` as vertex motion on top, blurring a piece twice, so the
+    export writes none there; a PointInstancer's it does not import), so the
+    mid-shot frame rendered with blur on differs from it rendered with blur off: the
+    cube is smeared sideways into a wider, partly transparent band."""
     path = tmp_path / f"fast{suffix}"
     export(fast_piece, path, ExportOptions())
     f = mid_frame(fast_piece)
