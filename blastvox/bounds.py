@@ -213,6 +213,11 @@ FOCAL_LENGTH_MM = Bound(1.0, 10_000.0, unit="mm")  # a 36 mm film back
 JITTER = Bound(0.0, 0.5, hi_open=True)
 SEED = Bound(0, MAX_SEED, integer=True)
 MAX_VOXELS = Bound(1, MAX_VOXELS_LIMIT, integer=True)
+#: the highest --max-triangles (triangles read by one voxelize) and --max-objects
+MAX_TRIANGLES_LIMIT = 100_000_000
+MAX_OBJECTS_LIMIT = 1_000_000
+MAX_TRIANGLES = Bound(1, MAX_TRIANGLES_LIMIT, integer=True)
+MAX_OBJECTS = Bound(1, MAX_OBJECTS_LIMIT, integer=True)
 LENGTH = Bound(0.0, MAX_COORDINATE_M, lo_open=True, unit="m")
 STRENGTH_SCALE = Bound(0.0, 1e6, lo_open=True)
 #: A chunk size (m): 0 = no chunks; the voxelizer also refuses one below a voxel or above

@@ -136,3 +136,63 @@ def test_real_plys_pass_the_count_check(data_dir, name):
     check_ply_counts(name, (data_dir / name).read_bytes())
     for encoding in ("ascii", "binary"):
         check_ply_counts("box.ply", _ply(encoding))
+
+
+# --- budgets before work: triangles and objects (issue 36) ------------------------
+
+def _box_files(folder: Path) -> None:
+    box = trimesh.creation.box()
+    box.export(folder / "box.stl")
+    (folder / "quads.obj").write_text(  # a cube of 6 quads: 12 triangles once read
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+        "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n")
+
+
+def test_a_mesh_over_the_triangle_budget_is_refused_before_it_is_parsed(tmp_path,
+                                                                       monkeypatch):
+    """A 5.2 M-triangle STL took 65 s and 4 GB at --resolution 8: what a file says it
+    holds (a binary STL's header, a PLY's or OFF's face count, an OBJ's face lines, a
+    glTF's primitives) is refused before the parser runs."""
+    _box_files(tmp_path)
+    import blastvox.voxelize.mesh_io as mesh_io
+
+    def never(*args, **kwargs):
+        raise AssertionError("parsed a mesh over its budget")
+
+    monkeypatch.setattr(mesh_io, "_load_surface", never)
+    with unchanged(tmp_path, [tmp_path / "box.stl"]):
+        outcome = run_blastvox("voxelize", "box.stl", "-o", "m.npz", "--resolution", "8",
+                               "--max-triangles", "5", cwd=tmp_path)
+    assert_clean_failure(outcome, ["box.stl", "12 triangles", "--max-triangles"],
+                         words=["says it holds", "5 one voxelize reads"], seconds=10.0)
+
+
+def test_the_triangles_held_are_counted_after_parsing_and_across_objects(tmp_path):
+    """An OBJ's 6 quad lines are 12 triangles once read; two meshes share one budget."""
+    _box_files(tmp_path)
+    outcome = run_blastvox("voxelize", "quads.obj", "-o", "m.npz", "--resolution", "8",
+                           "--max-triangles", "8", cwd=tmp_path)
+    assert_clean_failure(outcome, ["quads.obj", "holds 12 triangles"])
+    outcome = run_blastvox("voxelize", "box.stl", "quads.obj", "-o", "m.npz",
+                           "--resolution", "8", "--max-triangles", "20", cwd=tmp_path)
+    assert_clean_failure(outcome, ["quads.obj", "the objects before it hold 12"])
+    assert run_blastvox("voxelize", "box.stl", "quads.obj", "-o", "m.npz", "--resolution",
+                        "8", "--max-triangles", "24", "-q", cwd=tmp_path).code == 0
+
+
+@pytest.mark.parametrize("command", ["voxelize", "run"])
+def test_a_scene_over_the_object_budget_is_refused_before_any_is_read(tmp_path, command):
+    """10,000 objects of one mesh ran past 300 s with no budget line."""
+    _box_files(tmp_path)
+    objects = "".join(f'[[objects]]\nname = "b{i}"\nmesh = "box.stl"\nvoxel_size = 0.5\n'
+                      f'transform.translate = [{2 * i}, 0, 0]\n' for i in range(2001))
+    (tmp_path / "scene.toml").write_text(
+        objects + '[[charges]]\nposition = [0, -2, 0.5]\nmass_kg = 1\n[simulation]\n'
+        'duration = 0.05\n[output]\nmodel = "o/m.npz"\ncache = "o/s.npz"\n')
+    args = (("voxelize", "--scene", "scene.toml", "-q") if command == "voxelize"
+            else ("run", "scene.toml", "-q"))
+    with unchanged(tmp_path, [tmp_path / "scene.toml"]):
+        outcome = run_blastvox(*args, cwd=tmp_path)
+    hint = "--max-objects, up to" if command == "voxelize" else "voxelize --scene scene.toml"
+    assert_clean_failure(outcome, ["scene.toml", "2,001 objects", "2,000", hint],
+                         seconds=15.0)

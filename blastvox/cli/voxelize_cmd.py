@@ -94,6 +94,11 @@ def voxelize(
                              "[default: 0]."),
     max_voxels: int = typer.Option(4_000_000, "--max-voxels", help="Refuse to make more voxels "
                                    "than this."),
+    max_triangles: int = typer.Option(2_000_000, "--max-triangles", help="Refuse to read more "
+                                      "triangles than this (all meshes together), before "
+                                      "parsing a file that says it holds more."),
+    max_objects: int = typer.Option(2_000, "--max-objects", help="Refuse a scene of more "
+                                    "objects than this, before reading any."),
     references_anywhere: bool = typer.Option(
         False, "--references-anywhere", help="Let a mesh's side files (an OBJ's MTL and "
         "textures, a .gltf's buffers and images) lie outside its folder; they must still "
@@ -119,6 +124,8 @@ def voxelize(
     from blastvox.bounds import (
         CHUNK_SIZE,
         JITTER,
+        MAX_OBJECTS,
+        MAX_TRIANGLES,
         MAX_VOXELS,
         PART_BOND,
         RESOLUTION,
@@ -129,6 +136,8 @@ def voxelize(
 
     where = printable(scene or meshes[0])
     MAX_VOXELS.at(max_voxels, f"{where}: --max-voxels")
+    MAX_TRIANGLES.at(max_triangles, f"{where}: --max-triangles")
+    MAX_OBJECTS.at(max_objects, f"{where}: --max-objects")
     JITTER.at(jitter, f"{where}: --jitter")
     if chunk_size is not None:
         CHUNK_SIZE.at(chunk_size, f"{where}: --chunk-size")
@@ -200,6 +209,8 @@ def voxelize(
         if output is None:
             raise BlastvoxError(f"{where}: no output file: give -o MODEL.npz")
     settings.references_anywhere = references_anywhere
+    settings.max_triangles, settings.max_objects = max_triangles, max_objects
+    settings.budget_scene = None  # the flags are here
     from blastvox.io.outputs import check_npz_output, check_output
 
     label = "-o" if scene is None or output != spec.output.model else "output.model"

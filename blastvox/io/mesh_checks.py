@@ -12,6 +12,7 @@ holds ("contains no triangles", or garbage read as coordinates).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import struct
 from typing import Any
@@ -313,3 +314,51 @@ def _same_lengths(body: Any, first: int, record: int, count: int, size: int, k: 
     view = np.ndarray((count,), dtype=dtype, buffer=body, offset=first,
                       strides=(record,))
     return bool(np.all(view == k))
+
+
+def triangle_estimate(suffix: str, data: bytes) -> int | None:
+    """At least how many triangles a mesh file's bytes hold, read from what it says of
+    itself before any parsing (so a budget refuses a huge file without loading it): a
+    binary STL's header count, an ASCII STL's facets, a PLY's or OFF's face count, an
+    OBJ's face lines, a glTF's triangle primitives (each mesh once); None for others."""
+    suffix = suffix.lower()
+    if suffix == ".stl":
+        if data[:5].lower() == b"solid" and b"facet" in data[:1024]:
+            return data.count(b"facet normal")
+        return int.from_bytes(data[80:84], "little") if len(data) >= 84 else None
+    if suffix == ".ply":
+        header = _ply_header(data)
+        return (next((count for name, count, _ in header[1] if name == "face"), 0)
+                if header is not None else None)
+    if suffix == ".obj":
+        return data.count(b"\nf ") + data.startswith(b"f ")
+    if suffix == ".off":
+        words = data[:4096].split()  # "OFF", vertices, faces, edges
+        if words and words[0].upper().endswith(b"OFF"):
+            with contextlib.suppress(IndexError, ValueError):
+                return int(words[2])
+        return None
+    if suffix in (".gltf", ".glb"):
+        try:
+            doc = gltf_document("", data)
+        except MeshError:
+            return None
+        return _gltf_triangles(doc) if doc is not None else None
+    return None
+
+
+def _gltf_triangles(doc: dict[str, Any]) -> int:
+    accessors = doc.get("accessors") if isinstance(doc.get("accessors"), list) else []
+    total = 0
+    for mesh in doc.get("meshes") or []:
+        for primitive in (mesh.get("primitives") or []) if isinstance(mesh, dict) else []:
+            if not isinstance(primitive, dict) or primitive.get("mode", 4) != 4:
+                continue
+            index = primitive.get("indices")
+            if index is None:
+                attributes = primitive.get("attributes")
+                index = attributes.get("POSITION") if isinstance(attributes, dict) else None
+            if isinstance(index, int) and 0 <= index < len(accessors) and isinstance(
+                    accessors[index], dict) and isinstance(accessors[index].get("count"), int):
+                total += max(0, accessors[index]["count"]) // 3
+    return total

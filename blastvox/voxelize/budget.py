@@ -15,15 +15,28 @@ in order:
 Every refusal is one :class:`~blastvox.errors.BudgetError` line that names the
 setting that made the size (the flag or the scene key), the budget and how to
 raise it.
+
+Two more budgets are checked before the work they bound (issue 36): the triangles
+one voxelize reads (``--max-triangles``, all objects together: first what each file
+says it holds, before it is parsed, then what it held) and the objects it takes
+(``--max-objects``).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
-from blastvox.bounds import MAX_VOXELS_LIMIT, MIN_VOXEL_SIZE_M
+from blastvox.bounds import (
+    MAX_OBJECTS_LIMIT,
+    MAX_TRIANGLES_LIMIT,
+    MAX_VOXELS_LIMIT,
+    MIN_VOXEL_SIZE_M,
+    printable,
+)
 from blastvox.errors import BudgetError, InputError
 
 #: Grid cells searched per voxel of budget, so huge sparse grids fail early.
@@ -98,3 +111,45 @@ def check_count(label: str, count: int, budget_left: int, max_voxels: int,
     if count > budget_left:
         raise BudgetError(f"{label} gives {count:,} voxels, {_over(budget_left, max_voxels)} "
                           f"({hint})")
+
+
+def raise_hint(settings: Any, flag: str, limit: int) -> str:
+    """How a refusal of the budget ``--flag`` says to raise it: the flag (voxelize), or
+    voxelizing the scene first (``run``, which has no budget flags)."""
+    if settings.budget_scene is not None:
+        return (f"voxelize it first with `blastvox voxelize --scene {settings.budget_scene} "
+                f"--{flag} N`, which `blastvox run` then finds up to date")
+    return f"raise it with --{flag}, up to {limit:,}"
+
+
+def check_objects(requests: Sequence[Any], settings: Any) -> None:
+    """Refuse more objects than ``settings.max_objects`` before reading any."""
+    if len(requests) <= settings.max_objects:
+        return
+    where = (requests[0].origin or "").split(": objects[")[0] or printable(requests[0].mesh)
+    raise BudgetError(f"{where}: {len(requests):,} objects, more than the "
+                      f"{settings.max_objects:,} one voxelize takes; "
+                      f"{raise_hint(settings, 'max-objects', MAX_OBJECTS_LIMIT)}")
+
+
+def triangle_budget(request: Any, settings: Any, left: list[int]
+                    ) -> Callable[[int, bool], None]:
+    """The check :func:`~blastvox.voxelize.mesh_io.load_parts` calls with a mesh's
+    triangles (``said``: what the file says before it is parsed, at least that many;
+    else what it held): over what the budget has ``left``, one BudgetError line; else,
+    once held, taken from it."""
+    def check(count: int, said: bool) -> None:
+        if count > left[0]:
+            used = settings.max_triangles - left[0]
+            budget = (f"{left[0]:,} left of the {settings.max_triangles:,} one voxelize reads "
+                      f"(the objects before it hold {used:,})" if used else
+                      f"{settings.max_triangles:,} one voxelize reads")
+            what = "says it holds" if said else "holds"
+            raise BudgetError(
+                f"{printable(request.mesh)}: {what} {count:,} triangles, more than the "
+                f"{budget}; decimate the mesh, or "
+                f"{raise_hint(settings, 'max-triangles', MAX_TRIANGLES_LIMIT)}")
+        if not said:
+            left[0] -= count
+
+    return check

@@ -17,6 +17,7 @@ import json
 import os
 import re
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,7 +55,8 @@ class Part:
     texture: bytes | None = None
 
 
-def load_parts(path: Path, references: ReferencePolicy | None = None) -> list[Part]:
+def load_parts(path: Path, references: ReferencePolicy | None = None,
+               triangles: Callable[[int, bool], None] | None = None) -> list[Part]:
     """Read ``path`` into a list of :class:`Part` (at least one, each non-empty).
 
     The input must be a readable regular file: a directory, a device (/dev/zero),
@@ -62,7 +64,9 @@ def load_parts(path: Path, references: ReferencePolicy | None = None) -> list[Pa
     forever; so must every file it refers to (an OBJ's MTL and textures, a .gltf's
     buffers and images), under ``references`` (:mod:`blastvox.io.references`: inside
     the mesh's folder by default). Every failure is a one-line :class:`MeshError`
-    ``"<file>: <problem>"``.
+    ``"<file>: <problem>"``. ``triangles(count, estimated)``, the caller's budget, is
+    told how many triangles the file says it holds before it is parsed (at least that
+    many) and how many it held once parsed; it raises to refuse.
     """
     path = Path(path)
     shown = printable(path)
@@ -76,11 +80,15 @@ def load_parts(path: Path, references: ReferencePolicy | None = None) -> list[Pa
             mesh_checks.check_gltf_nodes(shown, doc)
     elif suffix == ".ply":
         mesh_checks.check_ply_counts(shown, data)
+    if triangles is not None and (said := mesh_checks.triangle_estimate(suffix, data)):
+        triangles(said, True)
     parts = (_load_volume(path) if suffix in VOLUME_SUFFIXES
              else _load_surface(path, data, references or ReferencePolicy()))
     parts = [p for p in parts if len(p.mesh.faces) > 0]
     if not parts:
         raise MeshError(f"{shown}: contains no triangles")
+    if triangles is not None:
+        triangles(sum(len(p.mesh.faces) for p in parts), False)
     for part in parts:
         if not np.all(np.isfinite(part.mesh.vertices)):
             raise MeshError(f"{shown}: part '{part.name}' has NaN or infinite vertex coordinates")

@@ -73,4 +73,6 @@ def settings_from_scene(scene: Any, max_voxels: int | None = None) -> Any:
     return VoxelizeSettings(up_axis=scene.up_axis,
                             ground=None if scene.ground == "none" else scene.ground,
                             seed=scene.seed, max_voxels=max_voxels or DEFAULT_MAX_VOXELS,
-                            library=scene.material_library(), budget_hint=hint)
+                            library=scene.material_library(), budget_hint=hint,
+                            budget_scene=(getattr(scene, "source", None) or "SCENE.toml")
+                            if max_voxels is None else None)
