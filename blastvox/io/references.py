@@ -1,10 +1,12 @@
 """One reader policy for the files a file refers to (issue 36): an OBJ's ``mtllib`` and
-the textures an MTL names, a .gltf's buffer and image URIs.
+the textures an MTL names, a .gltf's buffer and image URIs, a USD layer's sublayers,
+references, payloads, clips and asset paths (:mod:`blastvox.diff.usd_refs`).
 
 A reference is read only if it is a regular file (never a device, a FIFO, a socket
 or a directory: /dev/zero is read forever, a FIFO blocks), inside the referring
 file's folder (after symlinks: ``../../etc/passwd`` or a link to /dev/zero is
-refused) unless the user allows more (``blastvox voxelize --references-anywhere``),
+refused; for layers that bring in layers, the folder of the file the user named)
+unless the user allows more (``--references-anywhere`` of voxelize, run and diff),
 never a URL (``http://``, ``file://``: nothing is fetched), and at most
 :data:`MAX_REFERENCE_BYTES` (checked before reading). A refusal is one line naming
 the referring file, the reference and the rule, and the flag that allows it where
