@@ -76,13 +76,7 @@ from blastvox.simulate.settings import (
     check_settings,
     gravity_vector,
 )
-from blastvox.simulate.shielding import (
-    build_occupancy,
-    inside_solid,
-    refresh_occupancy,
-    solid_boxes,
-    typical_edge,
-)
+from blastvox.simulate.shielding import inside_solid, refresh_occupancy
 from blastvox.simulate.state import (
     Contacts,
     Front,
@@ -163,12 +157,8 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
                           hits=np.zeros((4096, 4)), points=np.zeros((64, 3)),
                           vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int64)),
         scratch=Scratch.for_model(sm),
-        shielding=build_occupancy(*solid_boxes(sm.voxels.vertices, sm.voxels.corners,
-                                               a["conform_voxels"], a["conform_offsets"],
-                                               a["conform_triangles"]),
-                                  sm.voxels.centroid,
-                                  typical_edge(a["voxel_volume"], sm.voxels.conform_slot >= 0,
-                                               sm.voxels.vertices, sm.voxels.corners)))
+        shielding=sm.rest_grid._replace(count=sm.rest_grid.count.copy(),
+                                        member=sm.rest_grid.member.copy()))
     return state
 
 

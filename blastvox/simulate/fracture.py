@@ -33,8 +33,10 @@ from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import release_held
+from blastvox.simulate.members import effective_thickness
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.shielding import remove_voxel, sight_line
+from blastvox.simulate.state import WaveViews
 from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
@@ -43,13 +45,15 @@ class FractureParams(NamedTuple):
     """orientation: k of the orientation factor (0..1); weakening: fraction of a
     peak that wears a link's or voxel's yield; damage_b, damage_c: the
     Davison-Stevens B (-) and C (1/(Pa s)); pressure_impulse: judge by the
-    pressure-impulse criterion on the face load (else the papers' incident peak)."""
+    pressure-impulse criterion on the face load (else the papers' incident peak);
+    judge_links: links break by the wave's load (else by the damage model)."""
 
     orientation: float
     weakening: float
     damage_b: float
     damage_c: float
     pressure_impulse: bool
+    judge_links: bool
 
 
 REFERENCE_THICKNESS = 0.25  #: m: the element thickness a material's impulse asymptote is for
@@ -59,19 +63,15 @@ FRONT_COSINE = math.sqrt(0.5)
 
 
 @helper
-def element_load(front, c, r, px, py, pz, exposure, b, gas_too):
-    """(peak overpressure Pa, positive impulse Pa s, depth m, thickness m) that the wave
-    of charge c
-    puts on the element holding point p (in solid, at r m from the charge, in body
-    b): the face load (:func:`blastvox.blast.face_load.face_load_nb`) of the surface
-    the line from p to the charge leaves the element through, at that surface's
-    angle of incidence, or the diffracted load if solid shields the element; a
-    confined charge's gas adds a sustained load (max(P, P_gas), I + P_gas tau) in
-    line of sight if ``gas_too`` (for links: gas breaks walls, it does not pulverize
-    them); depth: p's depth below that surface (half a grid cell when p is not in
-    the grid); thickness: the element's thickness along the line through p, the
-    runs of solid holding p towards the charge and away from it (a grid cell when
-    p is not in the grid)."""
+def element_view(front, c, r, px, py, pz, exposure, b, member, speed):
+    """(peak overpressure Pa, positive impulse Pa s, depth m, blocked, thickness m) that
+    the wave of charge c puts on the element holding point p (in solid, at r m from
+    the charge, in body b): the face load (:func:`blastvox.blast.face_load.face_load_nb`)
+    of the surface the line from p to the charge leaves the element through, at that
+    surface's angle of incidence, or the diffracted load if solid shields the element
+    (blocked); depth: p's depth below that surface (half a grid cell when p is not in
+    the grid); thickness: the member's (``member`` m, :mod:`blastvox.simulate.members`)
+    that resists this load, at most ``speed`` (m/s) x its positive phase."""
     grid = exposure.grid
     qx, qy, qz = front.position[c, 0], front.position[c, 1], front.position[c, 2]
     blocked, axis, depth = sight_line(grid, px, py, pz, qx, qy, qz, True)
@@ -79,21 +79,12 @@ def element_load(front, c, r, px, py, pz, exposure, b, gas_too):
     if axis >= 0 and r > 0.0:
         cos_a = abs((qx - px) if axis == 0 else ((qy - py) if axis == 1 else (qz - pz))) / r
     if axis < 0:
-        depth, thickness = 0.5 * grid.cell[0], grid.cell[0]
-    else:  # and the run of solid behind p, away from the charge
-        reach = grid.cell[0] * (grid.dims[0] + grid.dims[1] + grid.dims[2]) / max(r, 1e-300)
-        behind = sight_line(grid, px, py, pz, px + (px - qx) * reach, py + (py - qy) * reach,
-                            pz + (pz - qz) * reach, True)[2]
-        thickness = depth + behind
+        depth = 0.5 * grid.cell[0]
     (ps, _, td, bb, imp, pr, ir, q, u, _, _,
      _) = face_params_at(front.table, front.burst[c], r, front.scale[c])
     i_pos, p_peak = face_load_nb((ps, td, bb, imp, pr, ir, q, u), cos_a, not blocked,
                                  exposure.clearing[b, c, 0], exposure.clearing[b, c, 1])
-    gas = exposure.gas[c, 0]
-    if gas_too and gas > 0.0 and not blocked:
-        p_peak = max(p_peak, gas)
-        i_pos += gas * exposure.gas[c, 1]
-    return p_peak, i_pos, depth, thickness
+    return p_peak, i_pos, depth, blocked, effective_thickness(member, speed, td)
 
 
 @helper
@@ -142,102 +133,43 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
 
 
 @kernel
-def fracture_links(front, params, geometry, links, voxels, bodies, candidate, marks,
-                   strength, exposure) -> int:
-    """Break or weaken links crossed by a front this step; returns the number broken.
-
-    geometry: the model's LinkGeometry. marks.active (B,): bodies a front's
-    shell can touch (others are skipped); candidate (L,): links that can be in
-    a shell (:mod:`blastvox.simulate.shell`), the only ones tested;
-    marks.broken (L,) is set True for links broken now, marks.dirty (B,) for
-    their bodies. With params.pressure_impulse, a link breaks by
-    :func:`pi_exceeded` on :func:`element_load` (strength: the model's
-    :class:`~blastvox.simulate.model.Strength`; exposure: an
-    :class:`~blastvox.simulate.state.Exposure`);
-    else by the incident peak alone.
-    """
-    charge_pos, charge_scale, table = front.position, front.scale, front.table
-    front_in, front_out = front.inner, front.outer
-    orientation, weakening = params.orientation, params.weakening
-    link_voxels, link_midpoint, link_direction = (geometry.voxels, geometry.midpoint,
-                                                  geometry.direction)
-    link_alive, link_yield, voxel_body = links.alive, links.yield_pa, voxels.body
-    body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
-    active, broken, dirty = marks.active, marks.broken, marks.dirty
-    count = 0
-    n_charges = charge_pos.shape[0]
-    for link in range(link_voxels.shape[0]):
-        if not candidate[link] or not link_alive[link]:
-            continue
-        if not voxels.alive[link_voxels[link, 0]] or not voxels.alive[link_voxels[link, 1]]:
-            continue  # it dies with a voxel dusted this step (not counted as a break)
-        b = voxel_body[link_voxels[link, 0]]
-        if not active[b]:
-            continue
-        # hot loop over every link while a front crosses the model: scalar code only
-        x = link_midpoint[link, 0] - body_com[b, 0]
-        y = link_midpoint[link, 1] - body_com[b, 1]
-        z = link_midpoint[link, 2] - body_com[b, 2]
-        mx = body_pos[b, 0] + body_rot[b, 0, 0] * x + body_rot[b, 0, 1] * y + body_rot[b, 0, 2] * z
-        my = body_pos[b, 1] + body_rot[b, 1, 0] * x + body_rot[b, 1, 1] * y + body_rot[b, 1, 2] * z
-        mz = body_pos[b, 2] + body_rot[b, 2, 0] * x + body_rot[b, 2, 1] * y + body_rot[b, 2, 2] * z
-        for c in range(n_charges):
-            if front_out[c] <= 0.0:  # not detonated yet
-                continue
-            dx = mx - charge_pos[c, 0]
-            dy = my - charge_pos[c, 1]
-            dz = mz - charge_pos[c, 2]
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 > front_out[c] * front_out[c] or (front_in[c] >= 0.0
-                                                    and r2 <= front_in[c] * front_in[c]):
-                continue
-            r = math.sqrt(r2)
-            limit = oriented_yield(link_yield[link], orientation, body_rot, b, link_direction,
-                                   link, dx, dy, dz, r)
-            if params.pressure_impulse:
-                peak, imp, _, thick = element_load(front, c, r, mx, my, mz, exposure, b, True)
-                owner = link_voxels[link, 0]
-                i0 = (strength.link_impulse[owner] * strength.link_factor[link] * thick
-                      / REFERENCE_THICKNESS)
-                # a chunk of a material that crushes comes apart only as dust
-                breaks = not strength.inner[link] and pi_exceeded(
-                    peak, imp, limit, i0, strength.pi_shape[owner])
-            else:
-                peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
-                breaks = peak > limit
-            if breaks:
-                link_alive[link] = False
-                broken[link] = True
-                dirty[b] = True
-                count += 1
-                break
-            link_yield[link] = max(0.0, link_yield[link] - weakening * peak)
-    return count
-
-
-@kernel
-def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks, strength,
-                    exposure, loads) -> int:
-    """Dust voxels whose centre sees more than their yield; wear foundations.
+def fracture_wave(front, params, parts, run_state, order, exposure, views):
+    """Judge each voxel a front crosses this step, then the links it is the second end
+    of to be judged, once per wave: dust, break or weaken them; wear foundations.
 
     order (K,) int64: the voxels a front crosses this step, the only ones tested, in
-    order of the wave's arrival (see :func:`arrival_order`); a voxel dusted under
-    pressure-impulse fracture leaves the shielding grid at once, so the points
-    behind it see the gap (the same whatever the step), and leaves with the net
-    impulse of the wave on its face towards the charge in loads.held_p (N s,
-    replacing what it held; handed to its dust body by the split): dust carries
-    the momentum of the wave that destroyed it. That impulse goes through the
-    face once: the dust's neighbours mark the face they shared with it in
-    loads.shadow (the blast no longer loads it), and a voxel dusted behind dust
-    of the current waves shares, by mass, the impulse the dust in front of it
-    still holds (none if that has left: each layer of a crater took the whole
-    impulse again, and a wall pulverized in four layers left with four times the
-    momentum of one in two; links: the model's LinkGeometry).
+    order of the wave's arrival (see :func:`arrival_order`). parts: the model's
+    (VoxelGeometry, LinkGeometry, Strength, members); run_state: the state's
+    (Links, Voxels, Bodies, Marks, Loads). Each (voxel, charge)
+    is judged once in a run, when that charge's front crosses it: its element view
+    (:func:`element_view`, one line of sight) is kept in ``views``
+    (a :class:`~blastvox.simulate.state.WaveViews`), and a link is judged when the
+    second of its two ends is, on the mean of their views (peak and impulse) and
+    the thinner of their members (members: the model's (thickness (N,) m,
+    wave_speed (N,) m/s)). With params.judge_links False (the damage model) only
+    voxels are judged. The cost is one line of sight per voxel and wave and O(1) per
+    link (there were two per link and step, one of them through all the solid
+    behind the link).
 
-    Returns the number of foundation voxels that let go (the caller then
-    re-checks which bodies are still fixed). marks.destroyed (N,) marks dusted
-    voxels; marks.crossed (N,) every voxel a front crossed this step (for dust cues).
+    A voxel dusted under pressure-impulse fracture leaves the shielding grid at
+    once, so the points behind it see the gap (the same whatever the step), and
+    leaves with the net impulse of the wave on its face towards the charge in
+    loads.held_p (N s, replacing what it held; handed to its dust body by the
+    split): dust carries the momentum of the wave that destroyed it. That impulse
+    goes through the face once: the dust's neighbours mark the face they shared
+    with it in loads.shadow (the blast no longer loads it), and a voxel dusted
+    behind dust of the current waves shares, by mass, the impulse the dust in front
+    of it still holds (none if that has left: each layer of a crater took the whole
+    impulse again, and a wall pulverized in four layers left with four times the
+    momentum of one in two).
+
+    Returns (foundation voxels that let go, links broken). marks.destroyed (N,)
+    marks dusted voxels, marks.crossed (N,) every voxel a front crossed this step
+    (for dust cues), marks.broken (L,) the links broken, marks.dirty (B,) their
+    bodies.
     """
+    geometry, link_geometry, strength, (thickness, speed) = parts
+    links, voxels, bodies, marks, loads = run_state
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out, weakening = front.inner, front.outer, params.weakening
     voxel_centroid = geometry.centroid
@@ -245,7 +177,10 @@ def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks
     voxel_foundation, voxel_foundation_yield = voxels.foundation, voxels.foundation_pa
     body_pos, body_rot, body_com = bodies.pos, bodies.rot, bodies.com
     destroyed, dirty, crossed = marks.destroyed, marks.dirty, marks.crossed
+    link_voxels, link_midpoint = link_geometry.voxels, link_geometry.midpoint
+    link_direction = link_geometry.direction
     released = 0
+    broken = 0
     n_charges = charge_pos.shape[0]
     centre = np.empty(3)
     for v in order:
@@ -257,8 +192,8 @@ def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks
             if r < 0.0:
                 continue
             if params.pressure_impulse:
-                peak, imp, depth, thick = element_load(front, c, r, cx, cy, cz, exposure, b,
-                                                       False)
+                peak, imp, depth, blocked, thick = element_view(
+                    front, c, r, cx, cy, cz, exposure, b, thickness[v], speed[v])
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
                 i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
@@ -266,7 +201,11 @@ def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks
                     peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
+                imp, blocked, thick = 0.0, False, thickness[v]
                 breaks = peak > voxel_yield[v]
+            views.known[v, c] = True
+            views.peak[v, c], views.impulse[v, c] = peak, imp
+            views.blocked[v, c], views.thickness[v, c] = blocked, thick
             crossed[v] = True
             if breaks:
                 voxel_alive[v] = False
@@ -280,7 +219,7 @@ def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks
                         loads.held_p[v, a] = (imp - i_neg) * area * (
                             centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
                         loads.held_l[v, a] = 0.0
-                    _dust_once(v, geometry, links, voxels.alive, loads, body_rot[b],
+                    _dust_once(v, geometry, link_geometry, voxels.alive, loads, body_rot[b],
                                cx - charge_pos[c, 0], cy - charge_pos[c, 1],
                                cz - charge_pos[c, 2])
                 break
@@ -290,7 +229,54 @@ def fracture_voxels(front, params, geometry, links, voxels, bodies, order, marks
                 if voxel_foundation_yield[v] <= 0.0:
                     voxel_foundation[v] = False
                     released += 1
-    return released
+            if not params.judge_links:
+                continue
+            # the links whose other end this wave has judged: inline, as calls that take
+            # the model's structs cost each array two reference counts per call
+            for k in range(geometry.link_offsets[v], geometry.link_offsets[v + 1]):
+                link = geometry.link_ids[k]
+                if not links.alive[link]:
+                    continue
+                w = link_voxels[link, 1] if link_voxels[link, 0] == v else link_voxels[link, 0]
+                if not voxel_alive[w] or not views.known[w, c]:
+                    continue
+                x = link_midpoint[link, 0] - body_com[b, 0]
+                y = link_midpoint[link, 1] - body_com[b, 1]
+                z = link_midpoint[link, 2] - body_com[b, 2]
+                dx = (body_pos[b, 0] + body_rot[b, 0, 0] * x + body_rot[b, 0, 1] * y
+                      + body_rot[b, 0, 2] * z - charge_pos[c, 0])
+                dy = (body_pos[b, 1] + body_rot[b, 1, 0] * x + body_rot[b, 1, 1] * y
+                      + body_rot[b, 1, 2] * z - charge_pos[c, 1])
+                dz = (body_pos[b, 2] + body_rot[b, 2, 0] * x + body_rot[b, 2, 1] * y
+                      + body_rot[b, 2, 2] * z - charge_pos[c, 2])
+                rm = math.sqrt(dx * dx + dy * dy + dz * dz)
+                limit = oriented_yield(links.yield_pa[link], params.orientation, body_rot, b,
+                                       link_direction, link, dx, dy, dz, rm)
+                if params.pressure_impulse:
+                    peak = 0.5 * (views.peak[v, c] + views.peak[w, c])
+                    imp = 0.5 * (views.impulse[v, c] + views.impulse[w, c])
+                    gas = exposure.gas[c, 0]  # gas breaks walls, it does not pulverize them
+                    if gas > 0.0 and not (views.blocked[v, c] and views.blocked[w, c]):
+                        peak = max(peak, gas)
+                        imp += gas * exposure.gas[c, 1]
+                    owner = link_voxels[link, 0]
+                    i0 = (strength.link_impulse[owner] * strength.link_factor[link]
+                          * min(views.thickness[v, c], views.thickness[w, c])
+                          / REFERENCE_THICKNESS)
+                    # a chunk of a material that crushes comes apart only as dust
+                    breaks = not strength.inner[link] and pi_exceeded(
+                        peak, imp, limit, i0, strength.pi_shape[owner])
+                else:
+                    peak = peak_overpressure(table[front.burst[c]], rm, charge_scale[c])
+                    breaks = peak > limit
+                if breaks:
+                    links.alive[link] = False
+                    marks.broken[link] = True
+                    dirty[b] = True
+                    broken += 1
+                else:
+                    links.yield_pa[link] = max(0.0, links.yield_pa[link] - weakening * peak)
+    return released, broken
 
 
 @helper
@@ -465,31 +451,41 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
     marks.crossed[:] = False
     marks.dirty[:state.n_bodies] = False
     params = FractureParams(s.orientation_factor, s.weakening, s.damage_b, s.damage_c,
-                            s.fracture == "pressure-impulse")
+                            s.fracture == "pressure-impulse", s.fracture != "damage")
     exposure = exposure_of(model, state, front.position, marks.active, gas)
     candidate = _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
                             state.scratch.voxel_candidate, front)
     order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
-    released = fracture_voxels(front, params, model.voxels, model.links, state.voxels,
-                               state.bodies, order, marks, model.strength, exposure, state.loads)
+    released, n = fracture_wave(
+        front, params, (model.voxels, model.links, model.strength,
+                        (model.thickness, model.wave_speed)),
+        (state.links, state.voxels, state.bodies, marks, state.loads), order, exposure,
+        wave_views(state, len(front.position)))
     if params.pressure_impulse and marks.destroyed.any():
         state.holding = True  # the split hands the dust its impulse (release_held)
     if s.fracture == "damage":
         n = fracture_damage(front, params, model.voxels, model.links, state.links,
                             state.voxels, state.bodies, marks)
-    else:  # after the voxels: a link behind a voxel dusted this step sees the gap
-        n = fracture_links(front, params, model.links, state.links, state.voxels, state.bodies,
-                           _candidates(model, state, model.link_grid, state.scratch.link_owner,
-                                       state.scratch.link_candidate, front), marks,
-                           model.strength, exposure)
-    if params.pressure_impulse and n:
+    if params.pressure_impulse and (n or marks.destroyed.any()):
         n += whole_interfaces(model, state)
     state.counters.broken_links += int(n)
     if released:
         refresh_fixed(state.voxels, state.bodies)
         if state.holding:
             release_held(model.voxels, state.voxels, state.bodies, state.loads)
+
+
+def wave_views(state, n_charges: int):
+    """The run's :class:`~blastvox.simulate.state.WaveViews` (N, C), made on first use
+    and kept in state.caches."""
+    caches = state.caches
+    n = len(state.voxels.alive)
+    if caches.views is None or caches.views.known.shape[1] != n_charges:
+        caches.views = WaveViews(np.zeros((n, n_charges), dtype=bool), np.zeros((n, n_charges)),
+                                 np.zeros((n, n_charges)), np.zeros((n, n_charges), dtype=bool),
+                                 np.zeros((n, n_charges)))
+    return caches.views
 
 
 #: A crack that has run through this fraction of an interface between two chunks runs
@@ -499,10 +495,15 @@ INTERFACE_RUN = 0.5
 
 def whole_interfaces(model, state) -> int:
     """Break the rest of every chunk interface (model.strength.interface) whose links
-    the step broke (marks.broken) up to :data:`INTERFACE_RUN` of them; returns how
-    many links it broke (marked like the fracture's, their bodies dirty)."""
+    the step broke (marks.broken) or cut with dust (marks.destroyed) up to
+    :data:`INTERFACE_RUN` of them; returns how many links it broke (marked like the
+    fracture's, their bodies dirty). Whether broken or dusted first, in one step or
+    in several, the same interfaces run."""
     interface, marks, alive = model.strength.interface, state.marks, state.links.alive
-    hit = np.unique(interface[marks.broken])
+    cut = marks.broken
+    if marks.destroyed.any():  # links that died with dust cut an interface as well
+        cut = cut | marks.destroyed[model.links.voxels].any(axis=1)
+    hit = np.unique(interface[cut])
     hit = hit[hit >= 0]
     if not hit.size:
         return 0

@@ -18,7 +18,9 @@ from blastvox.blast._numeric import cbrt
 from blastvox.geometry.voxel_faces import SURFACE_TAG
 from blastvox.jit import kernel
 from blastvox.model import VoxelModel
+from blastvox.simulate.members import thickness_at_rest, wave_speeds
 from blastvox.simulate.shell import dense_grid
+from blastvox.simulate.shielding import Occupancy, build_occupancy, solid_boxes, typical_edge
 
 #: A conform voxel's loaded faces: its cell faces 0..5, then its part of the original
 #: surface split by the direction its triangles face most (-x, +x, -y, +y, -z, +z):
@@ -119,9 +121,13 @@ class SimModel:
     :class:`Strength`.
     material (N,), object (N,): indices from the VoxelModel. up (3,): unit up
     vector (axis index up_axis); ground_height: m along up, or None for no
-    ground. link_grid, voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of
-    the link midpoints and voxel centroids at rest, cells of grid_cell m (about
-    four voxels).
+    ground. voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of
+    the voxel centroids at rest, cells of grid_cell m (about
+    four voxels). rest_grid: the shielding
+    :class:`~blastvox.simulate.shielding.Occupancy` of every voxel at rest (a run
+    shields with a copy); thickness (N,) m: each voxel's member thickness
+    (:mod:`blastvox.simulate.members`); wave_speed (N,) m/s: its material's
+    longitudinal wave speed (inf: unknown).
     """
 
     voxels: VoxelGeometry
@@ -133,8 +139,10 @@ class SimModel:
     up_axis: int
     ground_height: float | None
     grid_cell: float
-    link_grid: tuple
     voxel_grid: tuple
+    rest_grid: Occupancy
+    thickness: np.ndarray
+    wave_speed: np.ndarray
 
     @property
     def n_voxels(self) -> int:
@@ -183,13 +191,34 @@ def build_model(model: VoxelModel) -> SimModel:
     link_geometry = LinkGeometry(
         voxels=links, face=a["link_face"].astype(np.int64), midpoint=link_midpoint,
         direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
+    rest_grid = build_occupancy(
+        *solid_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
+                     a["conform_triangles"]),
+        voxel_centroid, typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
     return SimModel(
         voxels=voxels, links=link_geometry, strength=_strength(a),
         material=a["voxel_material"].astype(np.int64),
         object=a["voxel_object"].astype(np.int64),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
-        grid_cell=grid_cell, link_grid=dense_grid(link_midpoint.reshape(-1, 3), grid_cell),
-        voxel_grid=dense_grid(voxel_centroid, grid_cell))
+        grid_cell=grid_cell,
+        voxel_grid=dense_grid(voxel_centroid, grid_cell), rest_grid=rest_grid,
+        thickness=thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid),
+        wave_speed=wave_speeds(a))
+
+
+def _solid_volume(arrays: dict) -> np.ndarray:
+    """(N,) m^3: the solid each voxel holds, its mass over its material's density (a
+    cell the surface crosses holds less than its volume); its volume where the
+    density is unknown."""
+    volume = np.asarray(arrays["voxel_volume"], dtype=np.float64)
+    density = arrays.get("material_density")
+    if density is None:
+        return volume
+    rho = np.asarray(density, dtype=np.float64)[np.asarray(arrays["voxel_material"],
+                                                            dtype=np.int64)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        solid = np.asarray(arrays["voxel_mass"], dtype=np.float64) / rho
+    return np.where(np.isfinite(solid) & (solid > 0.0), solid, volume)
 
 
 def _strength(arrays: dict) -> Strength:

@@ -122,7 +122,7 @@ def typical_edge(volume: np.ndarray, conform: np.ndarray, vertices: np.ndarray,
 
 
 @helper
-def _cell_range(lo, hi, origin, cell, dims, a):
+def cell_range(lo, hi, origin, cell, dims, a):
     """First and last cell along axis a whose centre lies in [lo, hi] (may be empty)."""
     first = int(math.ceil((lo - origin[a]) / cell - 0.5 - 1e-9))
     last = int(math.floor((hi - origin[a]) / cell - 0.5 + 1e-9))
@@ -133,9 +133,9 @@ def _cell_range(lo, hi, origin, cell, dims, a):
 def _cover(grid, lo, hi, centroid, v, delta):
     """Add delta to the count of every cell voxel v covers (see the module docstring)."""
     origin, cell, dims, count = grid.origin, grid.cell[0], grid.dims, grid.count
-    i0, i1 = _cell_range(lo[v, 0], hi[v, 0], origin, cell, dims, 0)
-    j0, j1 = _cell_range(lo[v, 1], hi[v, 1], origin, cell, dims, 1)
-    k0, k1 = _cell_range(lo[v, 2], hi[v, 2], origin, cell, dims, 2)
+    i0, i1 = cell_range(lo[v, 0], hi[v, 0], origin, cell, dims, 0)
+    j0, j1 = cell_range(lo[v, 1], hi[v, 1], origin, cell, dims, 1)
+    k0, k1 = cell_range(lo[v, 2], hi[v, 2], origin, cell, dims, 2)
     if i0 > i1 or j0 > j1 or k0 > k1:  # smaller than a cell: the centroid's cell
         i0 = i1 = min(max(int((centroid[v, 0] - origin[0]) / cell), 0), dims[0] - 1)
         j0 = j1 = min(max(int((centroid[v, 1] - origin[1]) / cell), 0), dims[1] - 1)

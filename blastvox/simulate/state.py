@@ -165,6 +165,20 @@ class Exposure(NamedTuple):
     sight: np.ndarray
 
 
+class WaveViews(NamedTuple):
+    """What each wave put on each voxel's element when its front crossed it (see
+    :func:`blastvox.simulate.fracture.fracture_wave`), (N, C): known bool, the
+    (voxel, charge) was judged; peak Pa and impulse Pa s of its face load; blocked
+    bool, shielded from the charge; thickness m, the member thickness that resisted
+    it."""
+
+    known: np.ndarray
+    peak: np.ndarray
+    impulse: np.ndarray
+    blocked: np.ndarray
+    thickness: np.ndarray
+
+
 @dataclass
 class Caches:
     """Derived lookups, rebuilt only when what they derive from changes.
@@ -179,7 +193,8 @@ class Caches:
     sight in the current wave (see :class:`Exposure`); holds: work of
     :func:`blastvox.simulate.contact.fragments.mute_member_rows`; fragment_rows: how many of the
     step's solved contact rows are between fragments, and how many in all (the
-    ground's follow them)."""
+    ground's follow them). views: the waves' element views (see
+    :func:`blastvox.simulate.fracture.fracture_wave`)."""
 
     boundary: tuple | None = None
     version: int = 0
@@ -193,6 +208,7 @@ class Caches:
     sight: np.ndarray | None = None
     holds: np.ndarray | None = None
     fragment_rows: tuple = (0, 0)
+    views: WaveViews | None = None
 
 
 @dataclass
@@ -208,23 +224,19 @@ class Counters:
 @dataclass
 class Scratch:
     """Work arrays of the phases, allocated once. component, order (N,) int64: for
-    splits; link_owner (L,), voxel_owner (N,): the voxel each fracture candidate
-    moves with; link_candidate (L,), voxel_candidate (N,): fracture candidates."""
+    splits; voxel_owner (N,): the voxel each fracture candidate moves with;
+    voxel_candidate (N,): fracture candidates."""
 
     component: np.ndarray
     order: np.ndarray
-    link_owner: np.ndarray
     voxel_owner: np.ndarray
-    link_candidate: np.ndarray
     voxel_candidate: np.ndarray
 
     @classmethod
     def for_model(cls, model) -> Scratch:
-        n, n_links = model.n_voxels, model.n_links
+        n = model.n_voxels
         return cls(component=np.zeros(n, dtype=np.int64), order=np.zeros(n, dtype=np.int64),
-                   link_owner=np.ascontiguousarray(model.links.voxels[:, 0]),
                    voxel_owner=np.arange(n, dtype=np.int64),
-                   link_candidate=np.zeros(n_links, dtype=bool),
                    voxel_candidate=np.zeros(n, dtype=bool))
 
 
