@@ -19,6 +19,7 @@ Rooms are found once, when the run starts, on the structure at rest.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,11 +153,12 @@ class Rooms:
                 for room in range(len(self.pressure))]
 
 
-def find_rooms(grid, charges, centroid: np.ndarray, half_extent: np.ndarray) -> Rooms:
+def find_rooms(grid, charges, centroid: np.ndarray,
+               half_extent: Callable[[], np.ndarray]) -> Rooms:
     """The rooms of the charges (a :class:`~blastvox.simulate.wave.Charges`) in the grid.
 
-    centroid (N, 3) m, half_extent (N, 3) m: each voxel's rest centre and half box,
-    to find the voxels that wall a room."""
+    centroid (N, 3) m: each voxel's rest centre; half_extent() (N, 3) m: their half
+    boxes, to find the voxels that wall a room (asked for only if there is one)."""
     cells = len(grid.count)
     label = np.full(cells, -1, dtype=np.int32)
     n_charges = len(charges.tnt_kg)
@@ -188,7 +190,7 @@ def find_rooms(grid, charges, centroid: np.ndarray, half_extent: np.ndarray) -> 
                  volume=volume, start=start,
                  tau=np.array([vent_time(v) for v in volume]),
                  vented=np.full(n_rooms, np.inf), of_charge=of_charge,
-                 wall=_walls(grid, label, centroid, half_extent) if n_rooms else np.full(
+                 wall=_walls(grid, label, centroid, half_extent()) if n_rooms else np.full(
                      len(centroid), -1, dtype=np.int32))
 
 

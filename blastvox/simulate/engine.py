@@ -76,7 +76,7 @@ from blastvox.simulate.settings import (
     check_settings,
     gravity_vector,
 )
-from blastvox.simulate.shielding import inside_solid, refresh_occupancy
+from blastvox.simulate.shielding import corner_boxes, inside_solid, refresh_occupancy
 from blastvox.simulate.state import (
     Contacts,
     Front,
@@ -228,8 +228,10 @@ class Run:
 
 def _rooms(sm: SimModel, state: State, charges: Charges) -> dict:
     """Run.start's rooms and gas: the closed rooms of confined charges, if any."""
-    box = sm.voxels.vertices[sm.voxels.corners]
-    half = 0.5 * (box.max(axis=1) - box.min(axis=1))
+    def half() -> np.ndarray:
+        lo, hi = corner_boxes(sm.voxels.vertices, sm.voxels.corners)
+        return 0.5 * (hi - lo)
+
     rooms = find_rooms(state.shielding, charges, sm.voxels.centroid, half)
     if not rooms.any:
         return {}

@@ -63,8 +63,7 @@ def solid_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.nd
     conform_offsets (C+1,), conform_triangles (T, 3, 3) m: the model's) the box of
     its exact geometry. A cut voxel's lattice cell spans air: a 0.3 m plate cut from
     0.5 m cells would cover the air before its own face and shadow it."""
-    box = vertices[corners]
-    lo, hi = box.min(axis=1), box.max(axis=1)
+    lo, hi = corner_boxes(vertices, corners)
     if len(conform_voxels):
         tri_lo, tri_hi = conform_triangles.min(axis=1), conform_triangles.max(axis=1)
         starts = np.asarray(conform_offsets[:-1], dtype=np.int64)
@@ -72,6 +71,26 @@ def solid_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.nd
         voxels = np.asarray(conform_voxels, dtype=np.int64)[has]
         lo[voxels] = np.minimum.reduceat(tri_lo, starts[has], axis=0)
         hi[voxels] = np.maximum.reduceat(tri_hi, starts[has], axis=0)
+    return lo, hi
+
+
+@kernel
+def corner_boxes(vertices, corners):
+    """(lo, hi) (N, 3) m: the box of each voxel's corners (vertices (V, 3) m, corners
+    (N, 8) rows of it); one pass, no (N, 8, 3) gather."""
+    n = corners.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    for v in range(n):
+        for a in range(3):
+            x = vertices[corners[v, 0], a]
+            lo[v, a] = x
+            hi[v, a] = x
+        for k in range(1, 8):
+            for a in range(3):
+                x = vertices[corners[v, k], a]
+                lo[v, a] = min(lo[v, a], x)
+                hi[v, a] = max(hi[v, a], x)
     return lo, hi
 
 
