@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast goldens lint bench examples previews clean
+.PHONY: demo test test-fast goldens lint bench verify examples previews clean
 
 # The Khronos glTF Validator (npm) that the export tests run; needs node and npm.
 VALIDATOR := tools/gltf-validator/node_modules/.installed
@@ -109,6 +109,12 @@ bench: $(STAMP)
 	  printf '(images/tradeoff.png)\n'; \
 	} > "$$out"; \
 	mv "$$out" $(BENCH_DOC); echo "wrote $(BENCH_DOC)"
+
+## verify: the verification suite (issue 34): canonical scenes against their published
+## references over voxel size x dt (an hour or more on 2 cores); rewrites its tables in
+## docs/physics.md ("Verification"). `python benchmarks/verification.py --quick`: ~1 minute
+verify: $(STAMP)
+	$(BIN)/python benchmarks/verification.py --docs
 
 ## clean: outputs, and numba's compiled kernels of this source tree (never needed after
 ## an edit: the cache is keyed on the source, see blastvox/_kernel_cache.py)
