@@ -144,7 +144,8 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
     is judged once in a run, when that charge's front crosses it: its element view
     (:func:`element_view`, one line of sight) is kept in ``views``
     (a :class:`~blastvox.simulate.state.WaveViews`), and a link is judged when the
-    second of its two ends is, on the mean of their views (peak and impulse) and
+    second of its two ends is, on the geometric mean of their views (peak and impulse:
+    the value at the midpoint of a power-law decay) and
     the thinner of their members (members: the model's (thickness (N,) m,
     wave_speed (N,) m/s)). With params.judge_links False (the damage model) only
     voxels are judged. The cost is one line of sight per voxel and wave and O(1) per
@@ -201,12 +202,18 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
                     peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
-                imp, blocked, thick = 0.0, False, thickness[v]
+                imp, blocked, thick, i0 = 0.0, False, thickness[v], 0.0
                 breaks = peak > voxel_yield[v]
             views.known[v, c] = True
             views.peak[v, c], views.impulse[v, c] = peak, imp
             views.blocked[v, c], views.thickness[v, c] = blocked, thick
             crossed[v] = True
+            if breaks and params.pressure_impulse and strength.shatter_pa[v] > 0.0 and not (
+                    pi_exceeded(peak, imp, strength.shatter_pa[v], i0, strength.pi_shape[v])):
+                # failed, not crushed: a voxel as large as the material's rubble comes off
+                # whole (the split frees it with the impulse its body held for it)
+                broken += _shatter(v, geometry, links, marks, b)
+                break
             if breaks:
                 voxel_alive[v] = False
                 destroyed[v] = True
@@ -253,8 +260,8 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
                 limit = oriented_yield(links.yield_pa[link], params.orientation, body_rot, b,
                                        link_direction, link, dx, dy, dz, rm)
                 if params.pressure_impulse:
-                    peak = 0.5 * (views.peak[v, c] + views.peak[w, c])
-                    imp = 0.5 * (views.impulse[v, c] + views.impulse[w, c])
+                    peak = math.sqrt(views.peak[v, c] * views.peak[w, c])
+                    imp = math.sqrt(views.impulse[v, c] * views.impulse[w, c])
                     gas = exposure.gas[c, 0]  # gas breaks walls, it does not pulverize them
                     if gas > 0.0 and not (views.blocked[v, c] and views.blocked[w, c]):
                         peak = max(peak, gas)
@@ -277,6 +284,22 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
                 else:
                     links.yield_pa[link] = max(0.0, links.yield_pa[link] - weakening * peak)
     return released, broken
+
+
+@helper
+def _shatter(v, geometry, links, marks, b) -> int:
+    """Break every alive link of voxel v (of body b), marked like the wave's breaks;
+    returns how many."""
+    count = 0
+    for k in range(geometry.link_offsets[v], geometry.link_offsets[v + 1]):
+        link = geometry.link_ids[k]
+        if links.alive[link]:
+            links.alive[link] = False
+            marks.broken[link] = True
+            count += 1
+    if count:
+        marks.dirty[b] = True
+    return count
 
 
 @helper

@@ -77,9 +77,11 @@ class Strength(NamedTuple):
     voxel_impulse, Pa s, the impulse asymptotes for a 0.25 m element; pi_shape,
     K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`); crush_pa, Pa,
     the pressure below which the voxel never turns to dust: its material's
-    crush_pressure if the voxel is part of a chunk of several voxels, else 0 (a voxel
-    as large as the material's fragments turns to debris finer than itself, dust,
-    whenever it fails); link_factor
+    crush_pressure if the voxel is part of a chunk of several voxels, else 0;
+    shatter_pa, Pa: for a voxel that is a chunk of its own (or of a model without
+    chunks: each voxel is the smallest rubble), its material's crush_pressure (0
+    for none): failing below it, the voxel comes off as rubble (its links break),
+    above it as dust; link_factor
     (L,): each link's strength relative to its material (:func:`link_strength_factor`),
     which scales its impulse asymptote as its yield; inner (L,) bool: the link holds
     together a chunk (both voxels in one chunk of ``voxel_chunk``) of a material that
@@ -91,6 +93,7 @@ class Strength(NamedTuple):
     voxel_impulse: np.ndarray
     pi_shape: np.ndarray
     crush_pa: np.ndarray
+    shatter_pa: np.ndarray
     link_factor: np.ndarray
     inner: np.ndarray
     interface: np.ndarray
@@ -233,6 +236,7 @@ def _strength(arrays: dict) -> Strength:
 
     factor, _ = link_strength_factor(arrays)
     crush = column("crush_pressure")
+    shatter = crush.copy()
     ends = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
     inner = np.zeros(len(ends), dtype=bool)
     interface = np.full(len(ends), -1, dtype=np.int64)
@@ -240,9 +244,11 @@ def _strength(arrays: dict) -> Strength:
         crush[:] = 0.0
     else:
         # a voxel that is a whole chunk is the material's fragment size or larger: when
-        # it fails it breaks into debris finer than itself (dust) without crushing
+        # it fails it comes off as rubble, and only a crushing load pulverizes it
         voxel_chunk = np.asarray(arrays["voxel_chunk"], dtype=np.int64)
-        crush[np.bincount(voxel_chunk)[voxel_chunk] < 2] = 0.0
+        whole = np.bincount(voxel_chunk)[voxel_chunk] < 2
+        crush[whole] = 0.0
+        shatter[~whole] = 0.0
         chunk = voxel_chunk[ends]
         within = chunk[:, 0] == chunk[:, 1]
         pair = np.sort(chunk[~within], axis=1)
@@ -250,7 +256,7 @@ def _strength(arrays: dict) -> Strength:
         interface[~within] = np.unique(pair[:, 0] * (int(chunk.max(initial=0)) + 1) + pair[:, 1],
                                       return_inverse=True)[1]
     return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"),
-                    crush, np.ascontiguousarray(factor), inner, interface)
+                    crush, shatter, np.ascontiguousarray(factor), inner, interface)
 
 
 @kernel

@@ -462,7 +462,8 @@ def _touching_gap(half, va, vb) -> float:
 
 
 @kernel
-def contact_effects(rows, count, density, voxels, marks, resting, hits, params, half) -> int:
+def contact_effects(rows, count, density, voxels, marks, resting, hits, params, half,
+                    crush) -> int:
     """What the step's solved fragment contacts (the first ``count`` rows) did: a
     contact that pushed and approached slower than params.rest_speed is resting and
     flags both bodies in ``resting`` (for :func:`damp_resting`); one that struck
@@ -474,8 +475,10 @@ def contact_effects(rows, count, density, voxels, marks, resting, hits, params, 
     half extents); voxels touching already push: a wall's layers,
     freed by the wave and pressed together by it, do not strike each other (their
     approach, the wave's push over one step, p dt / (rho L), is dt's, not an
-    impact's). A voxel whose yield the pressure exceeds is marked in
-    marks.destroyed (its body in marks.dirty). hits (H, 4) receives the points and
+    impact's). A voxel whose yield the pressure exceeds, and its ``crush`` (N,) Pa
+    (a voxel that is the material's rubble already is pulverized only by a crushing
+    impact, whatever the blast left of its yield), is marked in marks.destroyed (its
+    body in marks.dirty). hits (H, 4) receives the points and
     approach speeds (m/s, for dust). Returns how many rows struck. rows:
     :class:`~blastvox.simulate.contact.ground.ContactRows`; density (N,): voxels' kg/m^3;
     resting: contacts.resting (B,)."""
@@ -494,7 +497,7 @@ def contact_effects(rows, count, density, voxels, marks, resting, hits, params, 
         for side in range(2):
             v = rows.voxel[r, side]
             pressure = 0.5 * voxel_density[v] * vn * vn
-            if pressure > voxel_yield[v]:
+            if pressure > voxel_yield[v] and pressure > crush[v]:
                 voxel_alive[v] = False
                 marks.destroyed[v] = True
                 marks.dirty[rows.body[r, side]] = True
@@ -634,7 +637,8 @@ def collide_phase(model, state, settings, dt: float) -> int:
     state.caches.fragment_rows = (int(count), int(end))
     c = state.contacts
     resolved = contact_effects(memory.rows, count, model.voxels.density, state.voxels,
-                               state.marks, c.resting, c.hits, params, memory.half)
+                               state.marks, c.resting, c.hits, params, memory.half,
+                               model.strength.shatter_pa)
     if ground is not None:
         settle_on_ground(model, state, s, dt, count, end)
     state.counters.collisions += int(resolved)
