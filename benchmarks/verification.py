@@ -12,9 +12,9 @@ built-in library):
 1. **Free plate** (:func:`free_plate`): a 4 x 4 x 0.25 m plate of unbreakable steel,
    no ground, no gravity, face-on to 100 kg TNT (air burst) 9.28 m from its face
    (Z = 2 at the face's centre). Figure: its momentum after the wave (0.2 s).
-   Reference: the Kingery-Bulmash normally reflected impulse Ir (UFC 3-340-02 Fig.
-   2-15; Kingery & Bulmash 1984, ARBRL-TR-02555; the fits of
-   ``blastvox.blast.kingery_bulmash.burst_parameters``) integrated over the face with
+   Reference: the Kingery-Bulmash normally reflected impulse Ir (free-air fits, UFC
+   3-340-02 Fig. 2-7; surface bursts Fig. 2-15; Kingery & Bulmash 1984, ARBRL-TR-02555;
+   the fits of ``blastvox.blast.kingery_bulmash.burst_parameters``) integrated over the face with
    each point's distance and angle of incidence (ConWep's oblique combination
    Ir cos^2 a + Is (1 + cos^2 a - 2 cos a), Randers-Pehrson & Bannister 1997,
    ARL-TR-1310). Tolerance 0.5-1.15 x (the front reflects, the back takes the
@@ -596,7 +596,8 @@ def tables(out: dict) -> list[str]:
         lines += [f"**1. Free plate** 4 x 4 x 0.25 m (unbreakable steel, no ground or gravity), "
                   f"{PLATE_KG:g} kg TNT air burst {PLATE_DISTANCE:.2f} m from its face (Z = 2 at "
                   f"its centre). Reference: Kingery-Bulmash reflected impulse over the face "
-                  f"with angle of incidence (UFC 3-340-02 Fig. 2-15; Kingery & Bulmash 1984; "
+                  f"with angle of incidence (free-air fits: Kingery & Bulmash 1984; UFC "
+                  f"3-340-02 Fig. 2-7; "
                   f"ConWep oblique combination, ARL-TR-1310) = {ref:,.0f} N s; band "
                   f"{PLATE_BAND[0]:g}-{PLATE_BAND[1]:g} x.", "",
                   "| voxel m | dt s | voxels | mass / mesh | momentum N s | / KB | "
@@ -628,7 +629,7 @@ def tables(out: dict) -> list[str]:
                   f"the free pieces; standing: mass still founded. References: the 20 kg "
                   f"charge face-on, the Kingery-Bulmash reflected impulse over the face (as "
                   f"above; {refs['cracking']:,.0f} N s for 5 kg, {refs['throwing']:,.0f} N s "
-                  f"for 20 kg), {WALL_BAND[0]:g}-{WALL_BAND[1]:g} x (issue 34); edge-on, the "
+                  f"for 20 kg), {WALL_BAND[0]:g}-{WALL_BAND[1]:g} x (issues 33, 34); edge-on, the "
                   f"wall mostly stands (standing ≥ 50 %); 5 kg face-on, none (convergence "
                   f"only); mass within 1 % of the mesh's. Δ columns: against the finest voxel "
                   f"size at the same dt (issue 34's done-when, for the two finest sizes: p 15 %, "
