@@ -90,6 +90,7 @@ from blastvox.simulate.state import (
 )
 from blastvox.simulate.stress import Stress, impact_phase, invalidate, stress_phase
 from blastvox.simulate.stress import start as start_stress
+from blastvox.simulate.support import support_phase
 from blastvox.simulate.topology import split_phase
 from blastvox.simulate.warmup import compile_ahead
 from blastvox.simulate.wave import Charges, build_charges
@@ -297,6 +298,10 @@ def step(run: Run, n: int, frame_next: int) -> None:
         ledger.book(state, "ground")
     if before is not None and impact_phase(model, state, run.stress, before,
                                            _sustained_speed(run, dt)):
+        split(run, n, t1, frame_next)
+    if run.stress is not None and state.contacts.memory is not None and support_phase(
+            model, state, run.stress, run.gravity, state.contacts.memory.rows,
+            state.caches.fragment_rows[1], run.ground):
         split(run, n, t1, frame_next)
     if (s.collisions or run.ground is not None) and s.gravity > 0.0:
         settle(state.bodies, s.sleep_speed, run.still_steps)  # without gravity nothing rests

@@ -452,7 +452,9 @@ class Stress:
     seconds of wall time, links broken, the worst utilization of the last solve).
     survived and rubble, by body until its voxels or links change: the largest
     impact it survived (see :func:`impact_phase`), and its live voxel count when it
-    is one chunk of a crushing material (no impact can break it)."""
+    is one chunk of a crushing material (no impact can break it); rested, by body:
+    (live voxels, supporting voxels) of the support it was last judged on (see
+    :func:`support_phase`)."""
 
     springs: LinkSprings
     cell: np.ndarray
@@ -465,6 +467,7 @@ class Stress:
     peak: dict = field(default_factory=dict)
     survived: dict = field(default_factory=dict)
     rubble: dict = field(default_factory=dict)
+    rested: dict = field(default_factory=dict)
 
 
 def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
@@ -575,6 +578,7 @@ def invalidate(stress: Stress, voxel_body: np.ndarray, link_voxels: np.ndarray,
     for b in np.unique(changed).tolist():
         stress.survived.pop(b, None)
         stress.rubble.pop(b, None)
+        stress.rested.pop(b, None)
 
 
 #: Contact decelerations below this (m/s^2, 20 g) are resting contact, not impacts.
@@ -688,3 +692,4 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     state.marks.broken[broken] = True
     state.marks.dirty[b] = True
     return True
+

@@ -1,0 +1,120 @@
+"""Support: a free body held up by what is left of a structure carries its weight.
+
+A piece that breaks off a structure and rests on, leans on or hangs from a
+founded body, or lies on the ground, was a rigid body whatever its span: a slab
+that lost its columns could rest on half its length, a freed half of a lintel
+hang beside its pier (issue 34). Its links are solved under its weight on the
+voxels that hold it up (:func:`support_phase`), with the stress solver of
+founded bodies (:mod:`blastvox.simulate.stress`).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from blastvox.simulate.stress import (
+    EVENT_BAND,
+    LinkSprings,
+    Stress,
+    links_among,
+    node_key,
+    solve,
+)
+
+#: A free body slower than this (m/s) is held up by what it touches: its weight is
+#: judged on its supports (:func:`support_phase`).
+RESTING_SPEED = 1.0
+
+
+def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: int,
+                  ground: float | None) -> bool:
+    """Phase: the weight of a free body held up by the ground or a founded body.
+
+    A free body that broke off a structure and rests on, leans on or hangs from
+    what is left of it (slower than :data:`RESTING_SPEED`) carries its weight to the
+    voxels that touch a founded body in the step's contacts (rows, the first ``end``
+    of the contact rows that pushed) or lie on the ground (at ``ground`` m along
+    up, or None: no ground; the ground's rows name only a body's corners, so every
+    voxel within 1.5 contact radii of the plane is a support of a body that touches
+    it): they are its supports, and
+    its links are solved as a founded body's (:func:`solve`, gravity (3,) m/s^2 in
+    its rest frame). A slab that lost its columns and rests on half its span is a
+    cantilever, and it breaks where beam theory breaks it; the links inside a chunk
+    of a material that crushes never break (the smallest rubble). A body is judged
+    again only when its voxels or its supports' count change (stress.rested).
+
+    Writes links.alive, marks.broken, marks.dirty and counters.broken_links.
+    Returns whether any link broke (the caller splits)."""
+    if end == 0 or not float(np.dot(gravity, gravity)) > 0.0:
+        return False
+    bodies, voxels = state.bodies, state.voxels
+    body, vox = rows.body[:end], rows.voxel[:end]
+    pushed = rows.impulse[:end] > 0.0
+    held = (body < 0) | bodies.fixed[np.maximum(body, 0)]  # ground or founded, per side
+    ends = [pushed & (body[:, k] >= 0) & ~held[:, k] & held[:, 1 - k] for k in range(2)]
+    owner = np.concatenate([body[ends[0], 0], body[ends[1], 1]])
+    support = np.concatenate([vox[ends[0], 0], vox[ends[1], 1]])
+    on_ground = np.concatenate([body[ends[0], 1] < 0, body[ends[1], 0] < 0])
+    if not support.size:
+        return False
+    started = time.perf_counter()
+    any_broken = False
+    for b in np.unique(owner).tolist():
+        if not bodies.live[b] or bodies.dust[b] or bodies.fixed[b]:
+            continue
+        speed = float(np.linalg.norm(bodies.lin[b])) / max(float(bodies.mass[b]), 1e-300)
+        if speed > RESTING_SPEED:
+            continue
+        members = np.flatnonzero(voxels.alive & (voxels.body == b))
+        mine = owner == b
+        under = support[mine & ~on_ground]
+        if ground is not None and on_ground[mine].any():
+            under = np.concatenate([under, _on_the_ground(model, bodies, b, members, ground)])
+        under = np.unique(under[under >= 0])
+        if members.size < 2 or stress.rested.get(b) == (members.size, under.size):
+            continue
+        stress.rested[b] = (members.size, under.size)
+        any_broken |= _supported(model, state, stress, b, members, under, gravity)
+    stress.seconds += time.perf_counter() - started
+    return any_broken
+
+
+def _on_the_ground(model, bodies, b: int, members: np.ndarray, ground: float) -> np.ndarray:
+    """The voxels of body b (its ``members``) whose centroid is within 1.5 contact
+    radii of the ground plane at ``ground`` m along up."""
+    rest = model.voxels.centroid[members] - bodies.com[b]
+    height = (rest @ bodies.rot[b].T + bodies.pos[b]) @ model.up
+    return members[height - ground <= 1.5 * model.voxels.contact_radius[members]]
+
+
+def _supported(model, state, stress: Stress, b: int, members: np.ndarray, under: np.ndarray,
+               gravity: np.ndarray) -> bool:
+    """:func:`support_phase` of body b (its live voxels ``members``) on the voxels
+    ``under``."""
+    links, ends = links_among(model, members)
+    if not links.size or model.strength.inner[links].all():
+        return False
+    voxel_in = np.ones(members.size, dtype=bool)
+    fixed = np.isin(members, under)
+    chunk = None if stress.chunk is None else stress.chunk[members]
+    key = node_key(stress.cell[members], chunk, state.voxels.body[members], fixed, voxel_in)
+    springs = LinkSprings(*(column[links] for column in stress.springs))
+    solution = solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
+                     model.voxels.mass[members], model.voxels.centroid[members],
+                     state.bodies.rot[b].T @ gravity)
+    stress.solves += 1
+    use = solution.stress[:, 3]
+    between = ~model.strength.inner[links[solution.links]]  # a chunk never shatters
+    if not (between & (use > 1.0)).any():
+        return False
+    worst = float(use[between].max())
+    broken = links[solution.links[(use > 1.0) & between & (use >= EVENT_BAND * worst)]]
+    stress.rested.pop(b, None)
+    stress.broken += int(broken.size)
+    state.counters.broken_links += int(broken.size)
+    state.links.alive[broken] = False
+    state.marks.broken[broken] = True
+    state.marks.dirty[b] = True
+    return True
