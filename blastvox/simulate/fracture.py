@@ -33,7 +33,7 @@ from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import release_held
-from blastvox.simulate.members import effective_thickness
+from blastvox.simulate.members import edge_on, effective_thickness
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.shielding import remove_voxel, sight_line
 from blastvox.simulate.state import WaveViews
@@ -63,16 +63,20 @@ FRONT_COSINE = math.sqrt(0.5)
 
 
 @helper
-def element_view(front, c, r, px, py, pz, exposure, b, member, speed):
-    """(peak overpressure Pa, positive impulse Pa s, depth m, blocked, thickness m) that
-    the wave of charge c puts on the element holding point p (in solid, at r m from
-    the charge, in body b): the face load (:func:`blastvox.blast.face_load.face_load_nb`)
-    of the surface the line from p to the charge leaves the element through, at that
-    surface's angle of incidence, or the diffracted load if solid shields the element
-    (blocked); depth: p's depth below that surface (half a grid cell when p is not in
-    the grid); thickness: the member's (``member`` m, :mod:`blastvox.simulate.members`)
-    that resists this load, at most ``speed`` (m/s) x its positive phase."""
+def element_view(front, c, r, centre, exposure, b, member, speed, normal):
+    """(peak overpressure Pa, positive impulse Pa s, depth m, blocked, thickness m,
+    squeezed) that the wave of charge c puts on the element holding the point
+    ``centre`` (3,) m (in solid, at r m from the charge, in body b): the face load
+    (:func:`blastvox.blast.face_load.face_load_nb`) of the surface the line from the
+    point to the charge leaves the element through, at that surface's angle of
+    incidence, or the diffracted load if solid shields the element (blocked); depth:
+    the point's depth below that surface (half a grid cell when it is not in the
+    grid); thickness: the member's (``member`` m, :mod:`blastvox.simulate.members`)
+    that resists this load, at most ``speed`` (m/s) x its positive phase; squeezed:
+    the line runs along the member (normal (3,), its unit normal in the world) and
+    leaves it through an edge (:func:`~blastvox.simulate.members.edge_on`)."""
     grid = exposure.grid
+    px, py, pz = centre[0], centre[1], centre[2]
     qx, qy, qz = front.position[c, 0], front.position[c, 1], front.position[c, 2]
     blocked, axis, depth = sight_line(grid, px, py, pz, qx, qy, qz, True)
     cos_a = 1.0
@@ -84,7 +88,8 @@ def element_view(front, c, r, px, py, pz, exposure, b, member, speed):
      _) = face_params_at(front.table, front.burst[c], r, front.scale[c])
     i_pos, p_peak = face_load_nb((ps, td, bb, imp, pr, ir, q, u), cos_a, not blocked,
                                  exposure.clearing[b, c, 0], exposure.clearing[b, c, 1])
-    return p_peak, i_pos, depth, blocked, effective_thickness(member, speed, td)
+    return (p_peak, i_pos, depth, blocked, effective_thickness(member, speed, td),
+            edge_on(normal, axis, depth, member))
 
 
 @helper
@@ -147,7 +152,9 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
     second of its two ends is, on the geometric mean of their views (peak and impulse:
     the value at the midpoint of a power-law decay) and
     the thinner of their members (members: the model's (thickness (N,) m,
-    wave_speed (N,) m/s)). With params.judge_links False (the damage model) only
+    wave_speed (N,) m/s, normal (N, 3))); a link with an end squeezed between the
+    faces of a member the wave sweeps along (:func:`element_view`) is not bent by
+    it, only worn. With params.judge_links False (the damage model) only
     voxels are judged. The cost is one line of sight per voxel and wave and O(1) per
     link (there were two per link and step, one of them through all the solid
     behind the link).
@@ -169,7 +176,7 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
     (for dust cues), marks.broken (L,) the links broken, marks.dirty (B,) their
     bodies.
     """
-    geometry, link_geometry, strength, (thickness, speed) = parts
+    geometry, link_geometry, strength, (thickness, speed, member_normal) = parts
     links, voxels, bodies, marks, loads = run_state
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out, weakening = front.inner, front.outer, params.weakening
@@ -184,6 +191,7 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
     broken = 0
     n_charges = charge_pos.shape[0]
     centre = np.empty(3)
+    normal = np.empty(3)
     for v in order:
         b = voxel_body[v]
         to_world_into(body_rot[b], body_pos[b], body_com[b], voxel_centroid[v], centre)
@@ -193,8 +201,12 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
             if r < 0.0:
                 continue
             if params.pressure_impulse:
-                peak, imp, depth, blocked, thick = element_view(
-                    front, c, r, cx, cy, cz, exposure, b, thickness[v], speed[v])
+                for a in range(3):  # the member's normal, turned with its body
+                    normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
+                                 + body_rot[b, a, 1] * member_normal[v, 1]
+                                 + body_rot[b, a, 2] * member_normal[v, 2])
+                peak, imp, depth, blocked, thick, squeezed = element_view(
+                    front, c, r, centre, exposure, b, thickness[v], speed[v], normal)
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
                 i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
@@ -202,11 +214,12 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
                     peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
-                imp, blocked, thick, i0 = 0.0, False, thickness[v], 0.0
+                imp, blocked, thick, i0, squeezed = 0.0, False, thickness[v], 0.0, False
                 breaks = peak > voxel_yield[v]
             views.known[v, c] = True
             views.peak[v, c], views.impulse[v, c] = peak, imp
             views.blocked[v, c], views.thickness[v, c] = blocked, thick
+            views.squeezed[v, c] = squeezed
             crossed[v] = True
             if breaks and params.pressure_impulse and strength.shatter_pa[v] > 0.0 and not (
                     pi_exceeded(peak, imp, strength.shatter_pa[v], i0, strength.pi_shape[v])):
@@ -259,7 +272,10 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
                 rm = math.sqrt(dx * dx + dy * dy + dz * dz)
                 limit = oriented_yield(links.yield_pa[link], params.orientation, body_rot, b,
                                        link_direction, link, dx, dy, dz, rm)
-                if params.pressure_impulse:
+                if params.pressure_impulse and (views.squeezed[v, c] or views.squeezed[w, c]):
+                    # squeezed between its faces' pressures, not bent: only worn
+                    peak, breaks = math.sqrt(views.peak[v, c] * views.peak[w, c]), False
+                elif params.pressure_impulse:
                     peak = math.sqrt(views.peak[v, c] * views.peak[w, c])
                     imp = math.sqrt(views.impulse[v, c] * views.impulse[w, c])
                     gas = exposure.gas[c, 0]  # gas breaks walls, it does not pulverize them
@@ -482,7 +498,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                           marks.active)
     released, n = fracture_wave(
         front, params, (model.voxels, model.links, model.strength,
-                        (model.thickness, model.wave_speed)),
+                        (model.thickness, model.wave_speed, model.normal)),
         (state.links, state.voxels, state.bodies, marks, state.loads), order, exposure,
         wave_views(state, len(front.position)))
     if params.pressure_impulse and marks.destroyed.any():
@@ -507,7 +523,7 @@ def wave_views(state, n_charges: int):
     if caches.views is None or caches.views.known.shape[1] != n_charges:
         caches.views = WaveViews(np.zeros((n, n_charges), dtype=bool), np.zeros((n, n_charges)),
                                  np.zeros((n, n_charges)), np.zeros((n, n_charges), dtype=bool),
-                                 np.zeros((n, n_charges)))
+                                 np.zeros((n, n_charges)), np.zeros((n, n_charges), dtype=bool))
     return caches.views
 
 

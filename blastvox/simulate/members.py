@@ -18,6 +18,11 @@ the grid (3 axes, 6 face diagonals, 4 body diagonals). Each direction is two
 sweeps over the grid (running sums forward and backward), so the cost is
 linear in the grid's cells, whatever the runs' lengths.
 
+The line from an element to the charge can run along the member and leave it
+through an edge (:func:`edge_on`): a wall edge-on to a charge. The wave then
+sweeps along both faces at once and squeezes the element; it does not bend it,
+and such an element's links do not break by the wave's bending load.
+
 The thickness that resists a wave is at most the member's, and at most the
 distance a longitudinal stress wave travels during the load's positive phase,
 c t_d with c = sqrt(E / rho) (:func:`effective_thickness`): material deeper
@@ -94,15 +99,18 @@ def _run_sums(grid, fraction, di, dj, dk, out):
 
 @kernel
 def member_thickness(grid, fraction, centroid, directions):
-    """(N,) m: each voxel's member thickness, the shortest chord of solid through its
-    centroid's (N, 3) m cell over ``directions`` (D, 3) (see the module docstring);
-    grid: the shielding :class:`~blastvox.simulate.shielding.Occupancy` at rest,
-    fraction: :func:`solid_fractions`. A voxel outside every occupied cell gets one
-    cell's edge."""
+    """(thickness (N,) m, direction (N,) int64): each voxel's member thickness, the
+    shortest chord of solid through its centroid's (N, 3) m cell over ``directions``
+    (D, 3) (see the module docstring), and the row of ``directions`` it runs along
+    (the member's normal); grid: the shielding
+    :class:`~blastvox.simulate.shielding.Occupancy` at rest, fraction:
+    :func:`solid_fractions`. A voxel outside every occupied cell gets one cell's
+    edge along the first direction."""
     origin, cell, dims = grid.origin, grid.cell[0], grid.dims
     n = centroid.shape[0]
     home = np.empty(n, dtype=np.int64)
     out = np.full(n, np.inf)
+    along = np.zeros(n, dtype=np.int64)
     for v in range(n):
         i = min(max(int((centroid[v, 0] - origin[0]) / cell), 0), dims[0] - 1)
         j = min(max(int((centroid[v, 1] - origin[1]) / cell), 0), dims[1] - 1)
@@ -122,19 +130,35 @@ def member_thickness(grid, fraction, centroid, directions):
             chord = (ahead[c] + behind[c] - fraction[c]) * step
             if chord < out[v]:
                 out[v] = chord
+                along[v] = d
     for v in range(n):
         if not out[v] < np.inf or out[v] <= 0.0:
             out[v] = cell
-    return out
+            along[v] = 0
+    return out, along
 
 
-def thickness_at_rest(grid: Occupancy, volume: np.ndarray, centroid: np.ndarray) -> np.ndarray:
-    """(N,) m: :func:`member_thickness` of the voxels (volume (N,) m^3, centroid (N, 3)
-    m) on the shielding grid at rest."""
+def thickness_at_rest(grid: Occupancy, volume: np.ndarray,
+                      centroid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(thickness (N,) m, normal (N, 3) unit, rest frame): :func:`member_thickness` of
+    the voxels (volume (N,) m^3, centroid (N, 3) m) on the shielding grid at rest, and
+    the direction it is measured along."""
     if not len(volume):
-        return np.zeros(0)
+        return np.zeros(0), np.zeros((0, 3))
     fraction = solid_fractions(grid, np.ascontiguousarray(volume, dtype=np.float64), centroid)
-    return member_thickness(grid, fraction, centroid, DIRECTIONS)
+    thickness, along = member_thickness(grid, fraction, centroid, DIRECTIONS)
+    unit = DIRECTIONS / np.linalg.norm(DIRECTIONS, axis=1)[:, None]
+    return thickness, np.ascontiguousarray(unit[along])
+
+
+@helper
+def edge_on(normal, axis, depth, thickness) -> bool:
+    """Does the line to a charge run along the member: leave it through an edge (the
+    exit face's ``axis`` 0..2 across the member's unit ``normal`` (3,), world frame,
+    |n_axis| < 1/2) after more than twice its ``thickness`` (m) in it (``depth``, m)?
+    Such an element is squeezed between the pressures on its two faces, not bent
+    (UFC 3-340-02: a side wall is loaded on both faces as the wave sweeps along it)."""
+    return axis >= 0 and abs(normal[axis]) < 0.5 and depth > 2.0 * thickness
 
 
 def wave_speeds(arrays: dict) -> np.ndarray:

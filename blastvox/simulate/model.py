@@ -129,7 +129,8 @@ class SimModel:
     four voxels). rest_grid: the shielding
     :class:`~blastvox.simulate.shielding.Occupancy` of every voxel at rest (a run
     shields with a copy); thickness (N,) m: each voxel's member thickness
-    (:mod:`blastvox.simulate.members`); wave_speed (N,) m/s: its material's
+    (:mod:`blastvox.simulate.members`) and normal (N, 3) the unit direction, at rest,
+    it is measured along; wave_speed (N,) m/s: its material's
     longitudinal wave speed (inf: unknown).
     """
 
@@ -145,6 +146,7 @@ class SimModel:
     voxel_grid: tuple
     rest_grid: Occupancy
     thickness: np.ndarray
+    normal: np.ndarray
     wave_speed: np.ndarray
 
     @property
@@ -198,6 +200,7 @@ def build_model(model: VoxelModel) -> SimModel:
         *solid_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
                      a["conform_triangles"]),
         voxel_centroid, typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
+    thickness, normal = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
     return SimModel(
         voxels=voxels, links=link_geometry, strength=_strength(a),
         material=a["voxel_material"].astype(np.int64),
@@ -205,8 +208,7 @@ def build_model(model: VoxelModel) -> SimModel:
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
         grid_cell=grid_cell,
         voxel_grid=dense_grid(voxel_centroid, grid_cell), rest_grid=rest_grid,
-        thickness=thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid),
-        wave_speed=wave_speeds(a))
+        thickness=thickness, normal=normal, wave_speed=wave_speeds(a))
 
 
 def _solid_volume(arrays: dict) -> np.ndarray:

@@ -170,13 +170,14 @@ class WaveViews(NamedTuple):
     :func:`blastvox.simulate.fracture.fracture_wave`), (N, C): known bool, the
     (voxel, charge) was judged; peak Pa and impulse Pa s of its face load; blocked
     bool, shielded from the charge; thickness m, the member thickness that resisted
-    it."""
+    it; squeezed bool, the wave swept along the member (edge-on to it)."""
 
     known: np.ndarray
     peak: np.ndarray
     impulse: np.ndarray
     blocked: np.ndarray
     thickness: np.ndarray
+    squeezed: np.ndarray
 
 
 @dataclass
