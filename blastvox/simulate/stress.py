@@ -453,7 +453,7 @@ class Stress:
     survived and rubble, by body until its voxels or links change: the largest
     impact it survived (see :func:`impact_phase`), and its live voxel count when it
     is one chunk of a crushing material (no impact can break it); rested, by body:
-    (live voxels, supporting voxels) of the support it was last judged on (see
+    (live voxels, contact voxels, on the ground) of the support it was last judged on (see
     :func:`support_phase`)."""
 
     springs: LinkSprings

@@ -43,7 +43,8 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
     its rest frame). A slab that lost its columns and rests on half its span is a
     cantilever, and it breaks where beam theory breaks it; the links inside a chunk
     of a material that crushes never break (the smallest rubble). A body is judged
-    again only when its voxels or its supports' count change (stress.rested).
+    again only when its live voxels, its contact voxels or whether it touches the
+    ground change (stress.rested).
 
     Writes links.alive, marks.broken, marks.dirty and counters.broken_links.
     Returns whether any link broke (the caller splits)."""
@@ -61,22 +62,32 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
         return False
     started = time.perf_counter()
     any_broken = False
-    for b in np.unique(owner).tolist():
-        if not bodies.live[b] or bodies.dust[b] or bodies.fixed[b]:
+    candidates = np.unique(owner)
+    slow = (bodies.live[candidates] & ~bodies.dust[candidates] & ~bodies.fixed[candidates]
+            & (np.linalg.norm(bodies.lin[candidates], axis=1)
+               <= RESTING_SPEED * bodies.mass[candidates]))
+    if not slow.any():
+        return False
+    count = np.bincount(voxels.body[voxels.alive], minlength=len(bodies.live))
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.append(candidates, np.iinfo(np.int64).max))
+    for i in np.flatnonzero(slow).tolist():
+        b = int(candidates[i])
+        rows_of = order[bounds[i]:bounds[i + 1]]
+        # what it rests on: its live voxels, its contact voxels and whether it is on the
+        # ground; judged again only when that changes
+        key = (int(count[b]), int(np.unique(support[rows_of]).size),
+               bool(on_ground[rows_of].any()))
+        if key[0] < 2 or stress.rested.get(b) == key:
             continue
-        speed = float(np.linalg.norm(bodies.lin[b])) / max(float(bodies.mass[b]), 1e-300)
-        if speed > RESTING_SPEED:
-            continue
+        stress.rested[b] = key
         members = np.flatnonzero(voxels.alive & (voxels.body == b))
-        mine = owner == b
-        under = support[mine & ~on_ground]
-        if ground is not None and on_ground[mine].any():
+        under = support[rows_of][~on_ground[rows_of]]
+        if ground is not None and key[2]:
             under = np.concatenate([under, _on_the_ground(model, bodies, b, members, ground)])
         under = np.unique(under[under >= 0])
-        if members.size < 2 or stress.rested.get(b) == (members.size, under.size):
-            continue
-        stress.rested[b] = (members.size, under.size)
-        any_broken |= _supported(model, state, stress, b, members, under, gravity)
+        if under.size:
+            any_broken |= _supported(model, state, stress, b, members, under, gravity)
     stress.seconds += time.perf_counter() - started
     return any_broken
 
