@@ -74,7 +74,9 @@ def element_view(front, c, r, centre, exposure, b, member, speed, normal):
     grid); thickness: the member's (``member`` m, :mod:`blastvox.simulate.members`)
     that resists this load, at most ``speed`` (m/s) x its positive phase; squeezed:
     the line runs along the member (normal (3,), its unit normal in the world) and
-    leaves it through an edge (:func:`~blastvox.simulate.members.edge_on`)."""
+    leaves it through an edge (:func:`~blastvox.simulate.members.edge_on`): its
+    faces take the wave at grazing incidence (what wears it and its foundation),
+    and it is not bent."""
     grid = exposure.grid
     px, py, pz = centre[0], centre[1], centre[2]
     qx, qy, qz = front.position[c, 0], front.position[c, 1], front.position[c, 2]
@@ -86,10 +88,12 @@ def element_view(front, c, r, centre, exposure, b, member, speed, normal):
         depth = 0.5 * grid.cell[0]
     (ps, _, td, bb, imp, pr, ir, q, u, _, _,
      _) = face_params_at(front.table, front.burst[c], r, front.scale[c])
+    squeezed = edge_on(normal, axis, depth, member)
+    if squeezed:  # its faces see the wave sweep along them, at grazing incidence
+        cos_a = 0.0
     i_pos, p_peak = face_load_nb((ps, td, bb, imp, pr, ir, q, u), cos_a, not blocked,
                                  exposure.clearing[b, c, 0], exposure.clearing[b, c, 1])
-    return (p_peak, i_pos, depth, blocked, effective_thickness(member, speed, td),
-            edge_on(normal, axis, depth, member))
+    return (p_peak, i_pos, depth, blocked, effective_thickness(member, speed, td), squeezed)
 
 
 @helper
