@@ -686,10 +686,15 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
             stress.survived[b] = (members.size, rest_dir, acceleration, peak)
         return False
     stress.survived.pop(b, None)
+    break_links(state, stress, b, broken)
+    return True
+
+
+def break_links(state, stress: Stress, b: int, broken: np.ndarray) -> None:
+    """Break body b's links ``broken``: alive, marks (broken, dirty) and both counts."""
     stress.broken += int(broken.size)
     state.counters.broken_links += int(broken.size)
     state.links.alive[broken] = False
     state.marks.broken[broken] = True
     state.marks.dirty[b] = True
-    return True
 

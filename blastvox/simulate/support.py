@@ -18,6 +18,7 @@ from blastvox.simulate.stress import (
     EVENT_BAND,
     LinkSprings,
     Stress,
+    break_links,
     links_among,
     node_key,
     solve,
@@ -123,9 +124,5 @@ def _supported(model, state, stress: Stress, b: int, members: np.ndarray, under:
     worst = float(use[between].max())
     broken = links[solution.links[(use > 1.0) & between & (use >= EVENT_BAND * worst)]]
     stress.rested.pop(b, None)
-    stress.broken += int(broken.size)
-    state.counters.broken_links += int(broken.size)
-    state.links.alive[broken] = False
-    state.marks.broken[broken] = True
-    state.marks.dirty[b] = True
+    break_links(state, stress, b, broken)
     return True
