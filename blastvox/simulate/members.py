@@ -162,19 +162,15 @@ def edge_on(normal, axis, depth, thickness) -> bool:
 
 
 def wave_speeds(arrays: dict) -> np.ndarray:
-    """(N,) m/s: each voxel's longitudinal wave speed sqrt(E / rho) from its material's
-    youngs_modulus and density (inf where either is unknown: no cap)."""
+    """(N,) m/s: each voxel's longitudinal (bar) wave speed sqrt(E / rho), from its
+    material's youngs_modulus (30 GPa for a model that predates the column) and
+    density."""
     material = np.asarray(arrays["voxel_material"], dtype=np.int64)
+    density = np.asarray(arrays["material_density"], dtype=np.float64)
     modulus = arrays.get("material_youngs_modulus")
-    density = arrays.get("material_density")
-    if modulus is None or density is None:
-        return np.full(len(material), np.inf)
-    modulus = np.asarray(modulus, dtype=np.float64)
-    density = np.asarray(density, dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.sqrt(modulus / density)
-    speed = np.where(np.isfinite(speed) & (speed > 0.0), speed, np.inf)
-    return np.ascontiguousarray(speed[material])
+    modulus = (np.full(len(density), 30e9) if modulus is None
+               else np.asarray(modulus, dtype=np.float64))
+    return np.ascontiguousarray(np.sqrt(modulus / density)[material])
 
 
 @helper

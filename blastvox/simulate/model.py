@@ -131,7 +131,7 @@ class SimModel:
     shields with a copy); thickness (N,) m: each voxel's member thickness
     (:mod:`blastvox.simulate.members`) and normal (N, 3) the unit direction, at rest,
     it is measured along; wave_speed (N,) m/s: its material's
-    longitudinal wave speed (inf: unknown).
+    longitudinal (bar) wave speed sqrt(E / rho).
     """
 
     voxels: VoxelGeometry

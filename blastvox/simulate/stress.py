@@ -446,9 +446,9 @@ def overloaded(solution: Solution) -> np.ndarray:
 @dataclass
 class Stress:
     """The stress solver's memory over a run: springs (the model's links), cell (N, 3)
-    each voxel's lattice index, chunk (N,) its chunk or None, wave_speed (N,) m/s its
-    material's bar wave speed sqrt(E / rho), solved (B,) bodies whose current solution is known (a
-    body's voxels or links changed: it is solved again), and run totals (solves,
+    each voxel's lattice index, chunk (N,) its chunk or None, solved (B,) bodies whose
+    current solution is known (a body's voxels or links changed: it is solved again),
+    and run totals (solves,
     seconds of wall time, links broken, the worst utilization of the last solve).
     survived and rubble, by body until its voxels or links change: the largest
     impact it survived (see :func:`impact_phase`), and its live voxel count when it
@@ -459,7 +459,6 @@ class Stress:
     springs: LinkSprings
     cell: np.ndarray
     chunk: np.ndarray | None
-    wave_speed: np.ndarray
     solved: np.ndarray
     solves: int = 0
     seconds: float = 0.0
@@ -478,14 +477,10 @@ def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
     springs = link_springs(arrays)
     if not has_limits(springs):
         return None
-    material = np.asarray(arrays["voxel_material"], dtype=np.int64)
-    count = len(arrays["material_density"])
-    modulus = _column(arrays, "youngs_modulus", 30e9, count)
-    speed = np.sqrt(modulus / np.asarray(arrays["material_density"], dtype=np.float64))
     chunk = arrays.get("voxel_chunk")
     return Stress(springs=springs, cell=np.asarray(arrays["voxel_ijk"], dtype=np.int64),
                   chunk=None if chunk is None else np.asarray(chunk, dtype=np.int64),
-                  wave_speed=speed[material], solved=np.zeros(capacity, dtype=bool))
+                  solved=np.zeros(capacity, dtype=bool))
 
 
 def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
@@ -655,7 +650,7 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     along = model.voxels.centroid[members] @ rest_dir
     size = 2.0 * float(np.median(model.voxels.contact_radius[members]))
     length = float(along.max() - along.min()) + size
-    speed = float(np.average(stress.wave_speed[members], weights=model.voxels.mass[members]))
+    speed = float(np.average(model.wave_speed[members], weights=model.voxels.mass[members]))
     tau = 2.0 * length / speed
     acceleration = dv / tau
     if acceleration < IMPACT_ACCELERATION:
