@@ -102,10 +102,9 @@ class Sweep:
 #: through the module attributes in ``_homes``), and what one call must at least touch per
 #: voxel / link.
 SWEEPS: dict[str, Sweep] = {
-    "fracture_links": Sweep(8, 42, "links: alive 1, voxel pair 16, midpoint 24 read, "
-                                   "broken flag 1 cleared; voxels: body 8 read"),
-    "fracture_voxels": Sweep(35, 0, "alive 1, body 8, centroid 24 read; destroyed and "
-                                    "crossed flags 1 + 1 cleared"),
+    "fracture_wave": Sweep(35, 17, "voxels: alive 1, body 8, centroid 24 read, crossed "
+                                   "flag 1 written, destroyed flag 1 cleared; links: 2 CSR "
+                                   "ids 16, alive 1 read"),
     "blast_impulses": Sweep(18, 0, "alive 1, body 8, link mask 1, conform slot 8 read"),
     "link_masks": Sweep(2, 25, "links: alive 1, voxel pair 16, face 8 read; voxels: "
                                "link mask 1 cleared, 1 written"),
@@ -130,7 +129,7 @@ def _homes() -> dict[str, tuple[ModuleType, ...]]:
     wrapped there as well)."""
     from blastvox.simulate import boundary, engine, forces, fracture, topology
 
-    return {"fracture_links": (fracture,), "fracture_voxels": (fracture,),
+    return {"fracture_wave": (fracture,),
             "blast_impulses": (forces,), "link_masks": (topology, engine),
             "split_bodies": (topology,), "body_radii": (topology, engine),
             "boundary_lists": (boundary,), "link_alive_counts": (engine,)}
@@ -164,8 +163,8 @@ def patched(targets: list[tuple], make: Callable[[str, Callable], Callable]
 PHASES = (("engine", "Run", "start"), ("engine", None, "build_model"),
           ("engine", None, "initial_state"), ("engine", None, "body_rotations"),
           ("engine", None, "bodies_in_shell"), ("engine", None, "fracture_phase"),
-          ("fracture", None, "mark_in_shell"), ("fracture", None, "fracture_links"),
-          ("fracture", None, "fracture_damage"), ("fracture", None, "fracture_voxels"),
+          ("fracture", None, "mark_in_shell"), ("fracture", None, "fracture_wave"),
+          ("fracture", None, "fracture_damage"),
           ("engine", None, "ignite_phase"), ("engine", None, "split"),
           ("topology", None, "kill_links_of"), ("topology", None, "link_masks"),
           ("topology", None, "split_bodies"), ("topology", None, "body_radii"),
