@@ -187,9 +187,10 @@ POSITION_SWEEPS = 4
 #: Fraction of a penetration (beyond the slop) the position pass removes in a step.
 POSITION_RATE = 0.2
 
-# Work arrays of a solve. bw (n, 23), by moving body: velocity (m/s), angular velocity
+# Work arrays of a solve. bw (n, 24), by moving body: velocity (m/s), angular velocity
 # (rad/s), then both as they were before the solve, 1 / mass (1/kg), world inverse
-# inertia R I^-1 R^T (1/(kg m^2), row by row), how many times its velocities changed.
+# inertia R I^-1 R^T (1/(kg m^2), row by row), how many times its velocities changed
+# (by enough to matter: see the solver's _announce), the changes (m/s) not yet counted.
 # rw (count, RW_WIDTH), by row: lever arms r_a, r_b of its centre (m, from each centre
 # of mass; 0 for a body that does not move); effective masses of friction along t1, t2
 # (kg) and of twist about n (kg m^2), and their inverses; the accumulated impulses
