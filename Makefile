@@ -75,7 +75,7 @@ previews: $(STAMP)
 	done
 	$(BIN)/blastvox blast --charge 10 --distance 1,5,20 --plot docs/images/blast.png > /dev/null
 
-## bench: run every benchmark (about 30 minutes on 2 cores) and rewrite docs/benchmarks.md
+## bench: run every benchmark (about an hour on 2 cores) and rewrite docs/benchmarks.md
 ## with their tables (and docs/images/tradeoff.png); progress goes to the terminal
 BENCH_DOC := docs/benchmarks.md
 bench: $(STAMP)
@@ -103,6 +103,13 @@ bench: $(STAMP)
 	  $(BIN)/python benchmarks/export_usd.py; \
 	  section Preview preview.py; $(BIN)/python benchmarks/preview.py; \
 	  section 'Wedges on Dask' wedge.py; $(BIN)/python benchmarks/wedge.py; \
+	  section 'Contact cost' contacts.py; $(BIN)/python benchmarks/contacts.py; \
+	  section 'Stacking against PyBullet' stacking.py; $(BIN)/python benchmarks/stacking.py; \
+	  section "The building's rubble pile against PyBullet" pile.py; \
+	  $(BIN)/python benchmarks/pile.py; \
+	  section 'Stress solver' stress.py; $(BIN)/python benchmarks/stress.py; \
+	  section 'Export at scale' 'export_scale.py --quick'; \
+	  $(BIN)/python benchmarks/export_scale.py --quick; \
 	  section 'Speed/accuracy trade' 'tradeoff.py --plot docs/images/tradeoff.png'; \
 	  $(BIN)/python benchmarks/tradeoff.py --plot docs/images/tradeoff.png; \
 	  printf '\n![Wall time against error: combined (Pareto fronts drawn) and per metric]'; \
