@@ -75,7 +75,7 @@ previews: $(STAMP)
 	done
 	$(BIN)/blastvox blast --charge 10 --distance 1,5,20 --plot docs/images/blast.png > /dev/null
 
-## bench: run every benchmark (about an hour on 2 cores) and rewrite docs/benchmarks.md
+## bench: run every benchmark (48 minutes on a 2-core EPYC) and rewrite docs/benchmarks.md
 ## with their tables (and docs/images/tradeoff.png); progress goes to the terminal
 BENCH_DOC := docs/benchmarks.md
 bench: $(STAMP)
@@ -85,7 +85,7 @@ bench: $(STAMP)
 	{ \
 	  echo '# Benchmarks'; echo; \
 	  echo "<!-- Written by \`make bench\` at git $$(git describe --always --dirty 2>/dev/null \
-	    || echo unknown). Do not edit by hand: the next \`make bench\` rewrites it. -->"; echo; \
+	    || echo unknown) on $$(date -u +%F). Do not edit by hand: the next \`make bench\` rewrites it. -->"; echo; \
 	  echo 'The speed and accuracy of blastvox, measured by the scripts in `benchmarks/`.'; \
 	  echo 'Each section is the output of one script: its machine line (platform, CPU,'; \
 	  echo 'CPU count, load average, versions), then its tables. What each column means,'; \

@@ -425,8 +425,8 @@ class Simulation(_Model):
     contact_sweeps: ContactSweeps = Field(64, description=(
         "Velocity sweeps of the contact solver at most a step (it stops sooner once no "
         "contact's speed changes by 1 cm/s): fewer are faster in big rubble piles and "
-        "let pieces sink further into each other (docs/benchmarks.md, \"contact "
-        "sweeps\")."))
+        "let pieces sink further into each other (measure a shot's trade with "
+        "benchmarks/pile.py --contact-sweeps N)."))
     fire_pressure_scale: NonNegative = Field(1.0, description=(
         "A wave's peak overpressure times this is taken off a voxel's combustibility; "
         "below zero the voxel burns."))
