@@ -584,6 +584,11 @@ def _pct(x: float) -> str:
     return "—" if not math.isfinite(x) else f"{100 * x:.1f} %"
 
 
+def _mass_misses(row: dict) -> list[str]:
+    """["mass"] when a case's voxels weigh more than MASS_TOLERANCE off its mesh, else []."""
+    return ["mass"] if abs(row["mass_ratio"] - 1) > MASS_TOLERANCE else []
+
+
 def _verdict(misses: list[str]) -> str:
     return "pass" if not misses else "FAIL: " + ", ".join(misses)
 
@@ -609,8 +614,7 @@ def tables(out: dict) -> list[str]:
                         and x["steps"] == r["steps"])
             d = _relative(r["momentum"], base["momentum"])
             misses = [] if PLATE_BAND[0] <= r["ratio"] <= PLATE_BAND[1] else ["KB band"]
-            if abs(r["mass_ratio"] - 1) > MASS_TOLERANCE:
-                misses.append("mass")
+            misses += _mass_misses(r)
             if r["size"] != finest and d > MOMENTUM_TOLERANCE:
                 misses.append("Δp")
             lines.append(f"| {r['size']:g} | 1/{r['steps']} | {r['voxels']:,} | "
@@ -652,9 +656,7 @@ def tables(out: dict) -> list[str]:
             floor = MOMENTUM_FLOOR * refs[r["charge"]]
             diff = convergence(r, base, floor)
             ddt = abs(r["momentum"] - dt_base["momentum"]) / max(dt_base["momentum"], floor)
-            misses = []
-            if abs(r["mass_ratio"] - 1) > MASS_TOLERANCE:
-                misses.append("mass")
+            misses = _mass_misses(r)
             if r["side"] == "face-on" and r["charge"] == "throwing":
                 if not WALL_BAND[0] <= r["ratio"] <= WALL_BAND[1]:
                     misses.append("p / KB")
@@ -691,9 +693,7 @@ def tables(out: dict) -> list[str]:
         for r in out["house"]:
             text, ok = house_verdict(r["k"], r)
             w = r["walls"]
-            misses = [] if ok else ["reference"]
-            if abs(r["mass_ratio"] - 1) > MASS_TOLERANCE:
-                misses.append("mass")
+            misses = ([] if ok else ["reference"]) + _mass_misses(r)
             lines.append(f"| {r['k']:g} | {r['distance']:.2f} | {r['size']:g} | {r['voxels']:,} "
                          f"| {r['mass_ratio']:.4f} | {_pct(r['moved'])} | {_pct(w['front'])} | "
                          f"{_pct(w['left'])}, {_pct(w['right'])} | {_pct(w['back'])} | {text} | "
