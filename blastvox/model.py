@@ -16,6 +16,9 @@ vertices                  (V, 3) f8       lattice vertices (after jitter), m
 voxel_vertices            (N, 8) i4       corner ``dx + 2dy + 4dz`` -> vertex index
 voxel_ijk                 (N, 3) i4       lattice index within its object's grid
 voxel_object              (N,) i4         object index (``meta["objects"]``)
+voxel_part                (N,) i4         optional: the input part (a mesh file's node or
+                                          group) the voxel was cut from (``meta["parts"]``:
+                                          object, name and material of each)
 voxel_material            (N,) i4         material index (``meta["materials"]``)
 voxel_volume              (N,) f8         m^3, of the actual (jittered/conform) shape
 voxel_mass                (N,) f8         kg
@@ -44,8 +47,8 @@ conform_tag               (T,) u1         0..5: on cell face f; 6: on the origin
 surface_triangles         (S, 3, 3) f8    optional, the source look (all five or none; see
 surface_uv                (S, 3, 2) f4    :mod:`blastvox.voxelize.look`): textured or
 surface_normals           (S, 3, 3) f4    smooth inputs' triangles, their corners' UVs
-                                          and unit normals (the normals optional: older
-                                          files), texture or -1,
+surface_part              (S,) i4         and unit normals, texture or -1 and part (the
+                                          normals and parts optional: older files),
 texture_data              (B,) u1         the textures' PNG bytes and their ranges;
 texture_offsets           (K+1,) i8       ``meta["textures"]`` names the K textures
 material_*                (M, ...)        material table (see materials.material_table)
@@ -119,16 +122,17 @@ _REQUIRED: dict[str, Spec] = {
 }
 
 #: Per-voxel arrays a file may lack (older models): name -> (dtype, shape).
-OPTIONAL_ARRAYS: dict[str, Spec] = {"voxel_chunk": (_I4, ("N",))}
+OPTIONAL_ARRAYS: dict[str, Spec] = {"voxel_chunk": (_I4, ("N",)), "voxel_part": (_I4, ("N",))}
 #: The source look (blastvox.voxelize.look): all present or all absent. S surface
 #: triangles, B texture bytes, K1 = textures + 1.
 SURFACE_ARRAYS: dict[str, Spec] = {
     "surface_triangles": (_F8, ("S", 3, 3)), "surface_uv": (np.float32, ("S", 3, 2)),
     "surface_texture": (_I4, ("S",)), "texture_data": (_U1, ("B",)),
     "texture_offsets": (_I8, ("K1",)), "surface_normals": (np.float32, ("S", 3, 3)),
+    "surface_part": (_I4, ("S",)),
 }
 #: Look arrays a file with a look may lack (written before they existed).
-SURFACE_OPTIONAL = ("surface_normals",)
+SURFACE_OPTIONAL = ("surface_normals", "surface_part")
 
 #: The material table (blastvox.materials.material_table), one row per name in
 #: meta["materials"] (M): name -> (dtype, shape).
@@ -313,6 +317,9 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     check_index(path, name("voxel_material"), a["voxel_material"], dims["M"], "material")
     if "voxel_chunk" in a:  # ids only: a chunk's connectedness is not checked
         check_index(path, name("voxel_chunk"), a["voxel_chunk"], n, "chunk")
+    if "voxel_part" in a:
+        check_index(path, name("voxel_part"), a["voxel_part"], _part_count(path, meta, prefix),
+                    "part")
     check_range(path, name("voxel_ijk"), a["voxel_ijk"], 0, rule="a lattice index >= 0")
     links = a["link_voxels"]
     check_index(path, name("link_voxels"), links, n, "voxel")
@@ -377,6 +384,9 @@ def _check_look(path: str | os.PathLike, a: Mapping[str, np.ndarray], meta: Mapp
         _check_unit_or_zero(path, prefix + "surface_normals", a["surface_normals"])
     check_index(path, prefix + "surface_texture", a["surface_texture"], len(textures),
                 "texture", none=-1)
+    if "surface_part" in a:
+        check_index(path, prefix + "surface_part", a["surface_part"],
+                    _part_count(path, meta, prefix), "part")
     check_offsets(path, prefix + "texture_offsets", a["texture_offsets"], dims["B"],
                   "texture bytes")
 
@@ -410,6 +420,16 @@ def _check_meta(path: str | os.PathLike, meta: Mapping[str, Any], prefix: str) -
         fail(path, f"meta {prefix}materials is not a list of material names "
                    f"(got {_clip(names)})")
     return names
+
+
+def _part_count(path: str | os.PathLike, meta: Mapping[str, Any], prefix: str) -> int:
+    """The number of input parts ``meta["parts"]`` names (each a dict with a 'name')."""
+    parts = meta.get("parts")
+    if not isinstance(parts, list) or not all(
+            isinstance(p, dict) and isinstance(p.get("name"), str) for p in parts):
+        fail(path, f"meta {prefix}parts is not a list of parts with a 'name' "
+                   f"(got {_clip(parts)})")
+    return len(parts)
 
 
 def _clip(value: Any, width: int = 60) -> str:

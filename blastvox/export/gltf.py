@@ -71,6 +71,7 @@ from blastvox.export.pieces import (
     object_groups,
     piece_meshes,
     piece_objects,
+    piece_parts,
 )
 from blastvox.export.uv import texture_names
 from blastvox.geometry import quaternion
@@ -154,6 +155,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
         _damage_texture_materials(cache, b, mats, mat_index, look,
                                   np.unique(pm.material[pm.damage]).tolist())
     objects = piece_objects(cache)
+    parts = piece_parts(cache)
     skins = _skin_groups(objects) if skinned else []
     skin_of = np.zeros(cache.piece_count, dtype=np.int64)
     for k, joints in enumerate(skins):
@@ -183,6 +185,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
         node: dict[str, Any] = {"name": f"piece_{p:05d}",
                                 "extras": {"piece": p, "object": objects[p],
                                            "mass_kg": masses[p]}}
+        if parts[p]:
+            node["extras"]["part"] = parts[p]
         if piece_mesh[p] >= 0 and not skinned:
             node["mesh"] = int(piece_mesh[p])
         if n_frames:
@@ -240,8 +244,9 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
             nodes.append({"name": f"skin_{k:03d}", "children": joints})
     object_nodes = []
     for name, pieces in groups.items():
+        children = pieces if skinned else _part_nodes(nodes, name, pieces, parts)
         object_nodes.append(len(nodes))
-        nodes.append({"name": name or "object", "children": pieces,
+        nodes.append({"name": name or "object", "children": children,
                       "extras": {"object": name}})
     nodes.append({"name": "blastvox", "children": object_nodes + others})
     roots = [len(nodes) - 1]
@@ -523,3 +528,22 @@ def bench_gltf(pieces: int = 1000, frames: int = 120, repeat: int = 3,
 
 if __name__ == "__main__":  # python -m blastvox.export.gltf: the benchmark
     print(json.dumps(bench_gltf(), indent=1))
+
+
+def _part_nodes(nodes: list[dict], name: str, pieces: list[int], parts: list[str]
+                ) -> list[int]:
+    """The children of object ``name``'s node: its pieces, with those of an input of
+    several parts under a node per part (appended to ``nodes``; extras object, part)."""
+    children: list[int] = []
+    part_node: dict[str, int] = {}
+    for p in pieces:
+        if not parts[p]:
+            children.append(p)
+            continue
+        if parts[p] not in part_node:
+            part_node[parts[p]] = len(nodes)
+            children.append(len(nodes))
+            nodes.append({"name": parts[p], "children": [],
+                          "extras": {"object": name, "part": parts[p]}})
+        nodes[part_node[parts[p]]]["children"].append(p)
+    return children

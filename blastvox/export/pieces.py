@@ -15,6 +15,7 @@ material colour; a face that was inside the object (it had a link) is a
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,13 +101,40 @@ def piece_objects(cache: SimCache) -> list[str]:
     names = [o.get("name", f"object_{i}")
              for i, o in enumerate(cache.model.meta.get("objects", []))]
     voxel_object = np.asarray(cache.model.arrays["voxel_object"], dtype=np.int64)
+    return [names[voxel_object[v]] if 0 <= v and voxel_object[v] < len(names) else ""
+            for v in _first_voxels(cache).tolist()]
+
+
+def piece_parts(cache: SimCache) -> list[str]:
+    """The input part (a node or group of its mesh file) each piece was cut from (P,),
+    where that file held more than one part and all the piece's voxels are of that
+    part; "" elsewhere (a piece that still joins two parts) and in models that do not
+    record parts."""
+    parts = cache.model.meta.get("parts") or []
+    if "voxel_part" not in cache.model.arrays or not parts:
+        return [""] * cache.piece_count
+    per_object = Counter(str(p.get("object", "")) for p in parts)
+    names = [str(p.get("name", "")) if per_object[str(p.get("object", ""))] > 1 else ""
+             for p in parts]
+    voxel_part = np.asarray(cache.model.arrays["voxel_part"], dtype=np.int64)
+    piece = np.asarray(cache.voxel_piece, dtype=np.int64)
+    held = (piece >= 0) & (piece < cache.piece_count)
+    low = np.full(cache.piece_count, len(names), dtype=np.int64)
+    high = np.full(cache.piece_count, -1, dtype=np.int64)
+    np.minimum.at(low, piece[held], voxel_part[held])
+    np.maximum.at(high, piece[held], voxel_part[held])
+    return [names[lo] if lo == hi and 0 <= lo < len(names) else ""
+            for lo, hi in zip(low.tolist(), high.tolist(), strict=True)]
+
+
+def _first_voxels(cache: SimCache) -> np.ndarray:
+    """(P,) int64: each piece's lowest voxel, -1 for a piece with none."""
     piece = np.asarray(cache.voxel_piece, dtype=np.int64)
     first = np.full(cache.piece_count, -1, dtype=np.int64)
     present, first_voxel = np.unique(piece, return_index=True)
     inside = (present >= 0) & (present < cache.piece_count)
     first[present[inside]] = first_voxel[inside]
-    return [names[voxel_object[v]] if 0 <= v and voxel_object[v] < len(names) else ""
-            for v in first.tolist()]
+    return first
 
 
 def object_groups(objects: list[str]) -> dict[str, list[int]]:

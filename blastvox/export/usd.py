@@ -55,10 +55,16 @@ from blastvox.cache import SimCache
 from blastvox.errors import OutputError
 from blastvox.export.damage_textures import damage_textures
 from blastvox.export.options import ExportOptions
-from blastvox.export.pieces import animation, piece_meshes, piece_objects, velocities
+from blastvox.export.pieces import (
+    animation,
+    piece_meshes,
+    piece_objects,
+    piece_parts,
+    velocities,
+)
 from blastvox.export.usd_effects import write_camera, write_particles, write_shock
 from blastvox.export.usd_pieces import write_instancer, write_materials, write_xforms
-from blastvox.export.usd_specs import ROOT, object_prim_names, vec3f
+from blastvox.export.usd_specs import ROOT, object_prim_names, part_prim_names, vec3f
 from blastvox.export.uv import face_uvs, texture_names
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change
@@ -127,6 +133,8 @@ class _Writer:
         self.anim = animation(cache, options.up_axis)
         self.objects = piece_objects(cache)
         self.object_prims = object_prim_names(self.objects)
+        self.parts = piece_parts(cache)
+        self.part_prims = part_prim_names(self.objects, self.parts)
         self.change = frame_change(cache.model.meta.get("up_axis", "Y"), options.up_axis)
         self.material_names = _material_names(cache)
         self.colors, self.damage_colors = _material_colors(cache, len(self.material_names))

@@ -185,18 +185,27 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
     mass = w.cache.piece_mass
     for pieces in object_groups(w.objects).values():
         group = _prim(shot, w.object_prims[pieces[0]], "Xform")
+        part_groups: dict[str, Sdf.PrimSpec] = {}  # an input's nodes, where it had several
         for p in pieces:
             name = f"piece_{p:05d}"
-            xform = _prim(group, name, "Xform")
+            parent = group
+            if w.part_prims[p]:
+                if w.part_prims[p] not in part_groups:
+                    part_groups[w.part_prims[p]] = _prim(group, w.part_prims[p], "Xform")
+                parent = part_groups[w.part_prims[p]]
+            xform = _prim(parent, name, "Xform")
             _attr(xform, "primvars:blastvox:piece", _T.Int, p)
             _attr(xform, "primvars:blastvox:mass", _T.Double, float(mass[p]))
             _attr(xform, "primvars:blastvox:object", _T.String, w.objects[p])
             # the same as custom properties, which Blender's importer reads (its own
-            # convention for them: the namespace is dropped): piece, mass_kg and object,
-            # the names the glTF export's node extras give them
-            for key, type_name, value in (("piece", _T.Int, p), ("mass_kg", _T.Double,
-                                                                 float(mass[p])),
-                                          ("object", _T.String, w.objects[p])):
+            # convention for them: the namespace is dropped): piece, mass_kg, object
+            # (and part), the names the glTF export's node extras give them
+            properties = [("piece", _T.Int, p), ("mass_kg", _T.Double, float(mass[p])),
+                          ("object", _T.String, w.objects[p])]
+            if w.parts[p]:
+                _attr(xform, "primvars:blastvox:part", _T.String, w.parts[p])
+                properties.append(("part", _T.String, w.parts[p]))
+            for key, type_name, value in properties:
                 Sdf.AttributeSpec(xform, f"userProperties:{key}", type_name, _VARYING,
                                   True).default = value
             for key, type_name in (("primvars:blastvox:velocity", _T.Vector3f),

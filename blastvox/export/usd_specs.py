@@ -52,10 +52,26 @@ def object_prim_names(objects: list[str]) -> list[str]:
     return [prim_of[name] for name in objects]
 
 
-def piece_prim_paths(objects: list[str]) -> list[str]:
-    """The path of each piece's Xform in the ``xforms`` layout,
-    ``/Shot/<object>/piece_NNNNN`` (P,), given each piece's object name."""
-    return [f"{ROOT}/{o}/piece_{p:05d}" for p, o in enumerate(object_prim_names(objects))]
+def part_prim_names(objects: list[str], parts: list[str]) -> list[str]:
+    """A valid prim name, unique within its object, for each piece's part name (P,),
+    as :func:`object_prim_names` makes them; "" where a piece has no part name."""
+    prim_of: dict[tuple[str, str], str] = {}
+    taken: dict[str, set[str]] = {}
+    for key in dict.fromkeys(zip(objects, parts, strict=True)):
+        if key[1]:
+            prim_of[key] = unique(Tf.MakeValidIdentifier(key[1]), taken.setdefault(key[0], set()))
+    return [prim_of.get(key, "") for key in zip(objects, parts, strict=True)]
+
+
+def piece_prim_paths(objects: list[str], parts: list[str] | None = None) -> list[str]:
+    """The path of each piece's Xform in the ``xforms`` layout (P,), given each piece's
+    object name and part name: ``/Shot/<object>/piece_NNNNN``, or
+    ``/Shot/<object>/<part>/piece_NNNNN`` for a piece of an input of several parts."""
+    groups = object_prim_names(objects)
+    if parts is not None:
+        groups = [f"{o}/{q}" if q else o
+                  for o, q in zip(groups, part_prim_names(objects, parts), strict=True)]
+    return [f"{ROOT}/{g}/piece_{p:05d}" for p, g in enumerate(groups)]
 
 
 def vec3f(a: np.ndarray) -> Vt.Vec3fArray:

@@ -6,9 +6,11 @@ stay put as the pieces move:
 
 * an exterior face of an input that had a texture (the VoxelModel's source look,
   :mod:`blastvox.voxelize.look`) takes the UVs of the source triangle nearest to
-  its centroid, by barycentric coordinates of each corner in that triangle's
-  plane: exact for conform faces (they are pieces of the source triangles),
-  a projection for jittered and cube cells. Its texture index is that triangle's;
+  its centroid (the exact nearest, whatever the triangles' shapes, among the
+  triangles of the face's own input part where the model records parts), by
+  barycentric coordinates of each corner in that triangle's plane: exact for
+  conform faces (they are pieces of the source triangles), a projection for
+  jittered and cube cells. Its texture index is that triangle's;
 * every other face (fracture faces, untextured inputs, faces farther from the
   source surface than ``REACH`` voxel edges) gets box UVs: the two rest
   coordinates (m) across the axis its normal points along most, 1 UV unit per
@@ -40,14 +42,15 @@ from blastvox.export.pieces import PieceMeshes
 #: staircase along a slanted surface put outside faces up to about sqrt(3) edges from
 #: it; with less, those steps showed the flat material colour in stripes.
 REACH = 2.0
-#: Source triangles whose centroids are nearest a face's centroid, searched exactly.
-CANDIDATES = 8
 #: A source triangle whose height is under this fraction of its longest edge (a sliver, or
 #: collinear corners) maps no texture: barycentric coordinates off it blow up.
 SLIVER = 1e-3
 #: Texture coordinates at or beyond this magnitude are taken as a failed mapping (box
 #: UVs instead): a real UV layout is within a few hundred tiles of 0.
 MAX_UV = 1e6
+#: Triangles with the nearest centroids measured first: the nearest of them bounds the
+#: exact search (:func:`nearest_triangles`).
+CANDIDATES = 8
 
 
 def texture_names(cache: SimCache) -> list[str]:
@@ -80,9 +83,12 @@ def face_uvs(cache: SimCache, meshes: PieceMeshes) -> FaceUVs:
     usable = _usable(a["surface_triangles"]) if "surface_triangles" in a else np.zeros(0, int)
     if usable.size and outside.size:
         edge = np.cbrt(a["voxel_volume"][meshes.voxel[outside]])
-        nearest, distance = nearest_triangles(a["surface_triangles"][usable],
-                                              rest[outside].mean(axis=1))
-        near = distance <= REACH * edge
+        parts = "voxel_part" in a and "surface_part" in a  # a face maps onto its own part
+        nearest, _ = nearest_triangles(
+            a["surface_triangles"][usable], rest[outside].mean(axis=1), REACH * edge,
+            a["surface_part"][usable] if parts else None,
+            a["voxel_part"][meshes.voxel[outside]] if parts else None)
+        near = nearest >= 0
         faces, source = outside[near], usable[nearest[near]]
         bary = _barycentric(a["surface_triangles"][source], rest[faces])
         mapped = np.einsum("tcj,tjd->tcd", bary, a["surface_uv"][source].astype(np.float64))
@@ -107,21 +113,82 @@ def box_uvs(triangles: np.ndarray) -> np.ndarray:
     return picked.astype(np.float32)
 
 
-def nearest_triangles(triangles: np.ndarray, points: np.ndarray
+def nearest_triangles(triangles: np.ndarray, points: np.ndarray, reach: np.ndarray,
+                      triangle_group: np.ndarray | None = None,
+                      point_group: np.ndarray | None = None
                       ) -> tuple[np.ndarray, np.ndarray]:
-    """For each point (n, 3), the index of the nearest of ``triangles`` (S, 3, 3) and its
-    distance (m): exact among the CANDIDATES triangles whose centroids are nearest (a
-    KD-tree of centroids), which holds the nearest triangle unless a much larger one
-    passes closer than their centroids (then a farther candidate is taken)."""
-    k = min(CANDIDATES, len(triangles))
-    _, candidates = cKDTree(triangles.mean(axis=1)).query(points, k=k)
-    candidates = np.asarray(candidates).reshape(len(points), k)
-    flat = candidates.ravel()
-    closest = closest_point(triangles[flat], np.repeat(points, k, axis=0))
-    distance = np.linalg.norm(closest - np.repeat(points, k, axis=0), axis=1).reshape(-1, k)
-    best = np.argmin(distance, axis=1)
-    rows = np.arange(len(points))
-    return candidates[rows, best], distance[rows, best]
+    """For each point (n, 3), the index of the nearest of ``triangles`` (S, 3, 3) no
+    farther than its ``reach`` (n,) m, and the distance (m); -1 and inf where none is.
+    With groups (S,) and (n,) given, a point takes only a triangle of its own group.
+    Ties go to the lower index.
+
+    Exact for any triangle shapes (a long triangle's centroid can lie far from the
+    part of it that a point is near): the nearest of the triangles with the nearest
+    centroids bounds the search; then every triangle whose box, grown by that bound,
+    holds the point is measured. Boxes are found through their centroids: a triangle
+    whose corners lie within R of its centroid, in a class of R by powers of two, is
+    looked for within bound + R."""
+    n = len(points)
+    if n == 0 or len(triangles) == 0:
+        return np.full(n, -1, dtype=np.int64), np.full(n, np.inf)
+    groups = point_group is not None and triangle_group is not None
+    centroid = triangles.mean(axis=1)
+    low, high = triangles.min(axis=1), triangles.max(axis=1)
+    bound = np.minimum(reach, _nearest_candidate(triangles, centroid, points,
+                                                 triangle_group if groups else None,
+                                                 point_group if groups else None))
+    bound = bound * (1.0 + 1e-9) + 1e-12  # keep the candidate that set it (rounding)
+    radius = np.linalg.norm(triangles - centroid[:, None, :], axis=2).max(axis=1)
+    size_class = np.ceil(np.log2(np.maximum(radius, 1e-9))).astype(np.int64)
+    point_tree = cKDTree(points)
+    pairs = []
+    for k in np.unique(size_class):
+        members = np.flatnonzero(size_class == k)
+        found = cKDTree(centroid[members]).sparse_distance_matrix(
+            point_tree, float(bound.max()) + 2.0 ** k, output_type="ndarray")
+        point, triangle = found["j"], members[found["i"]]
+        grown = bound[point][:, None]
+        inside = ((points[point] >= low[triangle] - grown)
+                  & (points[point] <= high[triangle] + grown)).all(axis=1)
+        pairs.append(np.stack((point[inside], triangle[inside]), axis=1))
+    point, triangle = np.concatenate(pairs).T
+    if groups:
+        same = point_group[point] == triangle_group[triangle]
+        point, triangle = point[same], triangle[same]
+    gap = np.linalg.norm(closest_point(triangles[triangle], points[point]) - points[point],
+                         axis=1)
+    within = gap <= reach[point]
+    point, triangle, gap = point[within], triangle[within], gap[within]
+    order = np.lexsort((triangle, gap, point))
+    first = order[np.r_[True, point[order][1:] != point[order][:-1]]] if order.size else order
+    best = np.full(n, -1, dtype=np.int64)
+    distance = np.full(n, np.inf)
+    best[point[first]] = triangle[first]
+    distance[point[first]] = gap[first]
+    return best, distance
+
+
+def _nearest_candidate(triangles: np.ndarray, centroid: np.ndarray, points: np.ndarray,
+                       triangle_group: np.ndarray | None, point_group: np.ndarray | None
+                       ) -> np.ndarray:
+    """(n,) m: the distance from each point to the nearest of the CANDIDATES triangles
+    (of its group) whose centroids are nearest: an upper bound of the nearest
+    triangle's distance (inf where a point's group has no triangle)."""
+    bound = np.full(len(points), np.inf)
+    if triangle_group is None or point_group is None:
+        triangle_group = np.zeros(len(triangles), dtype=np.int64)
+        point_group = np.zeros(len(points), dtype=np.int64)
+    for group in np.unique(point_group):
+        own, mine = np.flatnonzero(triangle_group == group), np.flatnonzero(point_group == group)
+        if own.size == 0:
+            continue
+        k = min(CANDIDATES, own.size)
+        _, nearest = cKDTree(centroid[own]).query(points[mine], k=k)
+        candidates = own[np.asarray(nearest).reshape(len(mine), k)].ravel()
+        at = np.repeat(points[mine], k, axis=0)
+        gap = np.linalg.norm(closest_point(triangles[candidates], at) - at, axis=1)
+        bound[mine] = gap.reshape(-1, k).min(axis=1)
+    return bound
 
 
 def _usable(triangles: np.ndarray) -> np.ndarray:

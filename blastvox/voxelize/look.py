@@ -20,12 +20,15 @@ surface_normals    (S, 3, 3) f4   unit normals of their corners, model frame: sm
                                   within a part, sharp across creases
                                   (:func:`blastvox.geometry.normals.corner_normals`)
 surface_texture    (S,) i4        texture index, or -1 where the part has none
+surface_part       (S,) i4        the part (``meta["parts"]``, source node) each is of:
+                                  a piece's face takes the look of its voxel's part only
 texture_data       (B,) u1        the textures' PNG files, one after another
 texture_offsets    (K+1,) i8      byte ranges of the textures in texture_data
 =================  =============  ===================================================
 
-``meta["textures"]`` names them: ``[{"name": "<object>_<k>", "mime_type": "image/png"}]``
-(an empty list when only smooth normals are kept).
+``meta["textures"]`` names them after the source material that uses each first
+(``<object>_<k>`` where the part has no material name): ``[{"name": ..., "mime_type":
+"image/png"}]`` (an empty list when only smooth normals are kept).
 """
 
 from __future__ import annotations
@@ -50,19 +53,22 @@ class LookBuilder:
         self.uv: list[np.ndarray] = []
         self.normals: list[np.ndarray] = []
         self.texture: list[np.ndarray] = []
+        self.part: list[np.ndarray] = []
         self.images: list[bytes] = []
         self.names: list[str] = []
 
-    def add_object(self, name: str, parts: list[Part]) -> None:
+    def add_object(self, name: str, parts: list[Part], first_part: int) -> None:
         """Keep ``parts``' surfaces (all of them, so that a face near a plain part is
         not given a texture or a normal from further away) if any part is textured or
-        smooth somewhere."""
+        smooth somewhere; ``first_part`` is the index of ``parts[0]`` in the model's
+        ``meta["parts"]``."""
         normals = [corner_normals(p.mesh.vertices, p.mesh.faces) for p in parts]
         if not any(p.texture is not None or _is_smooth(p, n) for p, n in zip(parts, normals,
                                                                              strict=True)):
             return
-        for part, normal in zip(parts, normals, strict=True):
+        for index, (part, normal) in enumerate(zip(parts, normals, strict=True)):
             faces = np.asarray(part.mesh.faces, dtype=np.int64)
+            self.part.append(np.full(len(faces), first_part + index, dtype=np.int32))
             self.triangles.append(np.asarray(part.mesh.vertices, dtype=np.float64)[faces])
             self.normals.append(normal.astype(np.float32))
             if part.texture is None:
@@ -71,7 +77,7 @@ class LookBuilder:
                 continue
             if part.texture not in self.images:
                 self.images.append(part.texture)
-                self.names.append(f"{name}_{len(self.names)}")
+                self.names.append(part.material or f"{name}_{len(self.names)}")
             self.uv.append(part.uv[faces].astype(np.float32))
             self.texture.append(np.full(len(faces), self.images.index(part.texture),
                                         dtype=np.int32))
@@ -87,6 +93,7 @@ class LookBuilder:
             "surface_uv": np.concatenate(self.uv),
             "surface_normals": np.concatenate(self.normals),
             "surface_texture": np.concatenate(self.texture),
+            "surface_part": np.concatenate(self.part),
             "texture_data": np.frombuffer(b"".join(self.images), dtype=np.uint8).copy(),
             "texture_offsets": np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
         }

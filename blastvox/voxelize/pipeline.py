@@ -506,7 +506,8 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "voxel_volume", "voxel_centroid", "voxel_inertia", "voxel_boundary", "strength",
         "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
         "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side",
-        "link_bond", "anchored", "voxel_fill")}
+        "link_bond", "anchored", "voxel_fill", "voxel_part")}
+    parts: list[dict] = []  # meta["parts"]: every input part (node) of every object
     voxel_base = vertex_base = tri_base = 0
     look = LookBuilder()
 
@@ -528,7 +529,10 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
                             "jitter": lat.request.jitter, "lattice_origin_m":
                             lat.grid.origin.tolist(), "voxel_count": int((labels == c).sum())})
         object_ids = len(objects) - count + labels
-        look.add_object(lat.name, lat.parts)
+        look.add_object(lat.name, lat.parts, len(parts))
+        per["voxel_part"].append(len(parts) + _part_indices(lat)[lat.part])
+        parts.extend({"object": lat.name, "name": part.name, "material": part.material}
+                     for part in lat.parts)
         names = _voxel_materials(lat)
         scale = np.ones(n)
         for rule in lat.request.rules:
@@ -573,6 +577,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         voxel_vertices=cat["voxel_vertices"].astype(np.int32).reshape(-1, 8),
         voxel_ijk=cat["voxel_ijk"].astype(np.int32).reshape(-1, 3),
         voxel_object=cat["voxel_object"].astype(np.int32),
+        voxel_part=cat["voxel_part"].astype(np.int32),
         voxel_material=cat["material_name_idx"].astype(np.int32),
         voxel_volume=cat["voxel_volume"].astype(np.float64),
         voxel_centroid=cat["voxel_centroid"].reshape(-1, 3),
@@ -599,7 +604,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
     meta = {
         "tool_version": __version__, "up_axis": settings.up_axis, "ground_height": ground,
         "seed": settings.seed, "settings": settings.recorded, "objects": objects,
-        "materials": material_names,
+        "materials": material_names, "parts": parts,
     }
     surface, textures = look.arrays()
     if surface:  # only a textured or smooth input adds the look (others are unchanged)
@@ -607,6 +612,13 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         meta["textures"] = textures
     _foundations(arrays, ground, up, cat["strength"], cat["anchored"].astype(bool))
     return VoxelModel(arrays=arrays, meta=meta)
+
+
+def _part_indices(lat: _Lattice) -> np.ndarray:
+    """(solids,) int: the index in ``lat.parts`` of each solid (a part that failed to
+    clean has no solid)."""
+    return np.array([next(i for i, part in enumerate(lat.parts) if part is solid.part)
+                     for solid in lat.solids], dtype=np.int64)
 
 
 def _voxel_materials(lat: _Lattice) -> np.ndarray:
