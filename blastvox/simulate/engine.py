@@ -23,7 +23,7 @@ and writes:
    of founded bodies the contacts pushed out (:func:`~blastvox.simulate.contact.loads.punch_phase`),
    and the contacts solved again with them free;
    impact fracture of the bodies the contacts stopped hard
-   (:func:`~blastvox.simulate.stress.impact_phase`); sleeping;
+   (:func:`~blastvox.simulate.impact.impact_phase`); sleeping;
 8. integrate positions and orientations;
 9. record: at every frame boundary, live body transforms and damage
    (:class:`~blastvox.simulate.recorder.Recorder`); particle cues
@@ -55,6 +55,7 @@ from blastvox.simulate.effects import Effects
 from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
 from blastvox.simulate.forces import blast_phase
 from blastvox.simulate.fracture import fracture_phase
+from blastvox.simulate.impact import impact_phase
 from blastvox.simulate.integrate import integrate_positions, integrate_velocities
 from blastvox.simulate.kernels import (
     any_moving,
@@ -88,7 +89,7 @@ from blastvox.simulate.state import (
     Voxels,
     empty_bodies,
 )
-from blastvox.simulate.stress import Stress, impact_phase, invalidate, stress_phase
+from blastvox.simulate.stress import Stress, invalidate, stress_phase
 from blastvox.simulate.stress import start as start_stress
 from blastvox.simulate.support import support_phase
 from blastvox.simulate.topology import split_phase

@@ -3,9 +3,12 @@
 A founded (fixed) body carries its own weight through its links to its
 foundation voxels. The solve runs on a coarse graph, like NVIDIA Blast's stress
 solver on its support chunks: voxels are grouped into nodes (the connected
-voxels of one cell of a grid k voxels wide, k chosen so that a body has at most
-:data:`TARGET_NODES` nodes; foundation voxels apart), and the alive links
-between two nodes form one interface. Each node is a rigid element with six
+voxels of one chunk within one cell of a grid k voxels wide, k chosen so that a
+body has at most :data:`TARGET_NODES` cells; foundation voxels apart), and the
+alive links between two nodes form one interface. An interface along a chunk
+boundary is a staircase of voxel faces: each face counts with its area projected
+across the interface's direction (its vector area), so the section is the
+member's whatever the steps. Each node is a rigid element with six
 degrees of freedom (translation and rotation about its centre of mass); each
 interface is a set of springs at its area centroid, the rigid-body-spring model
 of Kawai (1978, "New discrete models and their application to seismic response
@@ -136,7 +139,9 @@ class Graph(NamedTuple):
     second, area (K,) m^2, length (K,) m: distance between the node centres along
     the direction; trans, rot (K, 3, 3): translational (N/m) and rotational
     (N m/rad) spring tensors; links (J,) the alive links across interfaces and
-    link_interface (J,), link_sign (J,) +1 if the link points first to second."""
+    link_interface (J,), link_sign (J,) +1 if the link points first to second,
+    link_facing (J,) the cosine between the link's face normal (first to second) and
+    its interface's direction, clipped to [0, 1]: how much of its face lies across it."""
 
     node: np.ndarray
     node_mass: np.ndarray
@@ -152,6 +157,7 @@ class Graph(NamedTuple):
     links: np.ndarray
     link_interface: np.ndarray
     link_sign: np.ndarray
+    link_facing: np.ndarray
 
 
 def cell_size(voxel_count: int) -> int:
@@ -162,8 +168,8 @@ def cell_size(voxel_count: int) -> int:
 def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
                  fixed: np.ndarray, link_alive: np.ndarray, voxel_key: np.ndarray,
                  mass: np.ndarray, centroid: np.ndarray) -> Graph:
-    """Group the voxels flagged in voxel_in (N,) into nodes by ``voxel_key`` (N, 5)
-    int64 (body, foundation flag, cell i, j, k) and connectivity, and the alive links
+    """Group the voxels flagged in voxel_in (N,) into nodes by ``voxel_key`` (N, 6)
+    int64 (body, foundation flag, chunk, cell i, j, k) and connectivity, and the alive links
     between nodes into interfaces. mass (N,) kg and centroid (N, 3) m of the voxels."""
     n = len(voxel_in)
     inside = np.flatnonzero(voxel_in)
@@ -189,10 +195,10 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
     pairs, interface = np.unique(first * count + second, return_inverse=True)
     interface = interface.ravel()
     pair = np.stack([pairs // count, pairs % count], axis=1)
-    trans, rot, centre, direction, area, length = _interfaces(
+    trans, rot, centre, direction, area, length, facing = _interfaces(
         springs, across, interface, sign, len(pairs), pair, node_com)
     return Graph(node, node_mass, node_com, node_fixed, pair, centre, direction, area, length,
-                 trans, rot, across, interface, sign)
+                 trans, rot, across, interface, sign, facing)
 
 
 #: Graphs up to this many nodes are labelled with NumPy (SciPy's call costs more)
@@ -226,8 +232,17 @@ def components(m: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
 
 def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
                 sign: np.ndarray, count: int, pair: np.ndarray, node_com: np.ndarray):
-    """Each interface's spring tensors, centroid, direction, area and length."""
-    a = springs.area[links]
+    """Each interface's spring tensors, centroid, direction, area, length, and each of
+    its links' facing (see :class:`Graph`).
+
+    An interface between chunks is a staircase of voxel faces, not a plane section:
+    its direction is its vector area (the sum of its faces' areas times their normals,
+    first node to second), and each face counts with its area projected across that
+    direction (area x facing), so the section's area and second moment are those of
+    the member the interface cuts, whatever the steps (a face along the member, a
+    riser of the staircase, carries none of its axial load). A plane interface is
+    unchanged (facing 1)."""
+    a_full = springs.area[links]
     e = springs.modulus[links]
 
     def total(values: np.ndarray) -> np.ndarray:
@@ -238,13 +253,16 @@ def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
                         for i in range(flat.shape[1])], axis=1).astype(np.float64)
         return out.reshape((count,) + values.shape[1:])
 
+    normal = sign[:, None] * springs.direction[links]
+    direction = total(a_full[:, None] * normal)
+    direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-300)
+    d = direction[interface]
+    facing = np.clip(np.einsum("ij,ij->i", normal, d), 0.0, 1.0)
+    a = np.maximum(a_full * facing, 1e-12 * a_full)  # a riser keeps a token stiffness
     area = total(a)
     centre = total(a[:, None] * springs.midpoint[links]) / area[:, None]
-    direction = total(a[:, None] * sign[:, None] * springs.direction[links])
-    direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-300)
     span = node_com[pair[:, 1]] - node_com[pair[:, 0]]
     length = np.maximum(np.abs(np.einsum("ij,ij->i", span, direction)), 1e-9)
-    d = direction[interface]
     offset = springs.midpoint[links] - centre[interface]
     offset -= np.einsum("ij,ij->i", offset, d)[:, None] * d
     lever = np.cross(offset, d)
@@ -252,16 +270,16 @@ def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
     plane = eye[None] - d[:, :, None] * d[:, None, :]
     shear_modulus = e / (2.0 * (1.0 + POISSON))
     bend = total(e[:, None, None] * (a[:, None, None] * lever[:, :, None] * lever[:, None, :]
-                                     + (a * a / 12.0)[:, None, None] * plane))
+                                     + (a * a_full / 12.0)[:, None, None] * plane))
     twist = total(shear_modulus * (a * np.einsum("ij,ij->i", offset, offset)
-                                   + TORSION_J * a * a))
+                                   + TORSION_J * a * a_full))
     k_normal = total(e * a) / length
     k_shear = total(shear_modulus * a) / length
     dd = direction[:, :, None] * direction[:, None, :]
     trans = k_normal[:, None, None] * dd + k_shear[:, None, None] * (eye[None] - dd)
     rot = bend / length[:, None, None] + (twist / length)[:, None, None] * dd
     return (np.ascontiguousarray(trans), np.ascontiguousarray(rot), np.ascontiguousarray(centre),
-            np.ascontiguousarray(direction), area, length)
+            np.ascontiguousarray(direction), area, length, np.ascontiguousarray(facing))
 
 
 @kernel
@@ -382,8 +400,10 @@ def link_stresses(springs, graph, dof, q, out) -> None:
         e = springs.modulus[link]
         side = math.sqrt(springs.area[link])
         span = graph.length[k]
-        normal = e * (stretch + turn) / span
-        own = e * math.sqrt(bend) * side / (2.0 * span)
+        # the member's axial stress on a face turned by facing c: c^2 of it is normal
+        c = graph.link_facing[j]
+        normal = e * (stretch + turn) / span * c * c
+        own = e * math.sqrt(bend) * side / (2.0 * span) * c
         radius = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) + 0.5 * side
         tau = (math.sqrt(sliding) / graph.area[k]
                + e / (2.0 * (1.0 + POISSON)) * abs(phi_n) * radius / span)
@@ -406,31 +426,33 @@ class Solution(NamedTuple):
 
 def solve(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
           fixed: np.ndarray, link_alive: np.ndarray, voxel_key: np.ndarray,
-          mass: np.ndarray, centroid: np.ndarray, gravity: np.ndarray) -> Solution:
+          mass: np.ndarray, centroid: np.ndarray, gravity: np.ndarray,
+          bearing: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
     """Static equilibrium under gravity (3,) m/s^2 of the voxels flagged in voxel_in
     (N,), those flagged in fixed (N,) held still; only alive links (L,) carry load.
-    voxel_key (N, 5): see :func:`coarse_graph`. Every component must hold a fixed voxel."""
-    from scipy.sparse import csc_matrix
-    from scipy.sparse.linalg import splu
+    voxel_key (N, 6): see :func:`coarse_graph`. Every component must hold a fixed voxel.
+
+    ``bearing`` (voxels (S,), points (S, 3) m): the fixed voxels are what the body
+    rests on, not what it is bonded to, touching its support at those S points, each
+    of one of them; each holds the body only by pushing
+    (:func:`blastvox.simulate.equilibrium.resting`): a deck on two piers spans
+    between them as a simply supported beam instead of being clamped over them."""
+    from blastvox.simulate.equilibrium import equilibrium, resting
 
     g = coarse_graph(springs, link_voxels, voxel_in, fixed, link_alive, voxel_key, mass,
                      centroid)
     stress = np.zeros((len(g.links), 4))
-    free = ~g.node_fixed
-    dof = np.full(len(free), -1, dtype=np.int64)
-    dof[free] = np.arange(int(free.sum()))
-    size = 6 * int(free.sum())
-    if size == 0 or len(g.links) == 0:
-        return Solution(g.links, stress, len(free))
-    rows, cols, vals = assemble(g, dof)
-    matrix = csc_matrix((vals, (rows, cols)), shape=(size, size))
-    rhs = np.zeros(size)
-    blocks = np.flatnonzero(free)
-    for axis in range(3):
-        rhs[6 * dof[blocks] + axis] = g.node_mass[blocks] * gravity[axis]
-    q = splu(matrix, permc_spec="COLAMD").solve(rhs)
+    if bearing is not None:
+        held = np.zeros(len(g.node_fixed), dtype=bool)
+        found = resting(g, bearing[0], bearing[1], gravity)
+    else:
+        held = g.node_fixed
+        found = equilibrium(g, held, gravity)
+    if found is None:
+        return Solution(g.links, stress, len(held))
+    dof, q = found
     link_stresses(springs, g, dof, q, stress)
-    return Solution(g.links, stress, len(free))
+    return Solution(g.links, stress, len(held))
 
 
 def overloaded(solution: Solution) -> np.ndarray:
@@ -448,13 +470,12 @@ class Stress:
     """The stress solver's memory over a run: springs (the model's links), cell (N, 3)
     each voxel's lattice index, chunk (N,) its chunk or None, solved (B,) bodies whose
     current solution is known (a body's voxels or links changed: it is solved again),
-    and run totals (solves,
-    seconds of wall time, links broken, the worst utilization of the last solve).
-    survived and rubble, by body until its voxels or links change: the largest
-    impact it survived (see :func:`impact_phase`), and its live voxel count when it
-    is one chunk of a crushing material (no impact can break it); rested, by body:
-    (live voxels, contact voxels, on the ground) of the support it was last judged on (see
-    :func:`support_phase`)."""
+    and run totals (solves, seconds of wall time, links broken, the worst utilization
+    of the last solve). survived and rubble, by body until its voxels or links change:
+    the largest impact it survived (:mod:`blastvox.simulate.impact`), and its live
+    voxel count when it is one chunk of a crushing material (no impact can break it);
+    rested, by body: (live voxels, contact voxels, on the ground) of the support it was
+    last judged on (:mod:`blastvox.simulate.support`)."""
 
     springs: LinkSprings
     cell: np.ndarray
@@ -485,17 +506,21 @@ def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
 
 def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
              fixed: np.ndarray, voxel_in: np.ndarray) -> np.ndarray:
-    """Each voxel's node key (N, 5) for :func:`coarse_graph`: body, foundation flag
-    and chunk (N,) (when the model has chunks and the solve has at most
-    :data:`TARGET_NODES` of them), else the grid cell (N, 3) of :func:`cell_size`."""
+    """Each voxel's node key (N, 6) for :func:`coarse_graph`: body, foundation flag,
+    chunk (0 where the model has none, or the solve more than :data:`TARGET_NODES` of
+    them) and the grid cell (N, 3) of :func:`cell_size`.
+
+    A node is the part of a chunk within a cell: every chunk boundary is a node
+    boundary (a crack runs along it), and a chunk larger than a cell is cut by the
+    cells, so a member's section is resolved as well as without chunks (a chunk as one
+    rigid node put its boundary, not the member's section, where the stress is read:
+    a cantilever's root read 0.6-0.7 x beam theory)."""
     count = int(np.count_nonzero(voxel_in))
     head = [voxel_body[:, None], fixed[:, None].astype(np.int64)]
-    if chunk is not None:
-        chunks = np.unique(chunk[voxel_in]).size
-        if chunks <= TARGET_NODES:
-            zeros = np.zeros((len(voxel_body), 2), dtype=np.int64)
-            return np.concatenate(head + [chunk[:, None], zeros], axis=1)
-    return np.concatenate(head + [cell // cell_size(count)], axis=1)
+    chunks = np.zeros((len(voxel_body), 1), dtype=np.int64)
+    if chunk is not None and np.unique(chunk[voxel_in]).size <= TARGET_NODES:
+        chunks = chunk[:, None].astype(np.int64)
+    return np.concatenate(head + [chunks, cell // cell_size(count)], axis=1)
 
 
 def voxel_links(model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -574,115 +599,6 @@ def invalidate(stress: Stress, voxel_body: np.ndarray, link_voxels: np.ndarray,
         stress.survived.pop(b, None)
         stress.rubble.pop(b, None)
         stress.rested.pop(b, None)
-
-
-#: Contact decelerations below this (m/s^2, 20 g) are resting contact, not impacts.
-IMPACT_ACCELERATION = 20.0 * 9.81
-#: No impact below this velocity change (m/s): IMPACT_ACCELERATION over the shortest
-#: contact time (a one-voxel body of the fastest material, 2e-4 s).
-MIN_IMPACT_DV = IMPACT_ACCELERATION * 2e-4
-#: An impact within this angle's cosine (10 degrees) of one a body survived, with the
-#: same voxels, scales that solve (an elastic solve is linear in its load)...
-SAME_SIDE = math.cos(math.radians(10.0))
-#: ... and is solved again only if the scaled peak utilization reaches this.
-RESOLVE_UTILIZATION = 0.8
-
-
-def impact_phase(model, state, stress: Stress, lin_before: np.ndarray,
-                 sustained: float) -> bool:
-    """Phase: impact fracture. A free body whose momentum the contacts of this step
-    changed by dp (N s, lin_before (B, 3) the momenta before the collide and ground
-    phases) beyond what they take off every step to hold it up (``sustained``, m/s:
-    the step's gravity g dt with its Coulomb friction, sqrt(1 + mu^2) g dt, and the
-    contacts' resting speed) was stopped from dv = |dp| / m - sustained over a
-    contact time tau = 2 L / c (L its
-    length along dp, c the bar wave speed: the duration of an elastic rod's impact,
-    Goldsmith 1960, "Impact", ch. 2): it decelerates at a = dv / tau. Its voxels
-    carry the inertial load -m a to the voxels in contact (within one voxel of its
-    face towards the contact), solved as for gravity; every link past its limit
-    breaks, except links inside a chunk of a material that crushes (model.strength.inner):
-    such a chunk is the smallest piece of rubble.
-    The solve is linear in its load, so a body that survived a larger
-    impact from the same side (:data:`SAME_SIDE`) with the same voxels is not
-    solved again unless the scaled peak utilization reaches
-    :data:`RESOLVE_UTILIZATION` (stress.survived). Weight is a sustained load, not an
-    impact: a body resting or sliding on something is never judged, whatever dt
-    (g dt / tau would grow with dt).
-
-    Reads bodies and voxels; writes links.alive, marks.broken, marks.dirty and
-    counters.broken_links. Returns whether any link broke (the caller splits)."""
-    bodies, voxels = state.bodies, state.voxels
-    n = len(lin_before)  # bodies split off since (by collisions) are not judged this step
-    dp = bodies.lin[:n] - lin_before
-    dv = np.sqrt(np.einsum("ij,ij->i", dp, dp)) / np.where(bodies.mass[:n] > 0.0,
-                                                            bodies.mass[:n], np.inf) - sustained
-    # a loose prefilter of _impact's own (a few ulps wider: vector and scalar norms)
-    candidates = np.flatnonzero(bodies.live[:n] & ~bodies.fixed[:n] & ~bodies.dust[:n]
-                                & (dv >= MIN_IMPACT_DV * (1.0 - 1e-9)))
-    if not candidates.size:
-        return False
-    started = time.perf_counter()
-    # the candidates' live voxels, grouped by body once (a one-voxel body has no link)
-    owner = np.where(voxels.alive, voxels.body, -1)
-    in_candidate = np.zeros(len(bodies.live) + 1, dtype=bool)  # [-1]: no body
-    in_candidate[candidates] = True
-    held = np.flatnonzero(in_candidate[owner])  # voxel order, as flatnonzero per body
-    held = held[np.argsort(owner[held], kind="stable")]
-    bounds = np.searchsorted(owner[held], np.append(candidates, n))
-    any_broken = False
-    for i, b in enumerate(candidates):
-        members = held[bounds[i]:bounds[i + 1]]
-        if members.size >= 2:
-            any_broken |= _impact(model, state, stress, int(b), members, dp[b], sustained)
-    stress.seconds += time.perf_counter() - started
-    return any_broken
-
-
-def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.ndarray,
-            sustained: float) -> bool:
-    """Impact fracture of body b (its live voxels ``members``) under the contact impulse
-    dp (3,) N s, world frame, of which ``sustained`` m/s of velocity change held it up."""
-    bodies, voxels = state.bodies, state.voxels
-    dv = float(np.linalg.norm(dp)) / bodies.mass[b] - sustained
-    if dv <= 0.0 or dv < MIN_IMPACT_DV or stress.rubble.get(b) == members.size:
-        return False
-    rest_dir = bodies.rot[b].T @ (dp / np.linalg.norm(dp))
-    along = model.voxels.centroid[members] @ rest_dir
-    size = 2.0 * float(np.median(model.voxels.contact_radius[members]))
-    length = float(along.max() - along.min()) + size
-    speed = float(np.average(model.wave_speed[members], weights=model.voxels.mass[members]))
-    tau = 2.0 * length / speed
-    acceleration = dv / tau
-    if acceleration < IMPACT_ACCELERATION:
-        return False
-    known = stress.survived.get(b)
-    if (known is not None and known[0] == members.size and float(known[1] @ rest_dir) >= SAME_SIDE
-            and known[3] * acceleration / known[2] < RESOLVE_UTILIZATION):
-        return False
-    links, ends = links_among(model, members)  # the body alone, renumbered
-    if model.strength.inner[links].all():
-        stress.rubble[b] = members.size  # one chunk of a material that crushes: nothing
-        return False                     # an impact can break
-    voxel_in = np.ones(members.size, dtype=bool)
-    fixed = along <= along.min() + 0.5 * size
-    chunk = None if stress.chunk is None else stress.chunk[members]
-    key = node_key(stress.cell[members], chunk, voxels.body[members], fixed, voxel_in)
-    springs = LinkSprings(*(column[links] for column in stress.springs))
-    solution = solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
-                     model.voxels.mass[members], model.voxels.centroid[members],
-                     -acceleration * rest_dir)
-    stress.solves += 1
-    use = solution.stress[:, 3]
-    between = ~model.strength.inner[links[solution.links]]  # a chunk never shatters
-    broken = links[solution.links[(use > 1.0) & between]]
-    if not broken.size:
-        if known is None or acceleration > known[2]:
-            peak = float(use[between].max(initial=0.0))
-            stress.survived[b] = (members.size, rest_dir, acceleration, peak)
-        return False
-    stress.survived.pop(b, None)
-    break_links(state, stress, b, broken)
-    return True
 
 
 def break_links(state, stress: Stress, b: int, broken: np.ndarray) -> None:

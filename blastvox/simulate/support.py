@@ -53,11 +53,15 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
         return False
     bodies, voxels = state.bodies, state.voxels
     body, vox = rows.body[:end], rows.voxel[:end]
-    pushed = rows.impulse[:end] > 0.0
+    # a contact that pushed, or touches: a solve leaves some resting contacts at no
+    # impulse (another point took the load), and a support left out would make a
+    # symmetric body asymmetric
+    pushed = (rows.impulse[:end] > 0.0) | (rows.gap[:end] <= 0.0)
     held = (body < 0) | bodies.fixed[np.maximum(body, 0)]  # ground or founded, per side
     ends = [pushed & (body[:, k] >= 0) & ~held[:, k] & held[:, 1 - k] for k in range(2)]
     owner = np.concatenate([body[ends[0], 0], body[ends[1], 1]])
     support = np.concatenate([vox[ends[0], 0], vox[ends[1], 1]])
+    point = np.concatenate([rows.point[:end][ends[0]], rows.point[:end][ends[1]]])
     on_ground = np.concatenate([body[ends[0], 1] < 0, body[ends[1], 0] < 0])
     if not support.size:
         return False
@@ -83,12 +87,15 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
             continue
         stress.rested[b] = key
         members = np.flatnonzero(voxels.alive & (voxels.body == b))
-        under = support[rows_of][~on_ground[rows_of]]
+        placed = ~on_ground[rows_of] & (support[rows_of] >= 0)
+        under = support[rows_of][placed]
+        at = (point[rows_of][placed] - bodies.pos[b]) @ bodies.rot[b] + bodies.com[b]  # rest
         if ground is not None and key[2]:
-            under = np.concatenate([under, _on_the_ground(model, bodies, b, members, ground)])
-        under = np.unique(under[under >= 0])
+            lying = _on_the_ground(model, bodies, b, members, ground)
+            under = np.concatenate([under, lying])
+            at = np.concatenate([at, model.voxels.centroid[lying]])
         if under.size:
-            any_broken |= _supported(model, state, stress, b, members, under, gravity)
+            any_broken |= _supported(model, state, stress, b, members, under, at, gravity)
     stress.seconds += time.perf_counter() - started
     return any_broken
 
@@ -102,9 +109,9 @@ def _on_the_ground(model, bodies, b: int, members: np.ndarray, ground: float) ->
 
 
 def _supported(model, state, stress: Stress, b: int, members: np.ndarray, under: np.ndarray,
-               gravity: np.ndarray) -> bool:
-    """:func:`support_phase` of body b (its live voxels ``members``) on the voxels
-    ``under``."""
+               at: np.ndarray, gravity: np.ndarray) -> bool:
+    """:func:`support_phase` of body b (its live voxels ``members``) resting on its
+    voxels ``under`` (S,) at the points ``at`` (S, 3) m, rest frame."""
     links, ends = links_among(model, members)
     if not links.size or model.strength.inner[links].all():
         return False
@@ -115,7 +122,8 @@ def _supported(model, state, stress: Stress, b: int, members: np.ndarray, under:
     springs = LinkSprings(*(column[links] for column in stress.springs))
     solution = solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
                      model.voxels.mass[members], model.voxels.centroid[members],
-                     state.bodies.rot[b].T @ gravity)
+                     state.bodies.rot[b].T @ gravity,
+                     bearing=(np.searchsorted(members, under), at))
     stress.solves += 1
     use = solution.stress[:, 3]
     between = ~model.strength.inner[links[solution.links]]  # a chunk never shatters
