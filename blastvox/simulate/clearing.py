@@ -125,17 +125,24 @@ def reset_clearing(state) -> None:
         state.caches.clearing[:] = np.nan
     if state.caches.sight is not None:
         state.caches.sight[:] = 0
+    state.caches.reach = None
 
 
 def exposure_of(model, state, charge_pos: np.ndarray, active: np.ndarray,
                 gas: np.ndarray | None) -> Exposure:
     """The :class:`~blastvox.simulate.state.Exposure` of the current wave: the shielding
-    grid, :func:`clearing_of`, the charges' gas (zeros if None) and the faces' sight
-    cache (kept in state.caches, reset with the clearing by :func:`reset_clearing`)."""
+    grid, :func:`clearing_of`, the charges' gas (zeros if None), the faces' sight
+    cache and the air the waves reach (kept in state.caches, reset with the clearing
+    by :func:`reset_clearing`: a new wave)."""
     caches = state.caches
     n_charges = len(charge_pos)
     if caches.sight is None or caches.sight.shape[1] != n_charges:
         caches.sight = np.zeros((state.shielding.member.shape[0], n_charges, CONFORM_FACES),
                                 dtype=np.int8)
+    if caches.reach is None or caches.reach.shape[0] != n_charges:
+        from blastvox.simulate.confinement import wave_reach
+
+        caches.reach = wave_reach(state.shielding, charge_pos)
     return Exposure(state.shielding, clearing_of(model, state, charge_pos, active),
-                    np.zeros((n_charges, 2)) if gas is None else gas, caches.sight)
+                    np.zeros((n_charges, 2)) if gas is None else gas, caches.sight,
+                    caches.reach)

@@ -27,10 +27,11 @@ import numpy as np
 from blastvox.blast.confinement import gas_pressure, vent_time
 from blastvox.geometry.transforms_nb import rotate_into, to_world_into
 from blastvox.geometry.voxel_faces import FACE_CORNERS
-from blastvox.jit import helper, kernel
+from blastvox.jit import kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.forces import face_area_into
 from blastvox.simulate.model import CONFORM_FACES
+from blastvox.simulate.shielding import grid_cell
 
 
 @kernel
@@ -194,6 +195,26 @@ def find_rooms(grid, charges, centroid: np.ndarray,
                      len(centroid), -1, dtype=np.int32))
 
 
+def wave_reach(grid, charge_pos: np.ndarray) -> np.ndarray:
+    """(C, X*Y*Z) bool: the cells of the shielding grid each charge's wave reaches
+    through air. A charge in the open reaches the empty cells flooded from the grid's
+    faces (not a sealed room's; outside the grid is the open air); a charge in a room,
+    that room's cells; a charge buried in solid, every cell. (Occupied cells count as
+    reached: what a face pressed against solid takes is its line of sight's business.)"""
+    reach = np.ones((len(charge_pos), len(grid.count)), dtype=np.bool_)
+    solid = grid.count != 0
+    outside = None
+    for c in range(len(charge_pos)):
+        q = _cell_of(grid, charge_pos[c])
+        if q >= 0 and solid[q]:
+            continue
+        if outside is None:
+            outside = flood_outside(grid.count, grid.dims)
+        in_open = q < 0 or outside[q]  # outside the grid is the open air
+        reach[c] = (outside if in_open else flood_from(grid.count, grid.dims, q)) | solid
+    return reach
+
+
 def _cell_of(grid, point: np.ndarray) -> int:
     idx = np.floor((np.asarray(point) - grid.origin) / grid.cell[0]).astype(np.int64)
     if (idx < 0).any() or (idx >= grid.dims).any():
@@ -255,7 +276,7 @@ def gas_impulses(grid, label, integral, boundary, geometry, voxels, bodies, load
             norm = math.sqrt(area[0] ** 2 + area[1] ** 2 + area[2] ** 2)
             if norm <= 0.0:
                 continue
-            q = _cell_at(grid, point[0] + 0.51 * cell * area[0] / norm,
+            q = grid_cell(grid, point[0] + 0.51 * cell * area[0] / norm,
                          point[1] + 0.51 * cell * area[1] / norm,
                          point[2] + 0.51 * cell * area[2] / norm)
             if q < 0 or label[q] < 0:
@@ -269,18 +290,6 @@ def gas_impulses(grid, label, integral, boundary, geometry, voxels, bodies, load
             loads.angular[b, 0] += dy * fz - dz * fy
             loads.angular[b, 1] += dz * fx - dx * fz
             loads.angular[b, 2] += dx * fy - dy * fx
-
-
-@helper
-def _cell_at(grid, x, y, z) -> int:
-    p = (x, y, z)
-    q = 0
-    for a in range(3):
-        i = math.floor((p[a] - grid.origin[a]) / grid.cell[0])
-        if i < 0 or i >= grid.dims[a]:
-            return -1
-        q = q * grid.dims[a] + int(i)
-    return q
 
 
 def gas_phase(model, state, rooms: Rooms, t0: float, t1: float) -> None:

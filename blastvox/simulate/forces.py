@@ -31,7 +31,7 @@ from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
 from blastvox.simulate.model import CONFORM_FACES
-from blastvox.simulate.shielding import ray_blocked
+from blastvox.simulate.shielding import grid_cell, ray_blocked
 from blastvox.simulate.state import Front
 
 _LIFT = 0.51  # a face's line of sight starts this many grid cells out of the face
@@ -75,27 +75,32 @@ def face_area_into(vertices, voxel_vertices, v, f, out) -> None:
 
 
 @helper
-def _sight(grid, point, area, charge_pos, c) -> bool:
-    """Is the line from a face (centre ``point``, outward vector area ``area``) to charge
-    c clear of solid? (Starts just outside the face: a face pressed against another
-    piece is shadowed.)"""
+def _sight(grid, reach, point, area, charge_pos, c) -> int:
+    """The line from a face (centre ``point``, outward vector area ``area``) to charge
+    c: 1 clear of solid, 2 shadowed, 3 sealed off (the air just outside the face is
+    none the wave reaches, ``reach`` (C, cells): a sealed room's inside, for a charge
+    in the open); 0 for a face of no area. (It starts just outside the face: a face
+    pressed against another piece is shadowed.)"""
     norm = math.sqrt(area[0] ** 2 + area[1] ** 2 + area[2] ** 2)
     if norm <= 0.0:
-        return False
+        return 2
     lift = _LIFT * grid.cell[0] / norm
-    return not ray_blocked(grid, point[0] + lift * area[0], point[1] + lift * area[1],
-                           point[2] + lift * area[2], charge_pos[c, 0], charge_pos[c, 1],
-                           charge_pos[c, 2], False)
+    x, y, z = point[0] + lift * area[0], point[1] + lift * area[1], point[2] + lift * area[2]
+    if not ray_blocked(grid, x, y, z, charge_pos[c, 0], charge_pos[c, 1], charge_pos[c, 2],
+                       False):
+        return 1
+    q = grid_cell(grid, x, y, z)
+    return 3 if q >= 0 and not reach[c, q] else 2
 
 
 @helper
-def _cached_sight(sight, v, c, f, grid, point, area, charge_pos) -> bool:
+def _cached_sight(sight, v, c, f, exposure, point, area, charge_pos) -> int:
     """:func:`_sight` of face f of voxel v, cast once per wave (sight (N, C, CONFORM_FACES))."""
     known = sight[v, c, f]
     if known == 0:
-        known = 1 if _sight(grid, point, area, charge_pos, c) else 2
+        known = _sight(exposure.grid, exposure.reach, point, area, charge_pos, c)
         sight[v, c, f] = known
-    return known == 1
+    return known
 
 
 @helper
@@ -166,7 +171,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
     body_fixed, body_live, body_dust = bodies.fixed, bodies.live, bodies.dust
     out_p, out_l, held_p, held_l = loads.impulse, loads.angular, loads.held_p, loads.held_l
     n_charges = charge_pos.shape[0]
-    grid, clearing, sight = exposure.grid, exposure.clearing, exposure.sight
+    clearing, sight = exposure.clearing, exposure.sight
     point = np.empty(3)
     area = np.empty(3)
     rest_area = np.empty(3)
@@ -212,8 +217,10 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                     if not _point_load(front, c, point[0], point[1], point[2], t0, t1,
                                        corner_load[0]):
                         continue
-                    direct = _cached_sight(sight, v, c, f, grid, point, area, charge_pos)
-                    j = _face_impulse(corner_load[0], area, direct, s_clear, g_clear)
+                    seen = _cached_sight(sight, v, c, f, exposure, point, area, charge_pos)
+                    if seen == 3:
+                        continue  # sealed off from this wave
+                    j = _face_impulse(corner_load[0], area, seen == 1, s_clear, g_clear)
                     _push(point[0], point[1], point[2], j, area, 1.0, pivot, acc_p, acc_l, index)
                 continue
             corner_state[:] = 0
@@ -238,7 +245,10 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                     loaded = loaded or corner_state[q] > 0
                 if not loaded:
                     continue
-                direct = _cached_sight(sight, v, c, f, grid, point, area, charge_pos)
+                seen = _cached_sight(sight, v, c, f, exposure, point, area, charge_pos)
+                if seen == 3:
+                    continue  # sealed off from this wave
+                direct = seen == 1
                 for n in range(4):
                     q = FACE_CORNERS[f, n]
                     if corner_state[q] < 0:

@@ -212,6 +212,19 @@ def moved(bodies, b, tolerance) -> bool:
 
 
 @helper
+def grid_cell(grid, x, y, z) -> int:
+    """The flat index of the grid cell holding the point (x, y, z) m, or -1 outside."""
+    p = (x, y, z)
+    q = 0
+    for a in range(3):
+        i = math.floor((p[a] - grid.origin[a]) / grid.cell[0])
+        if i < 0 or i >= grid.dims[a]:
+            return -1
+        q = q * grid.dims[a] + int(i)
+    return q
+
+
+@helper
 def _occupied(grid, i, j, k) -> bool:
     dims = grid.dims
     return grid.count[(i * dims[1] + j) * dims[2] + k] > 0

@@ -157,12 +157,15 @@ class Exposure(NamedTuple):
     charge's room gas pressure (Pa) and vent time (s), zeros if it is not confined
     (:mod:`blastvox.simulate.confinement`); sight (N, C, CONFORM_FACES) int8, each voxel face's
     line of sight to each charge in the current wave: 0 not yet known, 1 clear,
-    2 shadowed (faces 0-5, and a conform voxel's surface by facing, 6-11)."""
+    2 shadowed, 3 sealed off (faces 0-5, and a conform voxel's surface by facing,
+    6-11); reach (C, X*Y*Z) bool, the grid cells each charge's wave reaches through
+    air (:func:`blastvox.simulate.confinement.wave_reach`), at the wave's start."""
 
     grid: Occupancy
     clearing: np.ndarray
     gas: np.ndarray
     sight: np.ndarray
+    reach: np.ndarray
 
 
 class WaveViews(NamedTuple):
@@ -207,6 +210,7 @@ class Caches:
     boxes_version: int = -1
     clearing: np.ndarray | None = None
     sight: np.ndarray | None = None
+    reach: np.ndarray | None = None
     holds: np.ndarray | None = None
     fragment_rows: tuple = (0, 0)
     views: WaveViews | None = None
