@@ -15,14 +15,7 @@ import time
 
 import numpy as np
 
-from blastvox.simulate.stress import (
-    LinkSprings,
-    Stress,
-    break_links,
-    links_among,
-    node_key,
-    solve,
-)
+from blastvox.simulate.stress import Stress, break_links, links_among, solve_body
 
 #: Contact decelerations below this (m/s^2, 20 g) are resting contact, not impacts.
 IMPACT_ACCELERATION = 20.0 * 9.81
@@ -90,7 +83,7 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
             sustained: float) -> bool:
     """Impact fracture of body b (its live voxels ``members``) under the contact impulse
     dp (3,) N s, world frame, of which ``sustained`` m/s of velocity change held it up."""
-    bodies, voxels = state.bodies, state.voxels
+    bodies = state.bodies
     dv = float(np.linalg.norm(dp)) / bodies.mass[b] - sustained
     if dv <= 0.0 or dv < MIN_IMPACT_DV or stress.rubble.get(b) == members.size:
         return False
@@ -111,15 +104,9 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     if model.strength.inner[links].all():
         stress.rubble[b] = members.size  # one chunk of a material that crushes: nothing
         return False                     # an impact can break
-    voxel_in = np.ones(members.size, dtype=bool)
     fixed = along <= along.min() + 0.5 * size
-    chunk = None if stress.chunk is None else stress.chunk[members]
-    key = node_key(stress.cell[members], chunk, voxels.body[members], fixed, voxel_in)
-    springs = LinkSprings(*(column[links] for column in stress.springs))
-    solution = solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
-                     model.voxels.mass[members], model.voxels.centroid[members],
-                     -acceleration * rest_dir)
-    stress.solves += 1
+    solution = solve_body(model, state, stress, members, links, ends, fixed,
+                          -acceleration * rest_dir)
     use = solution.stress[:, 3]
     between = ~model.strength.inner[links[solution.links]]  # a chunk never shatters
     broken = links[solution.links[(use > 1.0) & between]]

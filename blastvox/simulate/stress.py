@@ -543,6 +543,23 @@ def links_among(model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return links[within], place[within]
 
 
+def solve_body(model, state, stress: Stress, members: np.ndarray, links: np.ndarray,
+               ends: np.ndarray, fixed: np.ndarray, gravity: np.ndarray,
+               bearing: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
+    """:func:`solve` of one body alone: its live voxels ``members`` (K,), its links
+    (``links``, ``ends`` renumbered into members: :func:`links_among`), ``fixed`` (K,)
+    the voxels held (or, with ``bearing``, rested on), under ``gravity`` (3,) m/s^2 in
+    its rest frame."""
+    voxel_in = np.ones(members.size, dtype=bool)
+    chunk = None if stress.chunk is None else stress.chunk[members]
+    key = node_key(stress.cell[members], chunk, state.voxels.body[members], fixed, voxel_in)
+    springs = LinkSprings(*(column[links] for column in stress.springs))
+    stress.solves += 1
+    return solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
+                 model.voxels.mass[members], model.voxels.centroid[members], gravity,
+                 bearing=bearing)
+
+
 def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
     """Phase: solve the founded bodies whose voxels or links changed since their last
     solve, and mark the overloaded links broken (state.marks.broken, bodies dirty).

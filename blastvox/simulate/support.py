@@ -14,15 +14,7 @@ import time
 
 import numpy as np
 
-from blastvox.simulate.stress import (
-    EVENT_BAND,
-    LinkSprings,
-    Stress,
-    break_links,
-    links_among,
-    node_key,
-    solve,
-)
+from blastvox.simulate.stress import EVENT_BAND, Stress, break_links, links_among, solve_body
 
 #: A free body slower than this (m/s) is held up by what it touches: its weight is
 #: judged on its supports (:func:`support_phase`).
@@ -115,16 +107,9 @@ def _supported(model, state, stress: Stress, b: int, members: np.ndarray, under:
     links, ends = links_among(model, members)
     if not links.size or model.strength.inner[links].all():
         return False
-    voxel_in = np.ones(members.size, dtype=bool)
-    fixed = np.isin(members, under)
-    chunk = None if stress.chunk is None else stress.chunk[members]
-    key = node_key(stress.cell[members], chunk, state.voxels.body[members], fixed, voxel_in)
-    springs = LinkSprings(*(column[links] for column in stress.springs))
-    solution = solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
-                     model.voxels.mass[members], model.voxels.centroid[members],
-                     state.bodies.rot[b].T @ gravity,
-                     bearing=(np.searchsorted(members, under), at))
-    stress.solves += 1
+    solution = solve_body(model, state, stress, members, links, ends,
+                          np.isin(members, under), state.bodies.rot[b].T @ gravity,
+                          bearing=(np.searchsorted(members, under), at))
     use = solution.stress[:, 3]
     between = ~model.strength.inner[links[solution.links]]  # a chunk never shatters
     if not (between & (use > 1.0)).any():
