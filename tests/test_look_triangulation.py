@@ -149,6 +149,12 @@ def test_usd_keeps_the_nodes_and_the_material_names(column_cache, tmp_path: Path
         assert prim.IsValid() and prim_path == f"/Shot/{group}/piece_{p:05d}"
         assert prim.GetAttribute("userProperties:part").Get() == (parts[p] or None)
         assert prim.GetAttribute("primvars:blastvox:part").Get() == (parts[p] or None)
+    for name in ("column", "pedestal"):  # the nodes carry what glTF's node extras carry
+        node = stage.GetPrimAtPath(f"/Shot/column/{name}")
+        assert node.GetAttribute("userProperties:part").Get() == name
+        assert node.GetAttribute("userProperties:object").Get() == "column"
+    assert stage.GetPrimAtPath("/Shot/column").GetAttribute("userProperties:object").Get() \
+        == "column"
     assert {"column_marble.png", "pedestal_granite.png"} <= {
         f.name for f in (tmp_path / "shot_textures").iterdir()}
     materials = [p.GetName() for p in stage.Traverse() if p.GetTypeName() == "Material"]

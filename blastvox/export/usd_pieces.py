@@ -38,6 +38,14 @@ ROUGHNESS = 0.8
 _BINDING_API = Sdf.TokenListOp.Create(prependedItems=["MaterialBindingAPI"])
 
 
+def _user_properties(prim: Sdf.PrimSpec, *properties: tuple) -> None:
+    """Custom ``userProperties:<key>`` attributes (key, type, value) on ``prim``: what
+    Blender imports as the object's custom properties, without the namespace."""
+    for key, type_name, value in properties:
+        Sdf.AttributeSpec(prim, f"userProperties:{key}", type_name, _VARYING,
+                          True).default = value
+
+
 def _prim(parent: Sdf.PrimSpec, name: str, type_name: str) -> Sdf.PrimSpec:
     return Sdf.PrimSpec(parent, name, Sdf.SpecifierDef, type_name)
 
@@ -185,6 +193,7 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
     mass = w.cache.piece_mass
     for pieces in object_groups(w.objects).values():
         group = _prim(shot, w.object_prims[pieces[0]], "Xform")
+        _user_properties(group, ("object", _T.String, w.objects[pieces[0]]))
         part_groups: dict[str, Sdf.PrimSpec] = {}  # an input's nodes, where it had several
         for p in pieces:
             name = f"piece_{p:05d}"
@@ -192,6 +201,9 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
             if w.part_prims[p]:
                 if w.part_prims[p] not in part_groups:
                     part_groups[w.part_prims[p]] = _prim(group, w.part_prims[p], "Xform")
+                    _user_properties(part_groups[w.part_prims[p]],
+                                     ("object", _T.String, w.objects[p]),
+                                     ("part", _T.String, w.parts[p]))
                 parent = part_groups[w.part_prims[p]]
             xform = _prim(parent, name, "Xform")
             _attr(xform, "primvars:blastvox:piece", _T.Int, p)
@@ -205,9 +217,7 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
             if w.parts[p]:
                 _attr(xform, "primvars:blastvox:part", _T.String, w.parts[p])
                 properties.append(("part", _T.String, w.parts[p]))
-            for key, type_name, value in properties:
-                Sdf.AttributeSpec(xform, f"userProperties:{key}", type_name, _VARYING,
-                                  True).default = value
+            _user_properties(xform, *properties)
             for key, type_name in (("primvars:blastvox:velocity", _T.Vector3f),
                                    ("primvars:blastvox:angularVelocity", _T.Vector3f)):
                 paths[key][p] = _attr(xform, key, type_name).path
