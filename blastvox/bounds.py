@@ -91,8 +91,21 @@ def got(value: Any) -> str:
 
 def printable(text: str | os.PathLike) -> str:
     """``text`` safe to print and to store as UTF-8 JSON: a byte of a non-UTF-8 file
-    name (a surrogate escape on Linux) is shown as ``\\xff``."""
-    return os.fsencode(os.fspath(text)).decode("utf-8", "backslashreplace")
+    name (a surrogate escape on Linux) is shown as ``\\xff``. Whatever the file system's
+    encoding (Python under ``LC_ALL=C`` without its UTF-8 mode encodes names as ASCII)."""
+    text = os.fspath(text)
+    if isinstance(text, bytes):
+        return text.decode("utf-8", "backslashreplace")
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
+def shortened(text: str, limit: int = 120) -> str:
+    """``text`` cut to ``limit`` characters (its start and end kept) for a message that
+    must stay one readable line."""
+    if len(text) <= limit:
+        return text
+    keep = (limit - 3) // 2
+    return f"{text[:keep]}...{text[-keep:]}"
 
 
 @dataclass(frozen=True)
@@ -247,8 +260,12 @@ def regular_file(path: str | os.PathLike, what: str, max_bytes: int | None = Non
     the OSError (FileNotFoundError, PermissionError, ...) for the caller to word;
     the refusals here are :class:`InputError` ``"<path>: <problem>"``.
     """
-    info = os.stat(path)
     shown = printable(path)
+    try:
+        info = os.stat(path)
+    except ValueError:  # a NUL, or a character the file system's encoding cannot hold
+        raise InputError(f"{shown!r}: not a valid file name (a NUL character, or one this "
+                         "system's file names cannot hold)") from None
     if stat.S_ISDIR(info.st_mode):
         raise InputError(f"{shown}: is a directory, not a {what}")
     if not stat.S_ISREG(info.st_mode):

@@ -178,3 +178,110 @@ def test_run_takes_references_anywhere_too(tmp_path):
     os.utime(tmp_path / "skin.png", (2e9, 2e9))  # the texture outside changed
     again = run_blastvox("run", "scene.toml", "--references-anywhere", cwd=work)
     assert "voxelize" in again.stderr, again.stderr
+
+
+def _scene(folder: Path, mesh: str, model: str = "o/m.npz") -> None:
+    """A one-object scene in ``folder`` naming ``mesh`` (TOML escapes allowed) and
+    writing its model to ``model``."""
+    (folder / "scene.toml").write_text(
+        f'[[objects]]\nmesh = "{mesh}"\nvoxel_size = 0.25\n[[charges]]\n'
+        'position = [0, -2, 0.5]\nmass_kg = 1\n[simulation]\nduration = 0.05\n'
+        f'[output]\nmodel = "{model}"\ncache = "o/s.npz"\n')
+
+
+def test_a_symlink_loop_or_a_nul_in_a_reference_is_one_line(tmp_path):
+    """Found by a probe of hostile references (2026-11-29): an MTL or glTF buffer
+    reference that is a symlink loop, or holds a NUL, ended `run` in a traceback
+    (RuntimeError, ValueError from Path.resolve); voxelize too for a loop given on the
+    command line. Each is now one line naming the file that refers to it."""
+    _obj(tmp_path, "loop.mtl")
+    os.symlink("loop.mtl", tmp_path / "loop.mtl")
+    _scene(tmp_path, "box.obj")
+    outcome = run_blastvox("run", "scene.toml", "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["box.obj", "loop.mtl"], words=["cannot be followed"])
+    _obj(tmp_path, "bo\x00x.mtl")
+    outcome = run_blastvox("run", "scene.toml", "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["box.obj"], words=["NUL"])
+    os.symlink("itself.obj", tmp_path / "itself.obj")
+    outcome = run_blastvox("voxelize", "itself.obj", "-o", "m.npz", "--voxel-size", "0.25",
+                           "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["itself.obj"], words=["symbolic links"])
+    assert not (tmp_path / "m.npz").exists() and not (tmp_path / "o").exists()
+
+
+def test_a_nul_in_a_scenes_mesh_or_output_is_one_line(tmp_path):
+    """A NUL in a scene's mesh path or [output] model ended in a ValueError traceback
+    (os.stat: embedded null byte)."""
+    _obj(tmp_path, "box.mtl")
+    _scene(tmp_path, "bo\\u0000x.obj")
+    outcome = run_blastvox("run", "scene.toml", "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["bo\\x00x.obj"], words=["not a valid file name"])
+    _scene(tmp_path, "box.obj", model="o/m\\u0000.npz")
+    outcome = run_blastvox("run", "scene.toml", "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["m\\x00.npz", "output.model"], words=["not a valid"])
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_gltf_nested_past_the_stack_is_one_line(tmp_path):
+    """A .gltf of 200,000 nested JSON arrays: run's staleness check ended in a
+    RecursionError traceback (voxelize already refused it in one line)."""
+    (tmp_path / "deep.gltf").write_text("[" * 200_000 + "]" * 200_000)
+    _scene(tmp_path, "deep.gltf")
+    outcome = run_blastvox("run", "scene.toml", "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["deep.gltf"])
+
+
+def test_a_very_long_reference_is_named_with_its_mesh_and_shortened(tmp_path):
+    """A 5,000-character mtllib gave a 5,041-character error naming only the MTL: the
+    line now names the OBJ, the rule, and the reference cut to its ends."""
+    _obj(tmp_path, "m" * 5000 + ".mtl")
+    line = assert_clean_failure(_voxelize(tmp_path), ["box.obj", "..."],
+                                words=["File name too long"])
+    assert len(line) < 400, len(line)
+
+
+def _png_header(width: int, height: int) -> bytes:
+    """A PNG's signature, IHDR chunk (CRC right) claiming width x height RGB pixels,
+    and IEND: no pixels."""
+    import zlib
+
+    body = b"IHDR" + width.to_bytes(4, "big") + height.to_bytes(4, "big") + b"\x08\x02\0\0\0"
+    return (b"\x89PNG\r\n\x1a\n" + (13).to_bytes(4, "big") + body
+            + zlib.crc32(body).to_bytes(4, "big")
+            + b"\0\0\0\0IEND" + zlib.crc32(b"IEND").to_bytes(4, "big"))
+
+
+@pytest.mark.parametrize("texture, words", [
+    (b"a text file, not an image", ["not an image format"]),
+    (_png_header(20000, 20000), ["pixels"]),  # 1.2 GB once inflated
+])
+def test_an_undecodable_texture_warns_as_a_missing_one_does(tmp_path, texture, words):
+    """A texture that is there but that no image reader decodes (a text file named .png,
+    a 20,000 x 20,000 PNG) was dropped without a word (exit 0, the asset untextured):
+    it warns, naming the mesh, the texture and why, as a missing texture does."""
+    _obj(tmp_path, "box.mtl", "skin.png")
+    (tmp_path / "skin.png").write_bytes(texture)
+    outcome = _voxelize(tmp_path)
+    assert outcome.code == 0, outcome.stderr
+    lines = [line for line in outcome.stderr.splitlines() if "skin.png" in line]
+    assert len(lines) == 1 and "box.obj" in lines[0] and "warning" in lines[0], outcome.stderr
+    for word in words:
+        assert word in lines[0], lines
+
+
+def test_names_print_whatever_the_file_systems_encoding(tmp_path):
+    """Under `LC_ALL=C PYTHONUTF8=0` Python encodes file names as ASCII: a scene naming
+    a Cyrillic mesh ended in a UnicodeEncodeError traceback inside `printable`."""
+    import subprocess
+    import sys
+
+    _scene(tmp_path, "дом.obj")
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0",
+           "PYTHONIOENCODING": ""}
+    done = subprocess.run([sys.executable, "-m", "blastvox", "run", "scene.toml", "-q"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120,
+                          errors="replace")
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    assert "scene.toml" in lines[0] or ".obj" in lines[0], lines

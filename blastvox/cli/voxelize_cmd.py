@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from enum import StrEnum
 from pathlib import Path
@@ -277,7 +278,10 @@ def _object_names(meshes: list[Path]) -> list[str]:
     names: list[str] = []
     seen: set[Path] = set()
     for mesh in meshes:
-        key = Path(mesh).resolve()
+        try:
+            key = Path(mesh).resolve()
+        except (OSError, RuntimeError, ValueError):  # a symlink loop: the reader says why
+            key = Path(os.path.abspath(mesh))
         if key in seen:
             raise BlastvoxError(f"{mesh}: given twice as a MESH (the second copy would "
                                 "overlap the first); give each mesh once")

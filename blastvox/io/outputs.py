@@ -15,6 +15,7 @@ import stat
 from collections.abc import Iterable
 from pathlib import Path
 
+from blastvox.bounds import printable
 from blastvox.errors import OutputError
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
@@ -45,6 +46,8 @@ def refuse_special(path: Path, label: str) -> None:
         return
     except OSError as exc:
         raise OutputError(f"{path}: {label}: cannot be written ({exc.strerror})") from None
+    except ValueError:  # a NUL in the name, or one the file system cannot encode
+        raise OutputError(f"{printable(path)!r}: {label}: not a valid file name") from None
     if not stat.S_ISREG(mode):
         raise OutputError(f"{path}: {label}: is {file_kind(mode)}; outputs are regular files")
 
@@ -55,7 +58,13 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
     try:
         return os.path.samefile(a, b)
     except OSError:
+        pass
+    except ValueError:  # a NUL in a name, or one the file system cannot encode
+        return os.path.abspath(a) == os.path.abspath(b)
+    try:
         return os.path.realpath(a) == os.path.realpath(b)
+    except (OSError, ValueError):
+        return os.path.abspath(a) == os.path.abspath(b)
 
 
 def check_npz_output(path: str | os.PathLike, label: str, what: str) -> None:

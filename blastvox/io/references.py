@@ -21,7 +21,7 @@ import stat
 from dataclasses import dataclass
 from pathlib import Path
 
-from blastvox.bounds import printable
+from blastvox.bounds import printable, shortened
 from blastvox.errors import InputError
 
 #: The largest file a reference may name (bytes): a texture or a buffer of a few
@@ -63,12 +63,16 @@ class ReferencePolicy:
         if _SCHEME.match(name):
             raise ReferenceRefused(f"{where}: a URL; blastvox reads files only, nothing is "
                                    "fetched (download it beside the file that names it)")
-        folder = within.parent.resolve()
-        target = (referrer.parent / name).resolve()
+        if "\0" in name:
+            raise ReferenceRefused(f"{where}: a file name with a NUL character")
         try:
+            folder = within.parent.resolve()
+            target = (referrer.parent / name).resolve()
             info = os.stat(target)
         except FileNotFoundError:
             info = None
+        except (OSError, RuntimeError, ValueError) as exc:  # a symlink loop, a name too long
+            raise ReferenceRefused(f"{where}: cannot be followed ({_reason(exc)})") from None
         if info is not None and not stat.S_ISREG(info.st_mode):  # whatever the flag
             from blastvox.io.outputs import file_kind
 
@@ -103,8 +107,16 @@ class ReferencePolicy:
         return data
 
 
+def _reason(exc: BaseException) -> str:
+    """Why a path could not be resolved, in a few words: the OS's reason (``Too many
+    levels of symbolic links``, ``File name too long``), or a symlink loop."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    return "a symlink loop" if isinstance(exc, RuntimeError) else str(exc)
+
+
 def _where(referrer: Path | str, name: str, kind: str | None = None) -> str:
     """The start of a refusal: the referring file and the reference as written (and
     what it is)."""
     said = f" ({kind})" if kind else ""
-    return f"{printable(referrer)}: refers to {printable(name)!r}{said}"
+    return f"{printable(referrer)}: refers to {shortened(printable(name))!r}{said}"

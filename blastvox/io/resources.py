@@ -43,7 +43,7 @@ def _referenced(path: Path, pattern: str, policy: ReferencePolicy) -> list[Path]
     """The files that ``path`` names (by ``pattern``) and the policy would read."""
     try:
         text = policy.read(path, path.name).decode("utf-8", errors="replace")
-    except (OSError, InputError):
+    except (OSError, ValueError, InputError):
         return []
     return [ref for name in re.findall(pattern, text, flags=re.M)
             if (ref := _allowed(path, name, policy)) is not None]
@@ -61,7 +61,7 @@ def _allowed(referrer: Path, name: str, policy: ReferencePolicy) -> Path | None:
 def _gltf_uris(path: Path, policy: ReferencePolicy) -> list[Path]:
     try:
         doc = json.loads(policy.read(path, path.name).decode("utf-8"))
-    except (OSError, ValueError, InputError):
+    except (OSError, ValueError, RecursionError, InputError):  # nested past the stack
         return []
     if not isinstance(doc, dict):
         return []

@@ -11,6 +11,7 @@ naming the file and the problem.
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import io
 import json
@@ -24,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from blastvox.bounds import printable, regular_file
+from blastvox.bounds import printable, regular_file, shortened
 from blastvox.errors import InputError, MeshError
 from blastvox.geometry.voxel_faces import VTK_CELL_FACES
 from blastvox.io import mesh_checks
@@ -95,47 +96,123 @@ def load_parts(path: Path, references: ReferencePolicy | None = None,
     return parts
 
 
-def missing_textures(path: Path) -> list[str]:
-    """One line per texture that ``path`` names but that is not there (an OBJ's
-    ``map_Kd`` in its .mtl files, a .gltf's image ``uri``): the loader drops those
-    silently and the part keeps its base colour, so the caller warns."""
+def missing_textures(path: Path, policy: ReferencePolicy | None = None) -> list[str]:
+    """One line per texture that ``path`` names but that is not there or that no image
+    reader decodes (an OBJ's ``map_Kd`` in its .mtl files, a .gltf's image ``uri`` or
+    ``data:`` URI, a .glb's embedded images): the loader drops those silently and the
+    part keeps its base colour, so the caller warns. Textures are read under
+    ``policy`` (default: inside the mesh's folder); what it refuses the loader has
+    already refused."""
+    policy = policy or ReferencePolicy()
     shown = printable(path)
     suffix = path.suffix.lower()
     missing: list[str] = []
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        data = path.read_bytes() if suffix in (".obj", ".gltf", ".glb") else b""
     except OSError:
         return missing
     if suffix == ".obj":
-        for line in text.splitlines():
+        for line in data.decode("utf-8", errors="replace").splitlines():
             words = line.split(maxsplit=1)
             if len(words) == 2 and words[0] == "mtllib":
-                missing += _missing_mtl_maps(path.parent / words[1].strip(), shown)
-    elif suffix == ".gltf":
-        with contextlib.suppress(ValueError, TypeError, AttributeError):
-            doc = json.loads(text)
+                missing += _missing_mtl_maps(path, words[1].strip(), shown, policy)
+    elif suffix in (".gltf", ".glb"):
+        with contextlib.suppress(ValueError, TypeError, AttributeError, KeyError,
+                                 IndexError, RecursionError):
+            doc, binary = _gltf_document(data, suffix)
             for image in doc.get("images", []):
-                uri = image.get("uri", "")
-                if uri and not uri.startswith("data:") and not (path.parent / uri).is_file():
-                    missing.append(f"{shown}: texture '{uri}' of image "
-                                   f"'{image.get('name', '')}' not found; the base colour "
-                                   "is used")
+                name = f"texture '{shortened(printable(image.get('uri', '')))}' of image " \
+                    f"'{image.get('name', '')}'"
+                problem = _image_problem(path, image, doc, binary, policy)
+                if problem is not None:
+                    missing.append(f"{shown}: {name} {problem}; the base colour is used")
     return missing
 
 
-def _missing_mtl_maps(mtl: Path, shown: str) -> list[str]:
-    if not mtl.is_file():
-        return [f"{shown}: material library '{mtl.name}' not found; the base colour is used"]
+def _gltf_document(data: bytes, suffix: str) -> tuple[dict, bytes]:
+    """A .gltf's or .glb's JSON and a .glb's binary chunk (b'' for a .gltf)."""
+    if suffix == ".gltf":
+        return json.loads(data.decode("utf-8")), b""
+    length = int.from_bytes(data[12:16], "little")
+    doc = json.loads(data[20:20 + length].decode("utf-8"))
+    rest = data[20 + length:]
+    binary = rest[8:8 + int.from_bytes(rest[:4], "little")] if len(rest) >= 8 else b""
+    return doc, binary
+
+
+def _image_problem(path: Path, image: dict, doc: dict, binary: bytes,
+                   policy: ReferencePolicy) -> str | None:
+    """Why the glTF ``image`` has no picture ('not found', 'cannot be decoded (...)'),
+    or None if it decodes."""
+    uri = image.get("uri")
+    if isinstance(uri, str) and uri.startswith("data:"):
+        try:
+            data = base64.b64decode(uri.split(",", 1)[1], validate=True)
+        except (IndexError, ValueError):
+            return "is a malformed data: URI"
+    elif isinstance(uri, str) and uri:
+        try:
+            data = policy.read(path, uri)
+        except FileNotFoundError:
+            return "not found"
+        except (OSError, InputError):
+            return None  # refused: the loader has said why
+    elif "bufferView" in image and binary:
+        view = doc["bufferViews"][image["bufferView"]]
+        start = int(view.get("byteOffset", 0))
+        data = binary[start:start + int(view["byteLength"])]
+    else:
+        return None
+    return _undecodable(data)
+
+
+def _undecodable(data: bytes) -> str | None:
+    """Why Pillow cannot decode the image ``data``, or None if it can (headers and
+    checksums read, within Pillow's limit on pixels: a 20,000 x 20,000 PNG is refused
+    before it is inflated)."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data)) as image:
+                image.verify()
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning):
+        return f"cannot be decoded (more than {Image.MAX_IMAGE_PIXELS:,} pixels)"
+    except UnidentifiedImageError:
+        return "cannot be decoded (not an image format Pillow reads)"
+    except Exception as exc:  # Pillow raises many kinds for a broken image
+        return f"cannot be decoded ({shortened(printable(str(exc) or type(exc).__name__))})"
+    return None
+
+
+def _missing_mtl_maps(obj: Path, name: str, shown: str,
+                      policy: ReferencePolicy) -> list[str]:
+    mtl = obj.parent / name
+    try:
+        text = policy.read(obj, name).decode("utf-8", errors="replace")
+    except FileNotFoundError:
+        return [f"{shown}: material library '{shortened(printable(name))}' not found; the "
+                "base colour is used"]
+    except (OSError, InputError):
+        return []  # refused: the loader has said why
     missing, material = [], ""
-    for line in mtl.read_text(encoding="utf-8", errors="replace").splitlines():
+    for line in text.splitlines():
         words = line.split()
         if len(words) >= 2 and words[0] == "newmtl":
             material = words[1]
         elif len(words) >= 2 and words[0].lower() == "map_kd":
-            name = words[-1]  # options such as -s come before the file name
-            if not (mtl.parent / name).is_file():
-                missing.append(f"{shown}: texture '{name}' of material '{material}' not "
-                               "found; the base colour is used")
+            texture = words[-1]  # options such as -s come before the file name
+            said = f"{shown}: texture '{shortened(printable(texture))}' of material " \
+                f"'{material}'"
+            try:
+                problem = _undecodable(policy.read(mtl, texture))
+            except FileNotFoundError:
+                problem = "not found"
+            except (OSError, InputError) as exc:
+                problem = f"not read ({exc})" if isinstance(exc, InputError) else "not read"
+            if problem is not None:
+                missing.append(f"{said} {problem}; the base colour is used")
     return missing
 
 

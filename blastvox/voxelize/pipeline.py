@@ -218,12 +218,12 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                   triangles_left: list[int] | None = None) -> _Lattice:
     source = printable(request.mesh)
     progress.start(f"reading {Path(source).name}", 1)
-    parts = load_parts(Path(request.mesh),
-                       ReferencePolicy(anywhere=settings.references_anywhere),
+    policy = ReferencePolicy(anywhere=settings.references_anywhere)
+    parts = load_parts(Path(request.mesh), policy,
                        budget.triangle_budget(request, settings, triangles_left
                                               if triangles_left is not None
                                               else [settings.max_triangles]))
-    for message in missing_textures(Path(request.mesh)):
+    for message in missing_textures(Path(request.mesh), policy):
         warn(message)
     if request.transform is not None:
         with np.errstate(all="ignore"):  # overflow is refused just below
