@@ -391,3 +391,27 @@ def test_debris_momentum_with_contacts_converges_in_dt(tmp_path):
         momentum.append(float(b.lin[:k][b.live[:k] & ~b.fixed[:k], 0].sum()))
     assert momentum[0] > 1000.0, momentum
     assert momentum[1] == pytest.approx(momentum[0], rel=0.15), momentum
+
+
+def test_body_arrays_grow_as_splits_need_and_the_shot_is_the_same(tmp_path, monkeypatch):
+    """Body arrays were sized for every split a model could make (2 N + 2 slots: 1.1 GB
+    of them for a million voxels that a shot breaks into a few pieces). They start
+    with room for the objects and engine.SPARE_BODIES more and double when a split
+    needs more (state.grow_bodies, with every array indexed by body). A wall blown
+    into pieces with no spare slot at all (a growth at nearly every split) gives the
+    same cache, byte for byte, as with room for all from the start."""
+    model = box_model(tmp_path, (0.25, 3.0, 2.0), 0.125, material="brick", ground="auto")
+    settings = SimSettings(fps=24.0, duration=0.5, charges=(ChargeSpec((-2.0, 0.0, 1.0), 5.0),))
+    paths = []
+    for spare in (0, 2 * model.voxel_count + 2):
+        monkeypatch.setattr(engine, "SPARE_BODIES", spare)
+        run = engine.Run.start(model, settings)
+        start = len(run.state.bodies.mass)
+        for n in range(1, 25):
+            engine.step(run, n, 0)
+        if spare == 0:
+            assert start == 1 and len(run.state.bodies.mass) >= run.state.n_bodies > 8
+        path = tmp_path / f"spare{spare}.npz"
+        simulate(model, settings).save(path)
+        paths.append(path)
+    assert paths[0].read_bytes() == paths[1].read_bytes()

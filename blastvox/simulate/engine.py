@@ -79,6 +79,7 @@ from blastvox.simulate.settings import (
 )
 from blastvox.simulate.shielding import corner_boxes, inside_solid, refresh_occupancy
 from blastvox.simulate.state import (
+    SPARE_BODIES,
     Contacts,
     Front,
     Links,
@@ -88,6 +89,7 @@ from blastvox.simulate.state import (
     State,
     Voxels,
     empty_bodies,
+    padded,
 )
 from blastvox.simulate.stress import Stress, invalidate, stress_phase
 from blastvox.simulate.stress import start as start_stress
@@ -117,9 +119,9 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
     nothing is founded."""
     a = model.arrays
     n, n_links = sm.n_voxels, sm.n_links
-    capacity = 2 * n + 2
     objects = a["voxel_object"].astype(np.int64)
     n_objects = int(objects.max()) + 1 if n else 0
+    capacity = n_objects + min(SPARE_BODIES, 2 * n + 2)  # grows as splits need
     foundation = a["voxel_foundation"].copy() if ground else np.zeros(n, dtype=bool)
     voxels = Voxels(
         body=objects.copy(), alive=np.ones(n, dtype=bool), link_mask=np.zeros(n, dtype=np.uint8),
@@ -275,6 +277,7 @@ def step(run: Run, n: int, frame_next: int) -> None:
     ledger.book(state, "released")  # founded voxels' held impulses, to freed pieces
     held = ledger.founded_held(state) if state.holding else None
     blast_phase(model, state, charges, t0, t1, front.outer)
+    bodies = state.bodies  # a split may have grown the body arrays
     if run.rooms is not None:
         gas_phase(model, state, run.rooms, t0, t1)
         wake_on_impulse(state.loads.impulse, state.loads.angular, bodies.asleep, n_bodies)
@@ -380,6 +383,7 @@ def split(run: Run, n: int, t1: float, frame_next: int) -> None:
     if not broken.size and not destroyed.size:
         return
     if run.stress is not None:
+        run.stress.solved = padded(run.stress.solved, len(state.bodies.mass), False)
         invalidate(run.stress, state.voxels.body, run.model.links.voxels, broken, destroyed)
     if run.rooms is not None:  # a room whose wall broke vents
         run.rooms.vent(np.concatenate([run.model.links.voxels[broken].ravel(), destroyed]), t1)

@@ -267,6 +267,56 @@ class State:
         return int(self.bodies.count[0])
 
 
+def padded(array: np.ndarray, length: int, fill) -> np.ndarray:
+    """``array`` with its first axis grown to ``length`` rows, the new ones ``fill``."""
+    if len(array) >= length:
+        return array
+    out = np.full((length, *array.shape[1:]), fill, dtype=array.dtype)
+    out[:len(array)] = array
+    return out
+
+
+#: Body slots a run starts with beyond its objects; they double whenever a split needs
+#: more (:func:`grow_bodies`). Every split retires its parent, so a model of N voxels
+#: can use up to 2 N + objects slots, but a shot uses a few per broken piece: sizing
+#: for the worst case cost a million-voxel block 1.1 GB of body arrays it never used.
+SPARE_BODIES = 1024
+
+
+def grow_bodies(state: State, needed: int) -> None:
+    """Make room for ``needed`` bodies in all: double the capacity (or more) of the body
+    arrays and of every array of the state indexed by body (marks, loads, contact
+    flags and the solver's scratch, the clearing and holding caches), new slots unused.
+    Anything outside the state that is indexed by body sizes itself from
+    ``len(state.bodies.mass)`` when it is used."""
+    capacity = len(state.bodies.mass)
+    if needed <= capacity:
+        return
+    new = max(needed, 2 * capacity)
+    old, grown = state.bodies, empty_bodies(new)
+    for name in Bodies._fields:
+        if name != "count":
+            getattr(grown, name)[:capacity] = getattr(old, name)
+    grown.count[0] = old.count[0]
+    state.bodies = grown
+    marks, loads, contacts, caches = state.marks, state.loads, state.contacts, state.caches
+    state.marks = marks._replace(dirty=padded(marks.dirty, new, False),
+                                 active=padded(marks.active, new, False))
+    state.loads = loads._replace(impulse=padded(loads.impulse, new, 0.0),
+                                 angular=padded(loads.angular, new, 0.0))
+    memory = contacts.memory
+    if memory is not None:
+        memory = memory._replace(local=padded(memory.local, new, -1))
+    state.contacts = contacts._replace(
+        resting=padded(contacts.resting, new, False),
+        supported=padded(contacts.supported, new, False),
+        supported_next=padded(contacts.supported_next, new, False), memory=memory)
+    if caches.clearing is not None:
+        caches.clearing = padded(caches.clearing, new, np.nan)
+    if caches.holds is not None:
+        caches.holds = padded(caches.holds, new, False)
+
+
 def empty_bodies(capacity: int) -> Bodies:
     """``capacity`` unused body slots."""
     return Bodies(

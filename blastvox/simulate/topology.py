@@ -18,6 +18,7 @@ from blastvox.jit import helper, kernel
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.integrate import angular_velocity, world_tensor_times
 from blastvox.simulate.kernels import body_radii, body_rotations, link_masks, release_held
+from blastvox.simulate.state import grow_bodies
 
 
 @helper
@@ -96,7 +97,9 @@ def split_bodies(dirty, step, geometry, link_geometry, voxels, links, bodies, co
 
     New bodies take the next free slots (bodies.count grows); the parents are
     retired (live False, died = step). component, order (N,) int64: work arrays.
-    Returns the number of new bodies."""
+    Returns the number of new bodies, or minus the number it needs when the body
+    arrays have too few free slots (nothing is changed then: grow them and call
+    again, :func:`split_phase`)."""
     voxel_body, voxel_alive, voxel_foundation = voxels.body, voxels.alive, voxels.foundation
     link_alive, link_voxels = links.alive, link_geometry.voxels
     offsets, link_ids = geometry.link_offsets, geometry.link_ids
@@ -114,6 +117,12 @@ def split_bodies(dirty, step, geometry, link_geometry, voxels, links, bodies, co
     pieces = np.zeros(body_mass.shape[0], dtype=np.int64)
     for c in range(ncomp):
         pieces[voxel_body[order[start[c]]]] += 1
+    needed = 0
+    for c in range(ncomp):
+        if pieces[voxel_body[order[start[c]]]] >= 2:
+            needed += 1
+    if n_bodies[0] + needed > body_mass.shape[0]:
+        return -needed
     created = 0
     rot = np.empty((3, 3))
     pos = np.empty(3)
@@ -216,8 +225,14 @@ def split_phase(model, state, step: int) -> tuple[np.ndarray, np.ndarray]:
         kill_links_of(marks.destroyed, model.voxels.link_offsets, model.voxels.link_ids,
                       state.links.alive)
     link_masks(model.links, state.links, state.voxels)
-    split_bodies(marks.dirty, step, model.voxels, model.links, state.voxels, state.links,
-                 state.bodies, state.scratch.component, state.scratch.order)
+    created = split_bodies(marks.dirty, step, model.voxels, model.links, state.voxels,
+                           state.links, state.bodies, state.scratch.component,
+                           state.scratch.order)
+    if created < 0:  # more pieces than free body slots
+        grow_bodies(state, state.n_bodies - created)
+        marks = state.marks
+        split_bodies(marks.dirty, step, model.voxels, model.links, state.voxels, state.links,
+                     state.bodies, state.scratch.component, state.scratch.order)
     n = state.n_bodies
     state.bodies.asleep[:n][marks.dirty[:n]] = False
     body_rotations(state.bodies.quat, state.bodies.live, n, state.bodies.rot)
