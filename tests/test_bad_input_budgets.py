@@ -236,13 +236,40 @@ def test_the_library_refuses_before_allocating() -> None:
     assert time.perf_counter() - started < QUICK
 
 
+def _run_gib(work: Path, charges: int = 1) -> float:
+    """The run's own memory estimate for work/model.npz, GiB."""
+    from blastvox.model import VoxelModel
+    from blastvox.simulate.settings import run_memory_bytes
+
+    model = VoxelModel.load(work / "model.npz")
+    return run_memory_bytes(sum(a.nbytes for a in model.arrays.values()), model.voxel_count,
+                            len(model.arrays["link_voxels"]), charges) / 2**30
+
+
 def test_the_recorded_frames_memory_is_checked_as_pieces_appear(work: Path) -> None:
-    """1 piece over 13 frames fits in 5e-6 GiB, the 8 pieces the charge makes do not (the
-    run stops at the frame they appear; it may load the fracture kernels first)."""
+    """On top of the run's own arrays, 1 piece over 13 frames fits in 5e-6 GiB more, the
+    8 pieces the charge makes do not (the run stops at the frame they appear; it may load
+    the fracture kernels first)."""
+    limit = _run_gib(work) + 5e-6
     line = refused(work, "simulate", "model.npz", "-o", "out.npz", "--charge",
-                   "0,-1,0.25:50", "--duration", "0.5", "--max-memory", "5e-6",
+                   "0,-1,0.25:50", "--duration", "0.5", "--max-memory", repr(limit),
                    names=("model.npz", "8 pieces", "13 frames", "--max-memory"), seconds=30)
-    assert "GiB" in line
+    assert "GiB" in line and "on top of the run's" in line
+
+
+def test_a_run_too_large_for_the_memory_budget_is_refused_before_it_starts(
+        work: Path) -> None:
+    """The run's arrays are estimated from the model's voxels, links and charges before
+    anything is built (issue 37: 'a budget estimate before a run that names its
+    figure'); under the limit the run goes on, over it the refusal names the figure."""
+    need = _run_gib(work)
+    line = refused(work, "simulate", "model.npz", "-o", "out.npz", "--charge",
+                   "0,-1,0.25:1", "--max-memory", repr(0.5 * need),
+                   names=("model.npz", "8 voxels", "links", "--max-memory"), seconds=QUICK)
+    assert f"about {need:.3g} GiB" in line, line
+    ok = run_blastvox("simulate", "model.npz", "-o", "out.npz", "--charge", "0,-1,0.25:1",
+                      "--duration", "0.05", "-q", "--max-memory", repr(1.5 * need), cwd=work)
+    assert ok.code == 0, ok.stderr
 
 
 # --------------------------------------------------------------------------- 2. bounds

@@ -109,8 +109,10 @@ def simulate(
     max_particles: int = typer.Option(MAX_PARTICLES, "--max-particles", help="Refuse particle "
                                       "budgets (the scene's [particles]) that add up to more."),
     max_memory: float = typer.Option(MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
-                                     help="Stop a run whose recorded frames (pieces x frames) "
-                                     "would need more memory, GiB."),
+                                     help="Refuse a run that would need more memory, "
+                                     "GiB: its arrays (estimated from the model's voxels, "
+                                     "links and charges before it starts) and its recorded "
+                                     "frames (pieces x frames, as pieces appear)."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No progress bar or summary."),
 ) -> None:
     """Blow up a voxel model: blast wave, fracture, fragments, rigid-body motion.

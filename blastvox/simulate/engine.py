@@ -74,6 +74,7 @@ from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import (
     SimSettings,
     check_record_memory,
+    check_run_memory,
     check_settings,
     gravity_vector,
 )
@@ -408,11 +409,15 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     """Run the blast simulation of ``model`` with ``settings``.
 
     Settings outside their bounds or over their budget are refused before anything is
-    built (:func:`~blastvox.simulate.settings.check_settings`); the recorded frames'
-    memory is checked at every frame as pieces appear. Both raise a one-line
+    built (:func:`~blastvox.simulate.settings.check_settings`), and so is a model whose
+    run would need more memory than the budget
+    (:func:`~blastvox.simulate.settings.check_run_memory`); the recorded frames'
+    memory is checked at every frame as pieces appear. All raise a one-line
     :class:`~blastvox.errors.BlastvoxError` (a BudgetError for a budget).
     """
     check_settings(settings)
+    run_bytes = check_run_memory(settings, sum(a.nbytes for a in model.arrays.values()),
+                                 model.voxel_count, len(model.arrays["link_voxels"]))
     progress = progress or Progress()
     warn = warn or (lambda message: None)
     cold = not _compiled_before()
@@ -422,9 +427,9 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     run = Run.start(model, settings)
     finish = compile_ahead(run) if cold else None  # the late phases, on another core
     if finish is None:
-        return _simulate(run, model, settings, progress, warn)
+        return _simulate(run, model, settings, progress, warn, run_bytes)
     try:
-        cache = _simulate(run, model, settings, progress, warn)
+        cache = _simulate(run, model, settings, progress, warn, run_bytes)
     except BaseException:
         finish(cancel=True)
         raise
@@ -433,7 +438,7 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
 
 
 def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Progress,
-              warn: Callable[[str], None]) -> SimCache:
+              warn: Callable[[str], None], run_bytes: int = 0) -> SimCache:
     state, dt = run.state, run.dt
     if dt < settings.dt * (1 - 1e-12):
         warn(f"dt {settings.dt:g} s does not divide the frame interval 1/{settings.fps:g} s; "
@@ -445,14 +450,15 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
         warn(line)
     limits = LimitMonitor(run.model, settings, dt)  # warns once per limit the run passes
     counts, counted = _alive_counts(run), state.counters.topology_version
-    check_record_memory(settings, _live_count(state), frames)
+    check_record_memory(settings, _live_count(state), frames, run_bytes)
     run.recorder.frame(0, state, counts, run.charges.front_radius(0.0))
     for n in range(1, total_steps + 1):
         step(run, n, -(-n // per_frame))
         if n % per_frame == 0:
             if state.counters.topology_version != counted:  # links only change in a split
                 counts, counted = _alive_counts(run), state.counters.topology_version
-                check_record_memory(settings, _live_count(state), frames)  # pieces appear
+                check_record_memory(settings, _live_count(state), frames,  # pieces appear
+                                    run_bytes)
             run.recorder.frame(n, state, counts, run.charges.front_radius(n * dt))
             limits.check(state)
             progress.update(n * dt, n, total_steps)

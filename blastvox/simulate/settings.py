@@ -50,8 +50,9 @@ class Budget:
 
     max_steps: fixed steps (about duration / dt); max_frames: output frames (duration x
     fps + 1); max_particles: the particle budgets of all systems together;
-    max_memory_gib: the recorded frames' memory (pieces x frames, checked as pieces
-    appear). The CLI's --max-steps, --max-frames, --max-particles and --max-memory
+    max_memory_gib: the run's memory: its arrays, estimated from the model's voxels,
+    links and charges before it starts, and the recorded frames (pieces x frames,
+    checked as pieces appear). The CLI's --max-steps, --max-frames, --max-particles and --max-memory
     raise them.
     """
 
@@ -337,18 +338,55 @@ def check_settings(settings: SimSettings) -> None:
     check_bounds(settings)
 
 
-def check_record_memory(settings: SimSettings, pieces: int, frames: int) -> None:
-    """The recorded frames of ``pieces`` over ``frames`` within ``max_memory_gib``, else
+#: What a run's arrays take besides its model's own (bytes): per voxel, per link, per
+#: voxel and charge (the waves' element views and lines of sight), and numba's loaded
+#: kernels. Fitted to simulate()'s peak RSS over the loaded model for the 10 m block of
+#: benchmarks/performance.py at 10^4, 10^5 and 10^6 voxels (95, 185 and 1,199 MiB,
+#: 2026-11-29; the estimate: 92, 190 and 1,223 MiB).
+RUN_BYTES_PER_VOXEL = 400
+RUN_BYTES_PER_LINK = 250
+RUN_BYTES_PER_VOXEL_CHARGE = 40
+RUN_BYTES_FIXED = 80 * 2**20
+
+
+def run_memory_bytes(model_bytes: int, voxels: int, links: int, charges: int) -> int:
+    """Estimated memory (bytes) of a run: its model's arrays (``model_bytes``) and what
+    the run adds for ``voxels``, ``links`` and ``charges`` (see RUN_BYTES_*)."""
+    return int(model_bytes + RUN_BYTES_FIXED + RUN_BYTES_PER_VOXEL * voxels
+               + RUN_BYTES_PER_LINK * links + RUN_BYTES_PER_VOXEL_CHARGE * voxels * charges)
+
+
+def check_run_memory(settings: SimSettings, model_bytes: int, voxels: int,
+                     links: int) -> int:
+    """The run's estimated memory (:func:`run_memory_bytes`, returned) within
+    ``max_memory_gib``, else BudgetError naming the figure: checked before a run
+    allocates anything."""
+    need = run_memory_bytes(model_bytes, voxels, links, len(settings.charges))
+    limit = settings.budget.max_memory_gib
+    if need / 2**30 > limit:
+        raise BudgetError(
+            f"{settings.origin.source}: simulating {voxels:,} voxels and {links:,} links "
+            f"needs about {need / 2**30:.3g} GiB ({model_bytes / 2**30:.2g} GiB of model, "
+            f"the rest the run's arrays), over the limit of {fmt(limit)} GiB (raise it with "
+            f"--max-memory, or voxelize with larger voxels)")
+    return need
+
+
+def check_record_memory(settings: SimSettings, pieces: int, frames: int,
+                        run_bytes: int = 0) -> None:
+    """The recorded frames of ``pieces`` over ``frames``, on top of the run's own
+    ``run_bytes`` (:func:`check_run_memory`), within ``max_memory_gib``, else
     BudgetError (the engine calls it at the first frame and at each frame after a split:
     pieces only appear in splits)."""
-    need = pieces * frames * RECORD_BYTES_PER_PIECE_FRAME / 2**30
+    record = pieces * frames * RECORD_BYTES_PER_PIECE_FRAME
+    need = (record + run_bytes) / 2**30
     limit = settings.budget.max_memory_gib
     if need > limit:
         name = settings.origin.name
         raise BudgetError(
             f"{settings.origin.source}: recording {pieces:,} piece{'s' * (pieces != 1)} over "
-            f"{frames:,} frames "
-            f"needs about {need:.3g} GiB, over the limit of {fmt(limit)} GiB (raise it with "
+            f"{frames:,} frames needs about {record / 2**30:.3g} GiB on top of the run's "
+            f"{run_bytes / 2**30:.3g}, over the limit of {fmt(limit)} GiB (raise it with "
             f"--max-memory, or lower {name('fps')} or {name('duration')})")
 
 
