@@ -87,28 +87,33 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
 
 def run_scene(scene_path: Path, force: bool = False, log: Callable[[str], None] = print,
               warn: Callable[[str], None] | None = None,
-              references_anywhere: bool = False) -> list[str]:
+              references_anywhere: bool = False,
+              max_memory_gib: float | None = None) -> list[str]:
     """Bring the scene's outputs up to date; returns the stages that ran.
 
     Stage modules are imported only when their stage runs, so an up-to-date
     shot costs a few stat calls. ``references_anywhere``: a mesh's side files may lie
-    outside its folder (:mod:`blastvox.io.references`).
+    outside its folder (:mod:`blastvox.io.references`); ``max_memory_gib``: the
+    simulation's memory budget (``--max-memory``).
     """
     from blastvox.scene import load_scene
 
     scene_path = Path(scene_path)
     return build_shot(load_scene(scene_path), scene_path, force=force, log=log, warn=warn,
-                      references_anywhere=references_anywhere)
+                      references_anywhere=references_anywhere,
+                      max_memory_gib=max_memory_gib)
 
 
-def check_simulation(scene: Scene, source: str) -> Any:
+def check_simulation(scene: Scene, source: str, max_memory_gib: float | None = None) -> Any:
     """The scene's simulation settings (``SimSettings``), refused (one line naming
     ``source``) if a run of them would exceed its budgets: cheap, so a shot can be
-    refused before voxelize."""
-    from blastvox.simulate.settings import check_settings
+    refused before voxelize. ``max_memory_gib``: the run's memory budget (default
+    :class:`~blastvox.simulate.settings.Budget`'s)."""
+    from blastvox.simulate.settings import Budget, check_settings
     from blastvox.simulate.settings import settings_from_scene as sim_settings
 
-    sim = sim_settings(scene, source)
+    budget = None if max_memory_gib is None else Budget(max_memory_gib=max_memory_gib)
+    sim = sim_settings(scene, source, budget)
     if sim.charges:
         check_settings(sim)
     return sim
@@ -117,7 +122,8 @@ def check_simulation(scene: Scene, source: str) -> Any:
 def build_shot(scene: Scene, scene_path: Path, force: bool = False,
                log: Callable[[str], None] = print, warn: Callable[[str], None] | None = None,
                seconds: dict[str, float] | None = None,
-               references_anywhere: bool = False) -> list[str]:
+               references_anywhere: bool = False,
+               max_memory_gib: float | None = None) -> list[str]:
     """Bring the outputs of ``scene`` (read from ``scene_path``, whose name the model
     records) up to date, as :func:`run_scene`; returns the stages that ran.
 
@@ -141,7 +147,7 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
     if scene.materials_file is not None:
         voxel_inputs.append(Path(scene.materials_file))
     _check_outputs(out.model, out.cache, exports, voxel_inputs, out.layout)
-    sim = check_simulation(scene, str(scene_path))
+    sim = check_simulation(scene, str(scene_path), max_memory_gib)
     model = None
     if force or _stale(out.model, voxel_inputs):
         from blastvox.voxelize.pipeline import voxelize

@@ -477,3 +477,17 @@ def test_blast_mass_and_distances(work: Path, kg: float, distances: list[float])
         rows = json.loads(outcome.stdout)
         assert len(rows) == len(distances)
         assert all(np.isfinite(v) for row in rows for v in row.values()), rows
+
+
+def test_run_takes_the_memory_budget_too(work: Path) -> None:
+    """`blastvox run` had no --max-memory, so a scene whose run is over the budget could
+    not be raised from it: it takes the flag, and refuses with the figure below it."""
+    (work / "scene.toml").write_text(scene_text())
+    need = _run_gib(work)
+    line = refused(work, "run", "scene.toml", "-q", "--max-memory", repr(0.5 * need),
+                   names=("voxels", "links", "--max-memory"),
+                   inputs=("scene.toml", "box.stl", "sim.npz"), allow=("model.npz",),
+                   seconds=30)
+    assert f"about {need:.3g} GiB" in line, line
+    ok = run_blastvox("run", "scene.toml", "-q", "--max-memory", repr(2 * need), cwd=work)
+    assert ok.code == 0, ok.stderr

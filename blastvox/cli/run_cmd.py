@@ -7,6 +7,8 @@ from pathlib import Path
 
 import typer
 
+from blastvox.bounds import MAX_MEMORY_GIB
+
 
 def run(
     scene: Path = typer.Argument(..., metavar="SCENE", help="Scene TOML with [[objects]], "
@@ -18,6 +20,9 @@ def run(
         False, "--references-anywhere", help="Let a mesh's side files (an OBJ's MTL and "
         "textures, a .gltf's buffers and images) lie outside its folder; they must still "
         "be regular files (no device, FIFO or URL)."),
+    max_memory: float = typer.Option(MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
+                                     help="Refuse a simulation that would need more memory, "
+                                     "GiB (see `blastvox simulate --help`)."),
 ) -> None:
     """Run voxelize -> simulate -> export as the scene says, skipping up-to-date stages.
 
@@ -38,7 +43,7 @@ def run(
         ran = run_scene(scene, force=force, log=log,
                         warn=lambda m: console.print(f"blastvox: warning: {m}", markup=False,
                                                   highlight=False),
-                        references_anywhere=references_anywhere)
+                        references_anywhere=references_anywhere, max_memory_gib=max_memory)
     if ran and not quiet:
         console.print(f"{scene}: {', '.join(ran)} in {time.perf_counter() - started:.2f} s",
                       markup=False, highlight=False)
