@@ -233,9 +233,10 @@ def test_brick_roof_over_a_3_6_m_span_cracks_under_its_own_weight(tmp_path):
             assert run.stress.broken == 0 and sag < 0.02, (run.stress.broken, sag)
 
 
-def test_small_graph_components_are_numbered_as_scipy_numbers_them() -> None:
-    """stress.components labels small graphs with NumPy; the solve's node order (and so
-    its floating-point sums) depends on the numbering, which must be SciPy's."""
+def test_graph_components_are_numbered_as_scipy_numbers_them() -> None:
+    """stress.components labels small graphs with NumPy and large ones by union-find; the
+    solve's node order (and so its floating-point sums) depends on the numbering, which
+    must be SciPy's (large graphs were SciPy's own call, 117 MB at a million voxels)."""
     from hypothesis import given, settings
     from hypothesis import strategies as st
     from scipy.sparse import coo_matrix
@@ -256,6 +257,16 @@ def test_small_graph_components_are_numbered_as_scipy_numbers_them() -> None:
         np.testing.assert_array_equal(got[1], want[1])
 
     check()
+    rng = np.random.default_rng(7)
+    for _ in range(40):  # large graphs, by union-find: sparse to nearly connected
+        m = int(rng.integers(stress.SMALL_GRAPH + 1, 20_000))
+        e = int(rng.integers(0, 2 * m))
+        a, b = rng.integers(0, m, e), rng.integers(0, m, e)
+        want = connected_components(coo_matrix((np.ones(e), (a, b)), shape=(m, m)),
+                                    directed=False)
+        got = stress.components(m, a, b)
+        assert got[0] == want[0]
+        np.testing.assert_array_equal(got[1], want[1])
 
 
 def test_a_beam_resting_on_two_bearings_is_simply_supported(tmp_path):
