@@ -395,7 +395,7 @@ def test_debris_momentum_with_contacts_converges_in_dt(tmp_path):
 
 def test_body_arrays_grow_as_splits_need_and_the_shot_is_the_same(tmp_path, monkeypatch):
     """Body arrays were sized for every split a model could make (2 N + 2 slots: 1.1 GB
-    of them for a million voxels that a shot breaks into a few pieces). They start
+    reserved for a million voxels that a shot breaks into a few pieces). They start
     with room for the objects and engine.SPARE_BODIES more and double when a split
     needs more (state.grow_bodies, with every array indexed by body). A wall blown
     into pieces with no spare slot at all (a growth at nearly every split) gives the

@@ -278,8 +278,9 @@ def padded(array: np.ndarray, length: int, fill) -> np.ndarray:
 
 #: Body slots a run starts with beyond its objects; they double whenever a split needs
 #: more (:func:`grow_bodies`). Every split retires its parent, so a model of N voxels
-#: can use up to 2 N + objects slots, but a shot uses a few per broken piece: sizing
-#: for the worst case cost a million-voxel block 1.1 GB of body arrays it never used.
+#: can use up to 2 N + objects slots, but a shot uses a few per broken piece: sized for
+#: the worst case, a million-voxel block reserved 1.1 GB of body arrays and touched
+#: about 100 MB of them (its peak RSS fell 1,842 -> 1,741 MB).
 SPARE_BODIES = 1024
 
 
