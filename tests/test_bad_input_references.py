@@ -285,3 +285,28 @@ def test_names_print_whatever_the_file_systems_encoding(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
     assert "scene.toml" in lines[0] or ".obj" in lines[0], lines
+
+
+def test_a_percent_encoded_gltf_uri_names_the_file_it_encodes(tmp_path):
+    """glTF URIs are RFC 3986: Blender writes `my%20skin.png` for `my skin.png`. The URI
+    was read as written, so a .gltf whose buffer or texture has a space in its name lost
+    it. Now the decoded name is read (and counted among run's inputs); a URI that still
+    escapes the folder once decoded is refused as before."""
+    import json
+
+    trimesh.creation.box().export(tmp_path / "box.gltf")
+    doc = json.loads((tmp_path / "box.gltf").read_text())
+    uri = doc["buffers"][0]["uri"]
+    (tmp_path / uri).rename(tmp_path / "my buffer.bin")
+    doc["buffers"][0]["uri"] = "my%20buffer.bin"
+    (tmp_path / "box.gltf").write_text(json.dumps(doc))
+    outcome = run_blastvox("voxelize", "box.gltf", "-o", "m.npz", "--voxel-size", "0.25",
+                           "-q", cwd=tmp_path)
+    assert outcome.code == 0, outcome.stderr
+    assert tmp_path / "my buffer.bin" in mesh_resources(tmp_path / "box.gltf")
+    doc["buffers"][0]["uri"] = "%2E%2E/%2E%2E/etc/passwd"
+    (tmp_path / "box.gltf").write_text(json.dumps(doc))
+    outcome = run_blastvox("voxelize", "box.gltf", "-o", "m2.npz", "--voxel-size", "0.25",
+                           "-q", cwd=tmp_path)
+    assert_clean_failure(outcome, ["box.gltf"], words=["outside the folder"])
+    assert not (tmp_path / "m2.npz").exists()

@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 import re
 import stat
+import urllib.parse
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -105,6 +106,15 @@ class ReferencePolicy:
             raise ReferenceRefused(f"{where}: more than the {self.max_bytes:,} bytes a "
                                    "reference may be")
         return data
+
+
+def uri_paths(uri: str) -> list[str]:
+    """The file names a glTF URI may mean, in the order to try them: its percent-decoded
+    path (glTF URIs are RFC 3986: Blender writes ``my%20skin.png`` for ``my skin.png``),
+    then the URI as written if that differs (an exporter that did not encode a literal
+    ``%``)."""
+    decoded = urllib.parse.unquote(uri)
+    return [decoded] if decoded == uri else [decoded, uri]
 
 
 def _reason(exc: BaseException) -> str:

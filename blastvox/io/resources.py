@@ -12,7 +12,7 @@ import re
 from pathlib import Path
 
 from blastvox.errors import InputError
-from blastvox.io.references import ReferencePolicy
+from blastvox.io.references import ReferencePolicy, uri_paths
 
 _POLICY = ReferencePolicy()
 
@@ -69,7 +69,10 @@ def _gltf_uris(path: Path, policy: ReferencePolicy) -> list[Path]:
     for kind in ("buffers", "images"):
         for item in doc.get(kind) or []:
             uri = item.get("uri") if isinstance(item, dict) else None
-            if isinstance(uri, str) and not uri.startswith("data:") and (
-                    ref := _allowed(path, uri, policy)) is not None:
-                uris.append(ref)
+            if not isinstance(uri, str) or uri.startswith("data:"):
+                continue
+            for name in uri_paths(uri):  # the file the loader reads (missing: None)
+                if (ref := _allowed(path, name, policy)) is not None:
+                    uris.append(ref)
+                    break
     return uris
