@@ -44,6 +44,7 @@ import ctypes
 import json
 import math
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -358,7 +359,14 @@ def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) 
             engine.simulate(model, settings)
             total = time.perf_counter() - started
         phases = {"total": total, "spent": profiler.table(total)}
+    from blastvox.simulate.settings import run_memory_bytes
+
+    estimate = run_memory_bytes(sum(a.nbytes for a in model.arrays.values()),
+                                model.voxel_count, len(model.arrays["link_voxels"]),
+                                len(settings.charges))
     return {"phases": phases, "voxels": model.voxel_count,
+            "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "estimate_mib": estimate / 2**20,
             "links": len(model.arrays["link_voxels"]), "steps": steps, "seconds": seconds,
             "loops": loops, "bytes": counted["bytes"],
             "calls": counted["calls"], "missing": counted["missing"],
@@ -374,10 +382,13 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
           "counting run (at least 5 up to 10^4 voxels). Loop: the steps and the frame "
           "recording, i.e. `simulate()` less building the run and packing the cache. Bound: "
           "NumPy copying the bytes the loop's sweeps must at least read and write (byte model "
-          "in `performance.py`), step by step, in the same process.\n")
+          "in `performance.py`), step by step, in the same process. Peak RSS: the worker "
+          "process's (Python, numba, the model and the runs); estimate: the memory budget's "
+          "figure for the run (`blastvox.simulate.settings.run_memory_bytes`: the model, the "
+          "run's arrays and the kernels, not the interpreter's ~100 MiB).\n")
     print("| voxels | links | steps | simulate s | voxel-steps/s | loop s | model MB/step | "
-          "bound s | loop / bound | pieces |")
-    print("|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|", flush=True)
+          "bound s | loop / bound | pieces | peak RSS MiB | estimate MiB |")
+    print("|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|", flush=True)
     results, crashed, gbs, missing = {}, False, [], set()
     sizes = [cells for cells in BLOCK_CELLS if not (quick and cells >= 100)]
     for cells in sizes:
@@ -395,7 +406,7 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
             r = json.loads(proc.stdout.strip().splitlines()[-1])
         except (RuntimeError, ValueError, IndexError) as exc:
             crashed = True
-            print(f"| {cells ** 3:,} | — | — | — | — | — | — | — | error: {exc} | — |",
+            print(f"| {cells ** 3:,} | — | — | — | — | — | — | — | error: {exc} | — | — | — |",
                   flush=True)
             continue
         best = min(r["seconds"])
@@ -406,7 +417,8 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
         print(f"| {r['voxels']:,} | {r['links']:,} | {r['steps']} | {best:.3f} | "
               f"{r['voxels'] * r['steps'] / best / 1e6:,.2f}M | {loop:.3f} | "
               f"{r['bytes'] / r['steps'] / 1e6:,.2f} | {r['bound']:.4f} | "
-              f"{loop / r['bound']:,.1f}× | {r['pieces']:,} |", flush=True)
+              f"{loop / r['bound']:,.1f}× | {r['pieces']:,} | {r['peak_mib']:,.0f} | "
+              f"{r['estimate_mib']:,.0f} |", flush=True)
     if missing:
         print(f"\nByte model: kernels not found in blastvox.simulate, so not counted: "
               f"{', '.join(sorted(missing))}.")
