@@ -361,9 +361,7 @@ def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) 
         phases = {"total": total, "spent": profiler.table(total)}
     from blastvox.simulate.settings import run_memory_bytes
 
-    estimate = run_memory_bytes(sum(a.nbytes for a in model.arrays.values()),
-                                model.voxel_count, len(model.arrays["link_voxels"]),
-                                len(settings.charges))
+    estimate = run_memory_bytes(model, len(settings.charges))
     return {"phases": phases, "voxels": model.voxel_count,
             "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
             "estimate_mib": estimate / 2**20,

@@ -162,12 +162,15 @@ def _advance(model, settings: SimSettings, seconds: float,
     return run
 
 
-def _free_momentum(run: engine.Run) -> float:
-    """Horizontal momentum (N s, the norm of x and y) of the run's free pieces, dust
-    left out."""
+def _free_pieces(run: engine.Run) -> np.ndarray:
+    """(n_bodies,) bool: the run's free pieces (live, not founded, not dust)."""
     b, n = run.state.bodies, run.state.n_bodies
-    free = b.live[:n] & ~b.fixed[:n] & ~b.dust[:n]
-    p = b.lin[:n][free].sum(axis=0)
+    return b.live[:n] & ~b.fixed[:n] & ~b.dust[:n]
+
+
+def _free_momentum(run: engine.Run) -> float:
+    """Horizontal momentum (N s, the norm of x and y) of the run's free pieces."""
+    p = run.state.bodies.lin[:run.state.n_bodies][_free_pieces(run)].sum(axis=0)
     return float(np.hypot(p[0], p[1]))
 
 
@@ -235,13 +238,13 @@ def _debris(run: engine.Run, model) -> dict:
     still founded."""
     state = run.state
     b, n = state.bodies, state.n_bodies
-    free = b.live[:n] & ~b.fixed[:n] & ~b.dust[:n]
+    free = _free_pieces(run)
     p = b.lin[:n][free].sum(axis=0)
     voxel_mass = model.arrays["voxel_mass"]
     body = state.voxels.body
     founded = state.voxels.alive & b.fixed[body] & b.live[body]
     dust = ~state.voxels.alive | b.dust[body]
-    return {"momentum": float(np.hypot(p[0], p[1])), "momentum_up": float(p[2]),
+    return {"momentum": _free_momentum(run), "momentum_up": float(p[2]),
             "broken": float(1.0 - state.links.alive.mean()) if len(state.links.alive) else 0.0,
             "crack_m2": float(model.arrays["link_area"][~state.links.alive].sum()),
             "dust": float(voxel_mass[dust].sum() / voxel_mass.sum()),

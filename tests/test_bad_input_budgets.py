@@ -242,8 +242,7 @@ def _run_gib(work: Path, charges: int = 1) -> float:
     from blastvox.simulate.settings import run_memory_bytes
 
     model = VoxelModel.load(work / "model.npz")
-    return run_memory_bytes(sum(a.nbytes for a in model.arrays.values()), model.voxel_count,
-                            len(model.arrays["link_voxels"]), charges) / 2**30
+    return run_memory_bytes(model, charges) / 2**30
 
 
 def test_the_recorded_frames_memory_is_checked_as_pieces_appear(work: Path) -> None:

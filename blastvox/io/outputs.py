@@ -57,10 +57,8 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
     symlinks), else the same resolved path."""
     try:
         return os.path.samefile(a, b)
-    except OSError:
+    except (OSError, ValueError):  # missing; a NUL, or a name the file system cannot encode
         pass
-    except ValueError:  # a NUL in a name, or one the file system cannot encode
-        return os.path.abspath(a) == os.path.abspath(b)
     try:
         return os.path.realpath(a) == os.path.realpath(b)
     except (OSError, ValueError):

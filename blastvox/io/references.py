@@ -117,6 +117,19 @@ def uri_paths(uri: str) -> list[str]:
     return [decoded] if decoded == uri else [decoded, uri]
 
 
+def read_uri(policy: ReferencePolicy, referrer: Path, uri: str) -> bytes:
+    """The bytes of the first file of :func:`uri_paths` (``uri`` as a glTF names it) that
+    exists, read under ``policy`` (a refusal raises at once); FileNotFoundError if none
+    does."""
+    names = uri_paths(uri)
+    for name in names[:-1]:
+        try:
+            return policy.read(referrer, name)
+        except FileNotFoundError:
+            continue
+    return policy.read(referrer, names[-1])
+
+
 def _reason(exc: BaseException) -> str:
     """Why a path could not be resolved, in a few words: the OS's reason (``Too many
     levels of symbolic links``, ``File name too long``), or a symlink loop."""

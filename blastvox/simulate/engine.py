@@ -416,8 +416,7 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     :class:`~blastvox.errors.BlastvoxError` (a BudgetError for a budget).
     """
     check_settings(settings)
-    run_bytes = check_run_memory(settings, sum(a.nbytes for a in model.arrays.values()),
-                                 model.voxel_count, len(model.arrays["link_voxels"]))
+    run_bytes = check_run_memory(settings, model)
     progress = progress or Progress()
     warn = warn or (lambda message: None)
     cold = not _compiled_before()

@@ -349,24 +349,31 @@ RUN_BYTES_PER_VOXEL_CHARGE = 40
 RUN_BYTES_FIXED = 80 * 2**20
 
 
-def run_memory_bytes(model_bytes: int, voxels: int, links: int, charges: int) -> int:
-    """Estimated memory (bytes) of a run: its model's arrays (``model_bytes``) and what
-    the run adds for ``voxels``, ``links`` and ``charges`` (see RUN_BYTES_*)."""
-    return int(model_bytes + RUN_BYTES_FIXED + RUN_BYTES_PER_VOXEL * voxels
+def model_bytes(model) -> int:
+    """Bytes of a VoxelModel's arrays."""
+    return sum(a.nbytes for a in model.arrays.values())
+
+
+def run_memory_bytes(model, charges: int) -> int:
+    """Estimated memory (bytes) of a run of ``model`` (a VoxelModel) with ``charges``
+    charges: the model's arrays and what the run adds per voxel, link and voxel-charge
+    (see RUN_BYTES_*)."""
+    voxels, links = model.voxel_count, len(model.arrays["link_voxels"])
+    return int(model_bytes(model) + RUN_BYTES_FIXED + RUN_BYTES_PER_VOXEL * voxels
                + RUN_BYTES_PER_LINK * links + RUN_BYTES_PER_VOXEL_CHARGE * voxels * charges)
 
 
-def check_run_memory(settings: SimSettings, model_bytes: int, voxels: int,
-                     links: int) -> int:
-    """The run's estimated memory (:func:`run_memory_bytes`, returned) within
-    ``max_memory_gib``, else BudgetError naming the figure: checked before a run
+def check_run_memory(settings: SimSettings, model) -> int:
+    """The estimated memory of a run of ``model`` (:func:`run_memory_bytes`, returned)
+    within ``max_memory_gib``, else BudgetError naming the figure: checked before a run
     allocates anything."""
-    need = run_memory_bytes(model_bytes, voxels, links, len(settings.charges))
+    need = run_memory_bytes(model, len(settings.charges))
+    voxels, links = model.voxel_count, len(model.arrays["link_voxels"])
     limit = settings.budget.max_memory_gib
     if need / 2**30 > limit:
         raise BudgetError(
             f"{settings.origin.source}: simulating {voxels:,} voxels and {links:,} links "
-            f"needs about {need / 2**30:.3g} GiB ({model_bytes / 2**30:.2g} GiB of model, "
+            f"needs about {need / 2**30:.3g} GiB ({model_bytes(model) / 2**30:.2g} GiB of model, "
             f"the rest the run's arrays), over the limit of {fmt(limit)} GiB (raise it with "
             f"--max-memory, or voxelize with larger voxels)")
     return need

@@ -288,8 +288,9 @@ def grow_bodies(state: State, needed: int) -> None:
     """Make room for ``needed`` bodies in all: double the capacity (or more) of the body
     arrays and of every array of the state indexed by body (marks, loads, contact
     flags and the solver's scratch, the clearing and holding caches), new slots unused.
-    Anything outside the state that is indexed by body sizes itself from
-    ``len(state.bodies.mass)`` when it is used."""
+    Outside the state: the stress solver's ``solved`` is padded after each split
+    (:func:`blastvox.simulate.engine.split`); the contact punch's ``net`` and the limit
+    monitor's rotations size themselves from ``len(state.bodies.mass)``."""
     capacity = len(state.bodies.mass)
     if needed <= capacity:
         return

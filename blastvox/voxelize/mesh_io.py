@@ -29,7 +29,7 @@ from blastvox.bounds import printable, regular_file, shortened
 from blastvox.errors import InputError, MeshError
 from blastvox.geometry.voxel_faces import VTK_CELL_FACES
 from blastvox.io import mesh_checks
-from blastvox.io.references import ReferencePolicy, ReferenceRefused, uri_paths
+from blastvox.io.references import ReferencePolicy, ReferenceRefused, read_uri
 from blastvox.voxelize import vertex_colors
 
 #: Suffixes read through meshio as volume meshes rather than through trimesh.
@@ -151,17 +151,12 @@ def _image_problem(path: Path, image: dict, doc: dict, binary: bytes,
         except (IndexError, ValueError):
             return "is a malformed data: URI"
     elif isinstance(uri, str) and uri:
-        data = None
-        for name in uri_paths(uri):
-            try:
-                data = policy.read(path, name)
-                break
-            except FileNotFoundError:
-                continue
-            except (OSError, InputError):
-                return None  # refused: the loader has said why
-        if data is None:
+        try:
+            data = read_uri(policy, path, uri)
+        except FileNotFoundError:
             return "not found"
+        except (OSError, InputError):
+            return None  # refused: the loader has said why
     elif "bufferView" in image and binary:
         view = doc["bufferViews"][image["bufferView"]]
         start = int(view.get("byteOffset", 0))
@@ -257,19 +252,14 @@ class _PolicyResolver(trimesh.resolvers.FilePathResolver):
         self.policy, self.refused = policy, refused
 
     def get(self, name: str) -> bytes:
-        names = [name]
-        if Path(self.file_path).suffix.lower() in (".gltf", ".glb"):
-            names = uri_paths(name)
-        for k, candidate in enumerate(names):
-            try:
-                return self.policy.read(Path(self.file_path), candidate)
-            except ReferenceRefused as exc:
-                self.refused.append(str(exc))
-                raise
-            except FileNotFoundError:
-                if k == len(names) - 1:
-                    raise
-        raise FileNotFoundError(name)
+        source = Path(self.file_path)
+        try:
+            if source.suffix.lower() in (".gltf", ".glb"):  # a URI: percent-encoded
+                return read_uri(self.policy, source, name)
+            return self.policy.read(source, name)
+        except ReferenceRefused as exc:
+            self.refused.append(str(exc))
+            raise
 
     def namespaced(self, namespace: str) -> _PolicyResolver:
         return _PolicyResolver(os.path.join(self.parent, namespace, self.file_name),
