@@ -341,6 +341,7 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     check_bound(path, name("conform_triangles"), a["conform_triangles"], COORD_LIMIT_M)
     for key in ("voxel_volume", "voxel_mass", "link_area"):
         check_range(path, name(key), a[key], 0.0, lo_open=True)
+    _check_density(path, name("voxel_mass"), a["voxel_mass"], a["voxel_volume"])
     size = float(np.cbrt(np.median(a["voxel_volume"])))
     for key in ("vertices", "voxel_centroid", "link_midpoint"):
         _check_points(path, name(key), a[key], size)
@@ -355,6 +356,22 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
         fail(path, f"array '{name('voxel_foundation_yield')}' holds "
                    f"{float(a['voxel_foundation_yield'][i])!r} at [{i}], a voxel that is not a "
                    f"foundation ('{name('voxel_foundation')}'); expected 0")
+
+
+def _check_density(path: str | os.PathLike, label: str, mass: np.ndarray,
+                   volume: np.ndarray) -> None:
+    """Each voxel's mass (kg) over its volume (m^3) within the materials' density bound:
+    a crafted 1e308 kg voxel passed as "finite and > 0" and overflowed the simulator."""
+    from blastvox.materials import MAX_DENSITY
+
+    over = np.flatnonzero(mass > MAX_DENSITY * volume * (1.0 + 1e-9))
+    if over.size:
+        i = int(over[0])
+        with np.errstate(over="ignore"):
+            density = float(mass[i] / volume[i])
+        fail(path, f"array '{label}' holds {float(mass[i]):.4g} kg at [{i}], "
+                   f"{density:.4g} kg/m^3 over its voxel's volume, more than "
+                   f"the {MAX_DENSITY:g} kg/m^3 any material may be")
 
 
 def _check_look(path: str | os.PathLike, a: Mapping[str, np.ndarray], meta: Mapping[str, Any],

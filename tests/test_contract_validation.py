@@ -162,6 +162,9 @@ MODEL_CASES: list[tuple[str, Callable[[Arrays], None], tuple[str, ...]]] = [
     ("mass-zero", _set("voxel_mass", 1, 0.0), ("'voxel_mass'", "> 0", "0.0 at [1]")),
     ("mass-negative", _set("voxel_mass", 1, -2.0), ("'voxel_mass'", "-2.0")),
     ("mass-nan", _set("voxel_mass", 1, np.nan), ("'voxel_mass'", "nan")),
+    # finite and > 0, but 1e308 kg overflowed the simulator (density in a divide)
+    ("mass-absurd", _set("voxel_mass", 1, 1e308), ("'voxel_mass'", "1e+308 kg at [1]",
+                                                   "100000 kg/m^3")),
     ("volume-zero", _set("voxel_volume", 0, 0.0), ("'voxel_volume'",)),
     ("link-yield-short", _replace("link_yield", lambda x: x[:-1]), ("'link_yield' has shape",
                                                                    "one per link")),
