@@ -99,6 +99,7 @@ bench: $(STAMP)
 	  section Performance performance.py; \
 	  $(BIN)/python benchmarks/performance.py > "$$out.perf"; sed 's/^## /### /' "$$out.perf"; \
 	  section Export export.py; $(BIN)/python benchmarks/export.py; \
+	  section 'Rubble faces' rubble.py; $(BIN)/python benchmarks/rubble.py; \
 	  section 'USD against glTF at 20,000 pieces' export_usd.py; \
 	  $(BIN)/python benchmarks/export_usd.py; \
 	  section Preview preview.py; $(BIN)/python benchmarks/preview.py; \

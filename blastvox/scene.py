@@ -517,6 +517,10 @@ class Output(_Model):
         "Fracture faces show their material's damage texture (its damage_pattern, "
         "tinted to its damage_color; USD: PNGs in <stem>_textures/ beside the file); "
         "false keeps the flat damage_color."))
+    fracture_faces: Literal["rough", "voxel"] = Field("rough", description=(
+        "rough: fracture faces drawn as broken rubble (the voxels' steps smoothed and "
+        "their corners roughened; pieces still fit together at rest; collision stays "
+        "voxel-based); voxel: the voxels' cell faces."))
 
 
 class Wedge(_Model):

@@ -186,7 +186,8 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
             log(f"export -> {path}")
             export(cache, path, ExportOptions(up_axis=out.up_axis, layout=out.layout,
                                               shock=out.shock,
-                                              damage_textures=out.damage_textures))
+                                              damage_textures=out.damage_textures,
+                                              fracture_faces=out.fracture_faces))
             seconds["export"] = seconds.get("export", 0.0) + time.perf_counter() - started
             ran.append("export")
     if not ran:

@@ -11,6 +11,11 @@ import typer
 from blastvox.cli.options import UpAxis
 
 
+class FractureFaces(StrEnum):
+    rough = "rough"
+    voxel = "voxel"
+
+
 class Layout(StrEnum):
     xforms = "xforms"
     instancer = "instancer"
@@ -38,6 +43,11 @@ def export(
                                          "texture (cracked concrete, splintered wood...; "
                                          "USD: PNGs in <stem>_textures/), or its flat "
                                          "damage_color."),
+    fracture_faces: FractureFaces = typer.Option(
+        FractureFaces.rough, "--fracture-faces", case_sensitive=False,
+        help="rough: fracture faces drawn as broken rubble (steps smoothed, corners "
+        "roughened; the pieces still fit together at rest; collision stays voxel-based); "
+        "voxel: the voxels' cell faces."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),
 ) -> None:
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
@@ -58,7 +68,8 @@ def export(
     cache = SimCache.load(cache_path)
     with cli_warnings(err_console()):
         run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value,
-                                           shock=shock, damage_textures=damage_textures))
+                                           shock=shock, damage_textures=damage_textures,
+                                           fracture_faces=fracture_faces.value))
     if not quiet:
         err_console().print(f"{output}: {cache.piece_count:,} pieces, {cache.frame_count} "
                             f"frames, {output.stat().st_size / 1e6:.2f} MB "

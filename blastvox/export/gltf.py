@@ -105,7 +105,8 @@ def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None 
     doc, blob = build_gltf(cache, buffer_uri=None if path.suffix.lower() == ".glb"
                            else quote(bin_name), shock=options.shock,
                            damage_textures=options.damage_textures,
-                           skinned=options.layout == "skinned")
+                           skinned=options.layout == "skinned",
+                           fracture_faces=options.fracture_faces)
     if path.suffix.lower() == ".glb":
         with atomic_path(path) as tmp:
             tmp.write_bytes(glb_bytes(doc, blob))
@@ -136,8 +137,8 @@ def _json_bytes(doc: dict[str, Any]) -> bytes:
 
 
 def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = False,
-               damage_textures: bool = True, skinned: bool = False
-               ) -> tuple[dict[str, Any], bytes]:
+               damage_textures: bool = True, skinned: bool = False,
+               fracture_faces: str = "rough") -> tuple[dict[str, Any], bytes]:
     """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
 
     ``buffer_uri``: the buffer's uri (.gltf), or None for a GLB's embedded buffer.
@@ -146,11 +147,12 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     ``skinned``: skinned meshes of up to SKIN_JOINTS pieces each, a joint per piece
     (the piece nodes), instead of a mesh per piece: importers make a few objects,
     not thousands.
+    ``fracture_faces``: "rough" (rubble surfaces) or "voxel" (cell faces).
     """
     b = _Builder()
     mats, mat_index = _materials(cache)
     look = _texture_materials(cache, b, mats)
-    pm = piece_meshes(cache, "Y")
+    pm = piece_meshes(cache, "Y", fracture_faces)
     if damage_textures:
         _damage_texture_materials(cache, b, mats, mat_index, look,
                                   np.unique(pm.material[pm.damage]).tolist())

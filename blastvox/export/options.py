@@ -20,9 +20,12 @@ class ExportOptions:
     translucent sphere, which a renderer does draw: it grows past the camera).
     damage_textures: draw each material's damage pattern on its fracture faces
     (:mod:`blastvox.export.damage_textures`; USD: PNGs in ``<stem>_textures/``);
-    False keeps the flat ``damage_color`` and writes no texture files for them."""
+    False keeps the flat ``damage_color`` and writes no texture files for them.
+    fracture_faces: "rough" (default) draws fracture faces as rubble surfaces
+    (:mod:`blastvox.export.rubble`), "voxel" as the voxels' cell faces."""
 
     up_axis: str = "Y"
     layout: str = "xforms"
     shock: bool = False
     damage_textures: bool = True
+    fracture_faces: str = "rough"

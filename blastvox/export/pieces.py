@@ -10,7 +10,8 @@ diagonal) or, for conform voxels, the exact cell-and-mesh triangles. A face
 on the intact object's surface is a *surface* face and takes the voxel's
 material colour; a face that was inside the object (it had a link) is a
 *damage* face, shown with the damage material once fracture exposes it
-(Martins 2001 §6).
+(Martins 2001 §6); unless asked for as voxel faces, damage faces are reshaped
+into rubble surfaces (:mod:`blastvox.export.rubble`).
 """
 
 from __future__ import annotations
@@ -21,12 +22,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from blastvox.cache import SimCache
+from blastvox.export.rubble import roughen
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change
 from blastvox.geometry.transforms import change_frame
 from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG, face_triangles
 
-__all__ = ["Animation", "PieceMeshes", "animation", "frame_change", "piece_meshes"]
+__all__ = ["FRACTURE_FACES", "Animation", "PieceMeshes", "animation", "frame_change",
+           "piece_meshes"]
+
+#: How an export draws the fracture faces: rubble surfaces, or the voxels' cell faces.
+FRACTURE_FACES = ("rough", "voxel")
 
 
 @dataclass(frozen=True)
@@ -145,8 +151,14 @@ def object_groups(objects: list[str]) -> dict[str, list[int]]:
     return groups
 
 
-def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:
-    """Boundary triangles of every final piece, piece-local, in the export frame."""
+def piece_meshes(cache: SimCache, export_up: str, fracture_faces: str = "rough") -> PieceMeshes:
+    """Boundary triangles of every final piece, piece-local, in the export frame.
+
+    fracture_faces: "rough" reshapes the fracture faces into rubble surfaces
+    (:func:`blastvox.export.rubble.roughen`: steps smoothed, corners roughened, the
+    pieces still fitting at rest); "voxel" keeps them the voxels' cell faces."""
+    if fracture_faces not in FRACTURE_FACES:
+        raise ValueError(f"fracture_faces must be one of {FRACTURE_FACES}, not {fracture_faces!r}")
     a = cache.model.arrays
     n = len(a["voxel_mass"])
     piece = cache.voxel_piece.astype(np.int64)
@@ -183,6 +195,11 @@ def piece_meshes(cache: SimCache, export_up: str) -> PieceMeshes:
     all_voxel = np.concatenate([hex_voxel, owner[keep]])
     all_damage = np.concatenate([hex_damage, con_damage[keep]])
 
+    if fracture_faces == "rough":
+        edge = float(np.median(np.cbrt(a["voxel_volume"]))) if n else 0.0
+        exact = np.concatenate([np.zeros(len(hex_tris), dtype=bool), on_surface[keep]])
+        all_tris = roughen(all_tris, all_damage, edge, int(cache.model.meta.get("seed") or 0),
+                           exact)
     tri_piece = piece[all_voxel]
     order = np.lexsort((np.arange(len(tri_piece)), tri_piece))  # stable by piece
     all_tris, all_voxel, all_damage, tri_piece = (all_tris[order], all_voxel[order],

@@ -129,7 +129,7 @@ class _Writer:
         self.frames = cache.frame_count
         self.pieces = cache.piece_count
         self.instancer = options.layout == "instancer"
-        self.meshes = piece_meshes(cache, options.up_axis)
+        self.meshes = piece_meshes(cache, options.up_axis, options.fracture_faces)
         self.anim = animation(cache, options.up_axis)
         self.objects = piece_objects(cache)
         self.object_prims = object_prim_names(self.objects)

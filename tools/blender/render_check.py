@@ -5,6 +5,7 @@ the project's::
 
     .venv-blender/bin/python tools/blender/render_check.py FILE OUT_DIR FRAME [FRAME ...]
         [--size WxH] [--samples N] [--motion-blur]
+        [--camera EX,EY,EZ:TX,TY,TZ]
 
 What an artist does with a cache, in a script: FILE (.usd/.usda/.usdc or
 .gltf/.glb) is imported into an empty scene with the importer's defaults (as
@@ -13,9 +14,10 @@ What an artist does with a cache, in a script: FILE (.usd/.usda/.usdc or
 A file without a camera gets one, as the artist would add it: a 35 mm lens
 looking at the centre of the imported meshes' box at frame 0 from the front
 right, above, far enough away to frame the box. A sun and a grey sky light
-the scene (the exports carry no lights). Each FRAME is rendered with Cycles on
-the CPU (few samples, a tiny image, film transparent so that the alpha
-channel says what is covered) to ``OUT_DIR/frame_NNNN.png``.
+the scene (the exports carry no lights). ``--camera`` puts a 35 mm camera at E
+looking at T instead (Blender's world: Z up, m), for a close look at the debris.
+Each FRAME is rendered with Cycles on the CPU (few samples, a tiny image, film
+transparent so that the alpha channel says what is covered) to ``OUT_DIR/frame_NNNN.png``.
 
 Prints one JSON object, alone, on stdout (Blender's log goes to stderr)::
 
@@ -97,6 +99,17 @@ def _add_camera(scene: bpy.types.Scene) -> None:
     scene.camera = camera
 
 
+def _place_camera(scene: bpy.types.Scene, eye: Vector, target: Vector) -> None:
+    """A 35 mm camera at ``eye`` looking at ``target`` (Blender's world, Z up, m)."""
+    data = bpy.data.cameras.new("render_check")
+    data.lens, data.sensor_width = LENS_MM, SENSOR_MM
+    camera = bpy.data.objects.new("render_check", data)
+    scene.collection.objects.link(camera)
+    camera.location = eye
+    camera.rotation_euler = (target - eye).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = camera
+
+
 def _light(scene: bpy.types.Scene) -> None:
     sun = bpy.data.objects.new("render_check_sun", bpy.data.lights.new("sun", "SUN"))
     sun.data.energy = 3.0
@@ -123,7 +136,7 @@ def _render(scene: bpy.types.Scene, frame: int, out: Path) -> dict:
 
 
 def main(argv: list[str]) -> None:
-    args, size, samples, blur = [], (96, 54), 4, False
+    args, size, samples, blur, view = [], (96, 54), 4, False, None
     it = iter(argv)
     for arg in it:
         if arg == "--size":
@@ -132,6 +145,8 @@ def main(argv: list[str]) -> None:
             samples = int(next(it))
         elif arg == "--motion-blur":
             blur = True
+        elif arg == "--camera":
+            view = [Vector(float(c) for c in point.split(",")) for point in next(it).split(":")]
         else:
             args.append(arg)
     path, out_dir, frames = Path(args[0]), Path(args[1]), [int(f) for f in args[2:]]
@@ -142,8 +157,10 @@ def main(argv: list[str]) -> None:
     scene = bpy.context.scene
     if scene.camera is None:  # the importers add the file's camera but leave it inactive
         scene.camera = next((o for o in scene.objects if o.type == "CAMERA"), None)
-    from_file = scene.camera is not None
-    if not from_file:
+    from_file = scene.camera is not None and view is None
+    if view is not None:
+        _place_camera(scene, view[0], view[1])
+    elif not from_file:
         scene.frame_set(frames[0] if frames else 0)
         _add_camera(scene)
     _light(scene)
