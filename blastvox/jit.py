@@ -68,6 +68,18 @@ def kernel(func: Callable) -> Callable:
     return dispatcher
 
 
+def parallel_kernel(func: Callable) -> Callable:
+    """A :func:`kernel` whose ``numba.prange`` loops run on every core (numba's threading
+    layer; ``NUMBA_NUM_THREADS`` caps it). Only for loops whose iterations write their
+    own outputs and reduce nothing: the bytes are then the same for any thread count."""
+    if nb.config.DISABLE_JIT:
+        return func
+    dispatcher = KernelDispatcher(py_func=func, locals={}, targetoptions={
+        "nopython": True, "boundscheck": None, "no_cfunc_wrapper": True, "parallel": True})
+    dispatcher.enable_caching()
+    return dispatcher
+
+
 def helper(func: Callable) -> Callable:
     """``@nb.njit(cache=True)`` for a function called only from compiled code."""
     if nb.config.DISABLE_JIT:

@@ -116,3 +116,25 @@ def test_the_library_after_numpy_scipy_and_trimesh_gives_the_cli_s_bytes(tmp_pat
                                            "NPY_DISABLE_CPU_FEATURES": ""})
     assert run.returncode == 0, run.stderr
     assert first.read_bytes() == plain.read_bytes()
+
+
+def test_one_thread_and_two_give_the_same_bytes(tmp_path):
+    """Kernels that run on every core (numba's parallel loops: the wave's element views,
+    blastvox.simulate.fracture.views_ahead) write each iteration's own outputs and
+    reduce nothing, so a shot is the same bytes on one core or two; the house dusts
+    most of its voxels, so the views worked out again after dust opens the grid are
+    covered too."""
+    import os
+
+    model = _bake(tmp_path, "house") / "model.npz"
+    scene = str(ROOT / "examples" / "house" / "scene.toml")
+    caches = []
+    for threads in ("1", "2"):
+        out = tmp_path / f"threads{threads}.npz"
+        run = subprocess.run([*BLASTVOX, "simulate", str(model), "--scene", scene, "-o",
+                              str(out), "-q"], capture_output=True, text=True, timeout=900,
+                             env={**os.environ, "NUMBA_NUM_THREADS": threads})
+        assert run.returncode == 0, run.stderr
+        caches.append(out.read_bytes())
+    assert caches[0] == caches[1]
+    assert caches[0] == (GOLDEN / "house.sim.npz").read_bytes()

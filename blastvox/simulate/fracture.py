@@ -26,17 +26,18 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba as nb
 import numpy as np
 
 from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
-from blastvox.jit import helper, kernel
+from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.members import edge_on, effective_thickness
 from blastvox.simulate.shell import mark_in_shell
-from blastvox.simulate.shielding import remove_voxel, sight_line
-from blastvox.simulate.state import WaveViews
+from blastvox.simulate.shielding import Occupancy, remove_voxel, sight_line
+from blastvox.simulate.state import Exposure, Front, WaveViews
 from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
@@ -141,8 +142,81 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
     return -1.0
 
 
+class AheadViews(NamedTuple):
+    """Element views of the voxels a step's fronts cross, worked out before the step
+    judges them (:func:`views_ahead`), (K, C) for the K voxels of its ``order``:
+    known, the front crosses the voxel this step (then the rest is its
+    :func:`element_view`): peak Pa, impulse Pa s, depth m, blocked, thickness m,
+    squeezed."""
+
+    known: np.ndarray
+    peak: np.ndarray
+    impulse: np.ndarray
+    depth: np.ndarray
+    blocked: np.ndarray
+    thickness: np.ndarray
+    squeezed: np.ndarray
+
+
+def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.ndarray,
+                exposure: Exposure, order: np.ndarray, ahead: AheadViews) -> None:
+    """Fill ``ahead`` (an :class:`AheadViews` (K, C)) with the element view of every
+    voxel of ``order`` (K,) for every charge whose front crosses it this step, on every
+    core: the line of sight through the shielding grid is most of a wave's cost, and
+    each voxel's is its own. :func:`fracture_wave` takes them, as it would work them
+    out, until a voxel turns to dust and leaves the grid this step. members: the
+    model's (thickness (N,) m, wave_speed (N,) m/s, normal (N, 3)); bodies: the
+    state's Bodies (pos, rot, com read)."""
+    # numba's parallel loops take arrays, not structs of arrays: the structs go in
+    # as their fields and are built again inside
+    _views_ahead(tuple(front), tuple(exposure.grid), tuple(exposure)[1:], geometry.centroid,
+                 members, (bodies.pos, bodies.rot, bodies.com), voxel_body, order,
+                 tuple(ahead))
+
+
+@parallel_kernel
+def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, poses,
+                 voxel_body, order, ahead_fields):
+    """:func:`views_ahead`'s loop, each voxel of ``order`` on its own (see there); the
+    structs come as tuples of their fields, unpacked before the loop."""
+    position, time, scale, table, burst, inner, outer = front_fields
+    origin, cell, dims, count, member, lo, hi = grid_fields
+    clearing, gas, sight, reach = exposure_fields
+    thickness, speed, member_normal = members
+    body_pos, body_rot, body_com = poses
+    known, peak, impulse, depth, blocked, thick, squeezed = ahead_fields
+    for i in nb.prange(len(order)):
+        front = Front(position, time, scale, table, burst, inner, outer)
+        exposure = Exposure(Occupancy(origin, cell, dims, count, member, lo, hi), clearing,
+                            gas, sight, reach)
+        v = order[i]
+        b = voxel_body[v]
+        centre = np.empty(3)
+        normal = np.empty(3)
+        to_world_into(body_rot[b], body_pos[b], body_com[b], centroid[v], centre)
+        for c in range(position.shape[0]):
+            r = crossing(centre, position, inner, outer, c)
+            known[i, c] = r >= 0.0
+            if r < 0.0:
+                continue
+            for a in range(3):  # the member's normal, turned with its body
+                normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
+                             + body_rot[b, a, 1] * member_normal[v, 1]
+                             + body_rot[b, a, 2] * member_normal[v, 2])
+            (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
+             squeezed[i, c]) = element_view(front, c, r, centre, exposure, b, thickness[v],
+                                            speed[v], normal)
+
+
+def no_views_ahead(n_charges: int) -> AheadViews:
+    """An empty :class:`AheadViews` (the damage and papers' models need none)."""
+    empty = np.zeros((0, n_charges))
+    flag = np.zeros((0, n_charges), dtype=bool)
+    return AheadViews(flag, empty, empty, empty, flag, empty, flag)
+
+
 @kernel
-def fracture_wave(front, params, parts, run_state, order, exposure, views):
+def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead):
     """Judge each voxel a front crosses this step, then the links it is the second end
     of to be judged, once per wave: dust, break or weaken them; wear foundations.
 
@@ -161,7 +235,9 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
     it, only worn. With params.judge_links False (the damage model) only
     voxels are judged. The cost is one line of sight per voxel and wave and O(1) per
     link (there were two per link and step, one of them through all the solid
-    behind the link).
+    behind the link). The lines of sight are worked out ahead, on every core
+    (:func:`views_ahead`, ``ahead``); once a voxel turns to dust this step, the views
+    after it are worked out here again, as it changed the grid.
 
     A voxel dusted under pressure-impulse fracture leaves the shielding grid at
     once, so the points behind it see the gap (the same whatever the step), and
@@ -196,7 +272,9 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
     n_charges = charge_pos.shape[0]
     centre = np.empty(3)
     normal = np.empty(3)
-    for v in order:
+    gap = False  # a voxel turned to dust and left the grid: views ahead are stale
+    for i in range(len(order)):
+        v = order[i]
         b = voxel_body[v]
         to_world_into(body_rot[b], body_pos[b], body_com[b], voxel_centroid[v], centre)
         cx, cy, cz = centre[0], centre[1], centre[2]
@@ -205,12 +283,17 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
             if r < 0.0:
                 continue
             if params.pressure_impulse:
-                for a in range(3):  # the member's normal, turned with its body
-                    normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
-                                 + body_rot[b, a, 1] * member_normal[v, 1]
-                                 + body_rot[b, a, 2] * member_normal[v, 2])
-                peak, imp, depth, blocked, thick, squeezed = element_view(
-                    front, c, r, centre, exposure, b, thickness[v], speed[v], normal)
+                if gap:  # dust opened the grid this step: the view ahead is stale
+                    for a in range(3):  # the member's normal, turned with its body
+                        normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
+                                     + body_rot[b, a, 1] * member_normal[v, 1]
+                                     + body_rot[b, a, 2] * member_normal[v, 2])
+                    peak, imp, depth, blocked, thick, squeezed = element_view(
+                        front, c, r, centre, exposure, b, thickness[v], speed[v], normal)
+                else:
+                    peak, imp, depth = ahead.peak[i, c], ahead.impulse[i, c], ahead.depth[i, c]
+                    blocked, thick = ahead.blocked[i, c], ahead.thickness[i, c]
+                    squeezed = ahead.squeezed[i, c]
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
                 i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
@@ -237,6 +320,7 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views):
                 dirty[b] = True
                 if params.pressure_impulse:
                     remove_voxel(exposure.grid, geometry, v)
+                    gap = True
                     i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
                     area = (2.0 * geometry.contact_radius[v]) ** 2
                     for a in range(3):  # a voxel centred on the charge: pushed evenly
@@ -500,11 +584,19 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                             state.scratch.voxel_candidate, front)
     order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
+    members = (model.thickness, model.wave_speed, model.normal)
+    ahead = no_views_ahead(len(front.position))
+    if params.pressure_impulse and len(order):
+        k, c = len(order), len(front.position)
+        ahead = AheadViews(np.zeros((k, c), dtype=bool), np.empty((k, c)), np.empty((k, c)),
+                           np.empty((k, c)), np.zeros((k, c), dtype=bool), np.empty((k, c)),
+                           np.zeros((k, c), dtype=bool))
+        views_ahead(front, model.voxels, members, state.bodies, state.voxels.body, exposure,
+                    order, ahead)
     released, n = fracture_wave(
-        front, params, (model.voxels, model.links, model.strength,
-                        (model.thickness, model.wave_speed, model.normal)),
+        front, params, (model.voxels, model.links, model.strength, members),
         (state.links, state.voxels, state.bodies, marks, state.loads), order, exposure,
-        wave_views(state, len(front.position)))
+        wave_views(state, len(front.position)), ahead)
     if params.pressure_impulse and marks.destroyed.any():
         state.holding = True  # the split hands the dust its impulse (release_held)
     if s.fracture == "damage":
