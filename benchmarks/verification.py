@@ -35,6 +35,12 @@ built-in library):
    size at the same dt, within 15 % on debris momentum, 20 % on the broken-link
    fraction and 0.1 decade on the median fragment mass (issue 34's done-when, for the
    two finest sizes).
+2b. **A wall joined to a house** (:func:`joined`, issue 33): the 4 x 3 m front wall of
+   a hollow 6 x 4 x 3 m brick house (0.2 m walls, floor and roof) and the same wall
+   alone, 50 kg TNT 3 m from its face (Z = 0.81): the largest x momentum of the front
+   wall's free voxels in the first 0.05 s, each against the Kingery-Bulmash reflected
+   impulse over the face (0.5-1.1 x), and the joined wall at least 0.85 x the lone
+   one (issue 33's 15 %, from below: the house's wall takes no back load).
 3. **Hollow house** (:func:`house`): 6 x 5 x 3 m brick walls 0.25 m thick, no roof, no
    openings, 100 kg TNT on the ground (surface burst) outside the middle of a 6 m wall
    at Jarrett's distance R = K W^(1/3) / (1 + (3175/W)^2)^(1/6) (W kg, R m, measured
@@ -354,6 +360,79 @@ def wall(side: str, charge: str, size: float, dt: float) -> dict:
     return out
 
 
+# --------------------------------------------------------------------------- 2b. joined wall
+
+JOINED = (6.0, 4.0, 3.0)  # m, x y z (outside): issue 33's hollow house
+JOINED_WALL = 0.2  # m: its walls, floor and roof
+JOINED_KG = 50.0
+JOINED_STANDOFF = 3.0  # m from the 4 m wall's face: Z = 0.81 m/kg^(1/3)
+JOINED_SIZES = (0.2, 0.15, 0.1)  # m; 0.15 does not divide the 0.2 m walls
+#: issue 33: the wall joined to the house within 15 % of the same wall alone. Judged
+#: from below only: the joined wall's back faces the closed room, so it takes no back
+#: load when the wave wraps round (a wall alone does), and may leave with more; above,
+#: the Kingery-Bulmash band bounds it
+JOINED_TOLERANCE = 0.15
+
+
+@functools.cache
+def joined_models(size: float):
+    """(the hollow house, the same front wall alone), each (model, mesh volume)."""
+    x, y, z = JOINED
+    t = JOINED_WALL
+    house = _model([((x, y, z), (0.0, 0.0, z / 2)),
+                    ((x - 2 * t, y - 2 * t, z - 2 * t), (0.0, 0.0, z / 2))], size, "brick",
+                   op="difference")
+    alone = _model([((t, y, z), (-x / 2 + t / 2, 0.0, z / 2))], size, "brick")
+    return house, alone
+
+
+def joined_reference() -> float:
+    """Kingery-Bulmash reflected impulse over the front wall's face, N s."""
+    x, y, z = JOINED
+    return face_impulse(JOINED_KG, (-x / 2 - JOINED_STANDOFF, 0.0, z / 2), (-x / 2, 0.0, z / 2),
+                        (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), y, z)
+
+
+def _front_wave(model, dt: float) -> float:
+    """The largest x momentum (N s) of the front wall's free voxels (each its mass times
+    its piece's velocity: pieces that also hold voxels of the walls behind count only
+    for their front part) in the first WAVE_SECONDS s."""
+    x, _, z = JOINED
+    charge = ChargeSpec((-x / 2 - JOINED_STANDOFF, 0.0, z / 2), JOINED_KG)
+    front = model.arrays["voxel_centroid"][:, 0] < -x / 2 + JOINED_WALL + 1e-9
+    mass = model.arrays["voxel_mass"]
+    best = [0.0]
+
+    def watch(run: engine.Run, t: float) -> None:
+        b, body = run.state.bodies, run.state.voxels.body
+        free = np.zeros(len(b.mass), dtype=bool)
+        free[:run.state.n_bodies] = _free_pieces(run)
+        held = front & run.state.voxels.alive & free[body]
+        p = float((mass[held] * b.lin[body[held], 0] / b.mass[body[held]]).sum())
+        best[0] = max(best[0], p)
+
+    _advance(model, _settings(dt, [charge]), WAVE_SECONDS, watch)
+    return best[0]
+
+
+def joined(size: float, dt: float) -> dict:
+    """Scene 2b: the front wall of the hollow house and the same wall alone, 50 kg TNT 3 m
+    from its face: each one's front-wall momentum after the wave."""
+    (house, house_volume), (alone, alone_volume) = joined_models(size)
+    started = time.perf_counter()
+    p_house, p_alone = _front_wave(house, dt), _front_wave(alone, dt)
+    reference = joined_reference()
+    return {"voxels": house.voxel_count, "seconds": time.perf_counter() - started,
+            "house": p_house, "alone": p_alone, "ratio": p_house / p_alone,
+            "reference": reference, "house_kb": p_house / reference,
+            "alone_kb": p_alone / reference,
+            "mass_ratio": max(float(house.arrays["voxel_mass"].sum()) / (house_volume
+                                                                          * BRICK.density),
+                              float(alone.arrays["voxel_mass"].sum()) / (alone_volume
+                                                                          * BRICK.density),
+                              key=lambda m: abs(m - 1.0))}
+
+
 # --------------------------------------------------------------------------- 3. house
 
 HOUSE = (6.0, 5.0, 3.0)  # m, x y z (outside)
@@ -648,8 +727,8 @@ def matrix(quick: bool) -> dict:
     sizes, steps = (QUICK_SIZES, QUICK_STEPS) if quick else (SIZES, STEPS)
     house_sizes = HOUSE_SIZES[:1] if quick else HOUSE_SIZES
     beam_sizes = BEAM_SIZES[:2] if quick else BEAM_SIZES
-    out: dict[str, list[dict]] = {"plate": [], "wall": [], "house": [], "beam": [], "deck": [],
-                                  "stack": []}
+    out: dict[str, list[dict]] = {"plate": [], "wall": [], "joined": [], "house": [],
+                                  "beam": [], "deck": [], "stack": []}
     free_plate(QUICK_SIZES[0], 1.0 / 240.0)  # warm-up: numba's kernels loaded or compiled
     wall("face-on", "throwing", QUICK_SIZES[0], 1.0 / 240.0)
     for size in sizes:
@@ -667,6 +746,12 @@ def matrix(quick: bool) -> dict:
                     log(f"wall {side} {charge} {size:g} m 1/{per_s} s: p wave "
                         f"{row['wave_momentum']:.0f}, at the end {row['momentum']:.0f} "
                         f"N s, broken {row['broken']:.3f} ({row['seconds']:.1f} s)")
+    for size in JOINED_SIZES[:1] if quick else JOINED_SIZES:
+        for per_s in steps:
+            row = {"size": size, "steps": per_s, **joined(size, 1.0 / per_s)}
+            out["joined"].append(row)
+            log(f"joined wall {size:g} m 1/{per_s} s: house {row['house']:.0f}, alone "
+                f"{row['alone']:.0f} N s ({row['seconds']:.1f} s)")
     for k in JARRETT_K:
         for size in house_sizes:
             row = {"k": k, "size": size, "steps": round(1.0 / HOUSE_DT), **house(k, size)}
@@ -805,6 +890,37 @@ def tables(out: dict) -> list[str]:
                 f"{cell(_fmt(diff['ddecades'], '.2f'))} | "
                 f"{'ref' if r['steps'] == short else _pct(ddt)} | {r['seconds']:.1f} | "
                 f"{_verdict(misses)} | {cell(_verdict(converged(diff)))} |")
+        lines.append("")
+    if out.get("joined"):
+        x, y, z = JOINED
+        lines += [f"**2b. A wall joined to a house** (issue 33): the {y:g} x {z:g} m front "
+                  f"wall of a hollow {x:g} x {y:g} x {z:g} m brick house ({JOINED_WALL:g} m "
+                  f"walls, floor and roof, founded), and the same wall standing alone, "
+                  f"{JOINED_KG:g} kg TNT {JOINED_STANDOFF:g} m from its face at mid-height "
+                  f"(Z = {JOINED_STANDOFF / JOINED_KG ** (1 / 3):.2f} m/kg^(1/3)). p: the "
+                  f"largest x momentum in the first {WAVE_SECONDS:g} s of the front wall's "
+                  f"free voxels (each its mass times its piece's velocity). References: the "
+                  f"Kingery-Bulmash reflected impulse over the face, {joined_reference():,.0f} "
+                  f"N s, {WALL_BAND[0]:g}-{WALL_BAND[1]:g} x; joined at least "
+                  f"{1 - JOINED_TOLERANCE:g} x alone (issue 33 asks within "
+                  f"{100 * JOINED_TOLERANCE:g} %; judged from below only: a wall alone is "
+                  f"loaded on its back too once the wave wraps round it, the house's front "
+                  f"wall is not, as its back faces the closed room, so it may leave with "
+                  f"more; the band above bounds it).",
+                  "", "| voxel m | dt s | house voxels | mass / mesh | p joined N s | "
+                  "p alone N s | joined / alone | joined / KB | alone / KB | run s | verdict |",
+                  "|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|---|"]
+        for r in out["joined"]:
+            misses = _mass_misses(r)
+            if r["ratio"] < 1.0 - JOINED_TOLERANCE:
+                misses.append("joined / alone")
+            if not (WALL_BAND[0] <= r["house_kb"] <= WALL_BAND[1]
+                    and WALL_BAND[0] <= r["alone_kb"] <= WALL_BAND[1]):
+                misses.append("p / KB")
+            lines.append(f"| {r['size']:g} | 1/{r['steps']} | {r['voxels']:,} | "
+                         f"{r['mass_ratio']:.4f} | {r['house']:,.0f} | {r['alone']:,.0f} | "
+                         f"{r['ratio']:.3f} | {r['house_kb']:.3f} | {r['alone_kb']:.3f} | "
+                         f"{r['seconds']:.1f} | {_verdict(misses)} |")
         lines.append("")
     if out["house"]:
         lines += [f"**3. Hollow brick house** {HOUSE[0]:g} x {HOUSE[1]:g} x {HOUSE[2]:g} m, "

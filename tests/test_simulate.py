@@ -202,7 +202,7 @@ def test_founded_wall_sheds_debris_but_stands(tmp_path):
     assert len(back) >= 5
     behind = cache.piece_position[:, back, 1] - cache.piece_position[0, back, 1]
     assert into_wall.max() < behind.max() + 0.1 * 0.25
-    assert into_wall[-1].max() < 0.2 * 0.25
+    assert into_wall[-1].max() < 0.3 * 0.25  # the bulge stops
     # pressed, not struck: no impact dust while the wave presses them (pieces that fall
     # later may strike the ground or the wall's foot hard enough)
     # (it arrives at 1.9 ms and its positive phase lasts 4.4 ms: none in the first 10 ms)

@@ -9,6 +9,7 @@ single arguments. SI units; rest frame = the VoxelModel's frame.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -202,7 +203,7 @@ def build_model(model: VoxelModel) -> SimModel:
         voxel_centroid, typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
     thickness, normal = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
     return SimModel(
-        voxels=voxels, links=link_geometry, strength=_strength(a),
+        voxels=voxels, links=link_geometry, strength=_strength(a, normal),
         material=a["voxel_material"].astype(np.int64),
         object=a["voxel_object"].astype(np.int64),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
@@ -226,8 +227,11 @@ def _solid_volume(arrays: dict) -> np.ndarray:
     return np.where(np.isfinite(solid) & (solid > 0.0), solid, volume)
 
 
-def _strength(arrays: dict) -> Strength:
-    """Per-voxel P-I strength from the material table (0 where a model predates it)."""
+def _strength(arrays: dict, normal: np.ndarray | None = None) -> Strength:
+    """Per-voxel P-I strength from the material table (0 where a model predates it).
+
+    normal (N, 3): each voxel's member normal at rest (:mod:`blastvox.simulate.members`);
+    a chunk is cut where two members meet (:func:`member_chunks`)."""
     material = arrays["voxel_material"]
 
     def column(name: str) -> np.ndarray:
@@ -247,7 +251,8 @@ def _strength(arrays: dict) -> Strength:
     else:
         # a voxel that is a whole chunk is the material's fragment size or larger: when
         # it fails it comes off as rubble, and only a crushing load pulverizes it
-        voxel_chunk = np.asarray(arrays["voxel_chunk"], dtype=np.int64)
+        voxel_chunk = member_chunks(np.asarray(arrays["voxel_chunk"], dtype=np.int64), ends,
+                                    normal)
         whole = np.bincount(voxel_chunk)[voxel_chunk] < 2
         crush[whole] = 0.0
         shatter[~whole] = 0.0
@@ -259,6 +264,30 @@ def _strength(arrays: dict) -> Strength:
                                       return_inverse=True)[1]
     return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"),
                     crush, shatter, np.ascontiguousarray(factor), inner, interface)
+
+
+#: Two voxels are of one member when their member normals are within 45 degrees.
+SAME_MEMBER = math.sqrt(0.5)
+
+
+def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
+                  normal: np.ndarray | None) -> np.ndarray:
+    """(N,) chunk ids with every chunk cut where two members meet: a chunk that holds
+    voxels of a wall and of the wall or slab it joins (member normals more than 45
+    degrees apart, ``normal`` (N, 3)) becomes one chunk per member. Chunks are the
+    material's fragment size, but a junction is where a wall breaks off from the
+    walls that hold it (it carries the bending of both): a chunk across it made the
+    front wall of a house leave with pieces of its side walls and slabs, which jam in
+    line with the rest of them. ends (L, 2): the links' voxels."""
+    if normal is None or not len(ends):
+        return voxel_chunk
+    from blastvox.simulate.stress import components
+
+    a, b = ends[:, 0], ends[:, 1]
+    together = (voxel_chunk[a] == voxel_chunk[b]) & (
+        np.abs(np.einsum("ij,ij->i", normal[a], normal[b])) >= SAME_MEMBER)
+    _, labels = components(len(voxel_chunk), a[together], b[together])
+    return labels.astype(np.int64)
 
 
 @kernel
