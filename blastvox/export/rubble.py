@@ -63,7 +63,7 @@ FOLD = 0.5
 #: A triangle whose height is under this share of its longest side is a sliver: its
 #: normal is rounding noise, so it folds only when it also grows (:func:`_folded`).
 SLIVER = 1e-2
-#: How many times the move of a folding triangle's points is halved before it is dropped.
+#: How many times the move of a folding triangle's points is halved before they stay put.
 HALVINGS = 6
 #: Cube and jittered cells' faces round a point are one rough plane when each normal is
 #: within this of their mean in 1 - cos (about 25 degrees: a jittered wall, not its edge).
@@ -121,9 +121,9 @@ def _unpaired(corner: np.ndarray) -> np.ndarray:
     """(F,) bool: fracture triangles (F, 3) of point ids that are not one of a pair.
 
     A cell face is drawn by the voxels on both sides of it; two conform cells may
-    triangulate it each their own way. Such a face must stay flat and in place (its
-    points do not move, its sides' midpoints stay midpoints), or the two
-    triangulations, moved apart, would open a gap between the pieces."""
+    triangulate it each their own way. Such a face must stay in place (its points do
+    not move), or the two triangulations, moved apart, would open a gap between the
+    pieces."""
     key = np.sort(corner, axis=1)
     _, which, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     return count[which.ravel()] != 2
