@@ -1,8 +1,8 @@
 """Rubble faces (blastvox.export.rubble): fracture faces reshaped for the look only.
 
-Checked on real meshes of ../shared/meshes voxelized as the CLI does (a conform
-torus knot and fan disk, nearly every voxel on their curved surfaces, and a
-cube-voxel wall with a hole), cut into
+Checked on real meshes of ../shared/meshes (their copies in tests/data) voxelized
+as the CLI does (the Khronos Duck and the fan disk, conform, nearly
+every voxel on their curved surfaces, and a cube-voxel wall with a hole), cut into
 pieces the way fracture cuts them (Voronoi cells of voxels): the pieces stay
 closed and still fit together at rest (their volumes add up to the intact
 model's), the outside keeps its planes and its area, no triangle folds over,
@@ -22,7 +22,7 @@ from blastvox.export.pieces import piece_meshes
 from blastvox.export.rubble import ROUGHNESS, roughen
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
-MESHES = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
+MESHES = Path(__file__).resolve().parent / "data"  # copies of ../shared/meshes
 
 
 def _shattered(mesh: str, resolution: int, shape: str, pieces: int, seed: int) -> SimpleNamespace:
@@ -43,14 +43,12 @@ def _shattered(mesh: str, resolution: int, shape: str, pieces: int, seed: int) -
                            piece_count=pieces)
 
 
-@pytest.fixture(scope="module", params=[("quadknot.obj", 16, "conform"),
+@pytest.fixture(scope="module", params=[("Duck.glb", 14, "conform"),
                                         ("fandisk.obj", 10, "conform"),
                                         ("wallhole.obj", 20, "cube")],
-                ids=["conform-knot", "conform-fandisk", "cube-wall"])
+                ids=["conform-duck", "conform-fandisk", "cube-wall"])
 def shattered(request: pytest.FixtureRequest) -> SimpleNamespace:
     mesh, resolution, shape = request.param
-    if not (MESHES / mesh).exists():
-        pytest.skip(f"{mesh} not in ../shared/meshes")
     return _shattered(mesh, resolution, shape, pieces=12, seed=3)
 
 
@@ -156,7 +154,7 @@ def test_fracture_faces_are_not_steps(shattered):
         axis_aligned[mode] = area[m.damage & aligned].sum() / area[m.damage].sum()
     assert axis_aligned["voxel"] > 0.99  # cell faces (cube voxels, conform cell faces)
     # a crack through a member one or two cells thick under a curved surface keeps its
-    # cell face: its corners are on the curve, which they do not leave (the knot and
+    # cell face: its corners are on the curve, which they do not leave (the duck and
     # the fan disk at 10-16 voxels across are mostly such cells)
     conform = shattered.model.arrays["conform_voxels"].size > 0
     assert axis_aligned["rough"] < (0.6 if conform else 0.3), axis_aligned
