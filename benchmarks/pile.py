@@ -1,6 +1,6 @@
 """The building's rubble pile: blastvox's contact phase beside PyBullet on the same pieces.
 
-    python benchmarks/pile.py [--split 2.5] [--iterations 8] [--contact-sweeps N]
+    python benchmarks/pile.py [--split 2.5] [--iterations 8] [--contact-substeps N]
 
 Runs ``examples/building`` (its VoxelModel at ``out/building/model.npz``: run
 ``blastvox run examples/building/scene.toml`` first) in blastvox up to
@@ -145,8 +145,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds of shot before the timed part (default 2.5)")
     parser.add_argument("--iterations", type=int, default=8,
                         help="PyBullet's solver iterations (default 8)")
-    parser.add_argument("--contact-sweeps", type=int,
-                        help="blastvox's contact_sweeps (default: the scene's)")
+    parser.add_argument("--contact-substeps", type=int,
+                        help="blastvox's contact_substeps (default: the scene's)")
     args = parser.parse_args(argv)
     if not MODEL.exists():
         print(f"{MODEL}: missing; run `blastvox run {SCENE}` first", file=sys.stderr)
@@ -158,8 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     from blastvox.simulate.settings import settings_from_scene
 
     settings = settings_from_scene(load_scene(SCENE), str(SCENE))
-    if args.contact_sweeps is not None:
-        settings = replace(settings, contact_sweeps=args.contact_sweeps)
+    if args.contact_substeps is not None:
+        settings = replace(settings, contact_substeps=args.contact_substeps)
     dt = settings.step_seconds()
     steps = (settings.frame_count() - 1) * settings.steps_per_frame()
     split = max(1, min(steps - 1, round(args.split / dt)))
@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{len(pile.static_corners):,} standing voxels at the split\n")
     print("| engine | s | ms per step |")
     print("|---|--:|--:|")
-    print(f"| blastvox, every phase, contact_sweeps {settings.contact_sweeps} | {blastvox_s:.2f} | "
+    print(f"| blastvox, every phase, contact_substeps {settings.contact_substeps} | {blastvox_s:.2f} | "
           f"{1e3 * blastvox_s / timed:.2f} |")
     print(f"| PyBullet, {args.iterations} solver iterations, convex hulls ({contacts:,} contact "
           f"points at the end) | {bullet_s:.2f} | {1e3 * bullet_s / timed:.2f} |")

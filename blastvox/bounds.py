@@ -221,7 +221,7 @@ ANGLE_DEG = Bound(-1e6, 1e6, unit="degrees")
 SCALE = Bound(0.0, 1e6, lo_open=True)
 VOXEL_SIZE = Bound(0.0, MAX_VOXEL_SIZE_M, lo_open=True, unit="m")
 RESOLUTION = Bound(1, 2**63 - 1, integer=True)
-CONTACT_SWEEPS = Bound(1, 10_000, integer=True)
+CONTACT_SUBSTEPS = Bound(1, 1_000, integer=True)
 FOCAL_LENGTH_MM = Bound(1.0, 10_000.0, unit="mm")  # a 36 mm film back
 JITTER = Bound(0.0, 0.5, hi_open=True)
 SEED = Bound(0, MAX_SEED, integer=True)

@@ -139,7 +139,7 @@ Size3 = Annotated[tuple[float, float, float], _sizes(limits.VOXEL_SIZE)]
 Scale3 = Annotated[tuple[float, float, float], _sizes(limits.SCALE)]
 # numbers within a documented bound (blastvox.bounds), as pydantic constraints
 Resolution = Annotated[int, limits.RESOLUTION.constraints()]
-ContactSweeps = Annotated[int, limits.CONTACT_SWEEPS.constraints()]
+ContactSubsteps = Annotated[int, limits.CONTACT_SUBSTEPS.constraints()]
 FocalLength = Annotated[float, limits.FOCAL_LENGTH_MM.constraints()]
 Seed = Annotated[int, limits.SEED.constraints()]
 Jitter = Annotated[float, limits.JITTER.constraints()]
@@ -422,11 +422,11 @@ class Simulation(_Model):
         "(fracture = \"damage\")."))
     friction: NonNegative = Field(0.6, description=(
         "Coulomb friction coefficient at the ground and between pieces."))
-    contact_sweeps: ContactSweeps = Field(64, description=(
-        "Velocity sweeps of the contact solver at most a step (it stops sooner once no "
-        "contact's speed changes by 1 cm/s): fewer are faster in big rubble piles and "
-        "let pieces sink further into each other (measure a shot's trade with "
-        "benchmarks/pile.py --contact-sweeps N)."))
+    contact_substeps: ContactSubsteps = Field(4, description=(
+        "Sub-steps of the contact solver a step (a soft step: each sub-step one sweep "
+        "with a soft push-out and one rigid sweep): more hold tall stacks and deep piles "
+        "stiffer and cost more (measure a shot's trade with benchmarks/pile.py "
+        "--contact-substeps N)."))
     fire_pressure_scale: NonNegative = Field(1.0, description=(
         "A wave's peak overpressure times this is taken off a voxel's combustibility; "
         "below zero the voxel burns."))

@@ -113,7 +113,7 @@ GOOD_RUNS: dict[str, Spec] = {
                            "--fps", "40", "--dt", "0.0025")),
     "damage_odd_dt": Spec("wall", (MODEL, "--charge", "0,-5,0:1", "--duration", "0.1",
                                    "--fps", "30", "--dt", "0.002", "--fracture", "DAMAGE",
-                                   "--seed", "11", "--contact-sweeps", "7")),
+                                   "--seed", "11", "--contact-substeps", "7")),
     "scene": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",)),
     "scene_again": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",)),
     "threads1": Spec("building", (MODEL, *SCENE_RUN), extra=("scene",),
@@ -145,8 +145,8 @@ BAD_RUNS: dict[str, Spec] = {
     "fps_negative": Spec("wall", (MODEL, *CHARGE, "--fps", "-1"), ("--fps",)),
     "duration_nan": Spec("wall", (MODEL, *CHARGE, "--duration", "nan"), ("--duration",)),
     "gravity_negative": Spec("wall", (MODEL, *CHARGE, "--gravity", "-1"), ("--gravity",)),
-    "contact_sweeps_zero": Spec("wall", (MODEL, *CHARGE, "--contact-sweeps", "0"),
-                                ("--contact-sweeps", ">= 1")),
+    "contact_substeps_zero": Spec("wall", (MODEL, *CHARGE, "--contact-substeps", "0"),
+                                ("--contact-substeps", ">= 1")),
     "fracture_foo": Spec("wall", (MODEL, *CHARGE, "--fracture", "foo"), ("--fracture", "foo")),
     "no_charges": Spec("wall", (MODEL,), (MODEL, "--charge")),
     "no_output": Spec("wall", (MODEL, *CHARGE), (MODEL, "-o"), output=False),
@@ -322,7 +322,7 @@ def test_odd_dt_is_shortened_and_damage_fracture_recorded(runs: dict[str, Run]) 
     assert s["fracture"] == "damage"
     assert s["seed"] == 11
     assert s["piece_count"] >= 1
-    assert SimCache.load(run.sim).meta["settings"]["contact_sweeps"] == 7
+    assert SimCache.load(run.sim).meta["settings"]["contact_substeps"] == 7
 
 
 def test_scene_charges_come_from_the_scene(runs: dict[str, Run]) -> None:

@@ -295,7 +295,7 @@ def test_ground_forms(ground: Any) -> None:
      "camera.focal_length_mm", "must be <= 10000"),
     (minimal(camera={"position": [1, 2, 3], "look_at": [0, 0, 0], "focal_length_mm": 0.5}),
      "camera.focal_length_mm", "must be >= 1"),
-    (minimal(simulation={"contact_sweeps": 0}), "simulation.contact_sweeps", "must be >= 1"),
+    (minimal(simulation={"contact_substeps": 0}), "simulation.contact_substeps", "must be >= 1"),
     (minimal(output={"cache": ""}), "output.cache", "non-empty path"),
     (minimal(materials={"m": {"base": "brick", "density": -1}}), "materials.m.density",
      "must be > 0"),

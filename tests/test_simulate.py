@@ -260,7 +260,9 @@ def test_strong_charge_lifts_structure_off_its_foundation(tmp_path):
     strong = simulate(model, SimSettings(fps=24.0, duration=0.3,
                                          charges=(ChargeSpec((0.0, -6.0, 0.5), 60.0),)))
     assert weak.piece_count == strong.piece_count == 1
-    assert np.abs(weak.piece_position[-1] - weak.piece_position[0]).max() == 0.0
+    # held by friction: it rocks by what the contact solver's sub-steps leave unsolved
+    # (3.7 um, 2026-11-29), and sleeps
+    assert np.abs(weak.piece_position[-1] - weak.piece_position[0]).max() < 1e-5
     # freed, it takes momentum (ground friction then stops it within a few cm)
     assert strong.piece_position[-1, 0, 1] - strong.piece_position[0, 0, 1] > 1e-4
 

@@ -77,7 +77,7 @@ UNITS: dict[str, str] = {
     "simulation.damage_b": "-",
     "simulation.damage_c": "1/(Pa s)",
     "simulation.friction": "-",
-    "simulation.contact_sweeps": "sweeps",
+    "simulation.contact_substeps": "sweeps",
     "simulation.fire_pressure_scale": "-",
     "simulation.fire_spread": "Pa/s",
     "simulation.burn_rate": "1/s",

@@ -98,10 +98,10 @@ def simulate(
                                    "ignored and the model floats free."),
     seed: int = typer.Option(None, "--seed", help="Seed of the particles' random streams, "
                              "0 to 2**64 - 1 [default: the scene's or 0]."),
-    contact_sweeps: int = typer.Option(None, "--contact-sweeps", help="Velocity sweeps of the "
-                                       "contact solver at most a step, 1 to 10000: fewer are "
-                                       "faster in rubble piles, and pieces sink further into "
-                                       "each other [default: 64]."),
+    contact_substeps: int = typer.Option(None, "--contact-substeps", help="Sub-steps of the "
+                                         "contact solver a step, 1 to 1000: more hold tall "
+                                         "stacks and deep piles stiffer, and cost more "
+                                         "[default: 4]."),
     max_steps: int = typer.Option(MAX_STEPS, "--max-steps", help="Refuse a run of more fixed "
                                   "steps (duration / dt)."),
     max_frames: int = typer.Option(MAX_FRAMES, "--max-frames", help="Refuse a run of more "
@@ -156,7 +156,7 @@ def simulate(
     fracture = fracture.lower() if fracture is not None else None  # as a scene's value
     overrides = {k: v for k, v in {"dt": dt, "fps": fps, "duration": duration,
                                    "gravity": gravity, "fracture": fracture, "seed": seed,
-                                   "contact_sweeps": contact_sweeps}.items()
+                                   "contact_substeps": contact_substeps}.items()
                  if v is not None}
     if overrides.get("fracture", "yield") not in ("pressure-impulse", "yield", "damage"):
         raise BlastvoxError(f"--fracture must be pressure-impulse, yield or damage "

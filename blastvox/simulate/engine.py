@@ -330,7 +330,8 @@ def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
     model, state, s = run.model, run.state, run.settings
     count = state.n_bodies
     if run.punch is not None:  # what the contacts are solved again from
-        lin, ang = state.bodies.lin[:count].copy(), state.bodies.ang[:count].copy()
+        b = state.bodies
+        before = tuple(a[:count].copy() for a in (b.lin, b.ang, b.pos, b.quat, b.rot))
     for attempt in range(PUNCH_ROUNDS):
         resolved = collide_phase(model, state, s, run.dt)
         if s.dust and resolved:
@@ -341,16 +342,19 @@ def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
                 model, state, run.stress, run.punch, state.contacts.memory.rows,
                 *state.caches.fragment_rows, run.dt):
             return
-        _restore(state.bodies, count, lin, ang)
+        _restore(state.bodies, count, before)
         split(run, n, t1, frame_next)
 
 
-def _restore(bodies, count: int, lin: np.ndarray, ang: np.ndarray) -> None:
-    """The momenta before a step's contacts: lin, ang (count, 3) of the first ``count``
-    bodies; a body split off since starts from its parent's (a fixed one's: none)."""
+def _restore(bodies, count: int, before: tuple) -> None:
+    """The momenta and poses before a step's contacts (the solve moves bodies too):
+    before, lin, ang, pos (count, 3), quat (count, 4), rot (count, 3, 3) of the first
+    ``count`` bodies; a body split off since starts from its parent's momenta (a fixed
+    one's: none)."""
     live = bodies.live[:count]
-    bodies.lin[:count][live] = lin[live]
-    bodies.ang[:count][live] = ang[live]
+    for now, then in zip((bodies.lin, bodies.ang, bodies.pos, bodies.quat, bodies.rot),
+                         before, strict=True):
+        now[:count][live] = then[live]
     for b in range(count, int(bodies.count[0])):
         parent = int(bodies.parent[b])
         while parent >= count:

@@ -57,8 +57,8 @@ MOTION_LIMIT_VOXELS = 0.5
 SPIN_LIMIT_RAD = MAX_SPIN_PER_STEP
 #: Voxels bodies may sink into each other or the ground before a run warns.
 PENETRATION_LIMIT_VOXELS = 0.5
-#: The contact solver's default sweeps cap (:class:`~blastvox.simulate.settings.SimSettings`).
-DEFAULT_SWEEPS = SimSettings.contact_sweeps
+#: The contact solver's default sub-steps (:class:`~blastvox.simulate.settings.SimSettings`).
+DEFAULT_SUBSTEPS = SimSettings.contact_substeps
 
 
 def voxel_size(contact_radius: np.ndarray) -> float:
@@ -121,11 +121,12 @@ def spin_message(dt: float, measured: float) -> str:
             f"(scene: [simulation] dt)")
 
 
-def penetration_message(dt: float, measured: float, sweeps: int = DEFAULT_SWEEPS) -> str:
+def penetration_message(dt: float, measured: float, substeps: int = DEFAULT_SUBSTEPS) -> str:
     """The warning for bodies that sank ``measured`` voxels into each other or the ground,
-    with the contact solver capped at ``sweeps`` velocity sweeps a step."""
-    fewer = (f", or raise --contact-sweeps from {sweeps} (scene: [simulation] contact_sweeps; "
-             f"default {DEFAULT_SWEEPS})" if sweeps < DEFAULT_SWEEPS else "")
+    with the contact solver at ``substeps`` sub-steps a step."""
+    fewer = (f", or raise --contact-substeps from {substeps} (scene: [simulation] "
+             f"contact_substeps; default {DEFAULT_SUBSTEPS})" if substeps < DEFAULT_SUBSTEPS
+             else "")
     return (f"dt {dt:.3g} s lets fragments sink {measured:.2f} voxels into each other or the "
             f"ground (limit {PENETRATION_LIMIT_VOXELS:g}), so contacts did not hold them "
             f"apart; use --dt {suggested_dt(dt, measured, PENETRATION_LIMIT_VOXELS):.2g} or "
@@ -139,7 +140,7 @@ class LimitMonitor:
         self.dt = dt
         self.size = voxel_size(sm.voxels.contact_radius)
         self.collisions = settings.collisions
-        self.sweeps = settings.contact_sweeps
+        self.substeps = settings.contact_substeps
         self.motion = 0.0  # worst voxels per step seen
         self.fastest = (0.0, 0.0)  # that fragment's mass (kg) and speed (m/s)
         self.spin = 0.0  # worst rad per step seen
@@ -186,7 +187,7 @@ class LimitMonitor:
         if self.spin > SPIN_LIMIT_RAD:
             out.append(spin_message(self.dt, self.spin))
         if self.depth > PENETRATION_LIMIT_VOXELS and self.motion <= MOTION_LIMIT_VOXELS:
-            out.append(penetration_message(self.dt, self.depth, self.sweeps))
+            out.append(penetration_message(self.dt, self.depth, self.substeps))
         return out
 
     def finish(self) -> None:

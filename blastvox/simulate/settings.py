@@ -22,7 +22,7 @@ import numpy as np
 from blastvox.bounds import (
     CHARGE_KG,
     CHARGE_TIME_S,
-    CONTACT_SWEEPS,
+    CONTACT_SUBSTEPS,
     COORDINATE,
     MAX_FRAMES,
     MAX_MEMORY_GIB,
@@ -99,7 +99,7 @@ BOUNDS: dict[str, Bound] = {
     "friction": Bound(0.0),
     "rest_damping": Bound(0.0, unit="1/s"),
     "sleep_speed": Bound(0.0, unit="m/s"),
-    "contact_sweeps": CONTACT_SWEEPS,
+    "contact_substeps": CONTACT_SUBSTEPS,
     "fire_pressure_scale": Bound(0.0),
     "fire_spread": Bound(0.0, unit="Pa/s"),
     "burn_rate": Bound(0.0, unit="1/s"),
@@ -128,8 +128,8 @@ class SimSettings:
     founded structures float free, and no ground plane. collisions: fragments
     collide with each other. friction: Coulomb mu at the ground; rest_damping:
     1/s decay of momenta in resting ground contact; sleep_speed: m/s below which
-    a balanced resting body is clamped to rest; contact_sweeps: velocity sweeps of the
-    contact solver at most a step (see :mod:`blastvox.simulate.contact.solver`).
+    a balanced resting body is clamped to rest; contact_substeps: sub-steps of the
+    contact solver a step (see :mod:`blastvox.simulate.contact.solver`).
     fire, stress, dust, fireball, shock_sphere, camera_shake: effects on/off (an effect
     that is off costs nothing); fire_*/burn_rate: see blastvox.simulate.fire;
     budgets: particles per system; camera: (position, look_at, focal mm).
@@ -154,7 +154,7 @@ class SimSettings:
     friction: float = 0.6
     rest_damping: float = 5.0
     sleep_speed: float = 0.05
-    contact_sweeps: int = 64
+    contact_substeps: int = 4
     fire: bool = True
     stress: bool = True
     dust: bool = True
@@ -192,7 +192,7 @@ class SimSettings:
                                            "linear_drag", "angular_drag", "weakening",
                                            "orientation_factor", "damage_b", "damage_c", "seed",
                                            "ground", "collisions", "friction", "rest_damping",
-                                           "sleep_speed", "contact_sweeps", "fire",
+                                           "sleep_speed", "contact_substeps", "fire",
                                            "stress", "dust",
                                            "fireball", "shock_sphere", "camera_shake",
                                            "fire_pressure_scale", "fire_spread", "burn_rate",
@@ -231,7 +231,7 @@ def settings_from_scene(scene, source: str = "the scene", budget: Budget | None 
                        dust=scene.effects.dust, fireball=scene.effects.fireball,
                        shock_sphere=scene.effects.shock_sphere,
                        camera_shake=scene.effects.camera_shake, friction=s.friction,
-                       contact_sweeps=s.contact_sweeps,
+                       contact_substeps=s.contact_substeps,
                        fire_pressure_scale=s.fire_pressure_scale, fire_spread=s.fire_spread,
                        burn_rate=s.burn_rate,
                        budgets=tuple((k, getattr(scene.particles, k))

@@ -78,7 +78,7 @@ def compile_late_phases(run) -> None:
     integrate.integrate_velocities(dt, run.gravity, s.linear_drag, s.angular_drag,
                                    state.loads, state.bodies)
     if s.collisions or run.ground is not None:
-        _compile_solver(state, s, dt)
+        _compile_solver(state, s, dt, model.up)
     if s.collisions:
         collide.collide_phase(model, state, s, dt)
     if run.ground is not None:
@@ -90,7 +90,7 @@ def compile_late_phases(run) -> None:
         fire.burn_phase(model, state, run.fire, s, dt, 0)
 
 
-def _compile_solver(state, settings, dt: float) -> None:
+def _compile_solver(state, settings, dt: float, up) -> None:
     """The contact solver on no rows, with a memory of the run's types: it compiles
     first, the longest of the contact phases (about 6 s on 2 cores), so that it is in
     the cache when the run's first contact reaches it (called through the phases, it
@@ -99,7 +99,8 @@ def _compile_solver(state, settings, dt: float) -> None:
     contacts = state.contacts
     memory = ground.new_memory(state, 1.0, np.zeros((0, 3)), np.zeros(0))
     contact_solver.solve_contacts(state.bodies, memory, 0,
-                                  ground.solver_params(memory, settings, dt))
+                                  ground.solver_params(memory, settings, dt, up),
+                                  state.loads)
     state.contacts = contacts
 
 

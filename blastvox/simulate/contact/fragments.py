@@ -632,7 +632,8 @@ def collide_phase(model, state, settings, dt: float) -> int:
     if state.holding:  # a wave is passing: a member's parts move together
         mute_member_rows(memory.rows, count, state.bodies, state.voxels, state.loads.held_p,
                          state.hold_since, _holds(state), memory.half, MEMBER_DEPTH)
-    solve_contacts(state.bodies, memory, end, solver_params(memory, s, dt))
+    solve_contacts(state.bodies, memory, end, solver_params(memory, s, dt, model.up),
+                   state.loads)
     memory.rows.grip[:count] = 1.0
     state.caches.fragment_rows = (int(count), int(end))
     c = state.contacts

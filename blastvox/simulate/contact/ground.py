@@ -112,15 +112,15 @@ class ContactMemory(NamedTuple):
 
 class SolverParams(NamedTuple):
     """dt: s; friction: Coulomb mu; rest_speed: m/s of approach below which a contact
-    does not bounce; slop: m of penetration left alone; push: m the position pass
-    may move a contact apart per step; sweeps: velocity sweeps at most."""
+    does not bounce; slop: m of penetration left alone; substeps: the solve's sub-steps;
+    gravity (3,): m/s^2, what the step's velocities already hold of it."""
 
     dt: float
     friction: float
     rest_speed: float
     slop: float
-    push: float
-    sweeps: int
+    substeps: int
+    gravity: np.ndarray
 
 
 def empty_rows(capacity: int) -> ContactRows:
@@ -174,14 +174,13 @@ def rest_speed(settings, dt: float) -> float:
     return settings.sleep_speed + 2.0 * abs(settings.gravity) * dt
 
 
-def solver_params(memory: ContactMemory, settings, dt: float) -> SolverParams:
-    """The contact solver's parameters for a run's SimSettings and step dt (s): slop and
-    push (:data:`SLOP`, :data:`PUSH`) of the typical voxel (memory.size, m)."""
-    size = memory.size
+def solver_params(memory: ContactMemory, settings, dt: float, up: np.ndarray) -> SolverParams:
+    """The contact solver's parameters for a run's SimSettings, step dt (s) and up
+    (3,): the slop (:data:`SLOP`) of the typical voxel (memory.size, m)."""
     return SolverParams(dt=dt, friction=settings.friction,
-                        rest_speed=rest_speed(settings, dt),
-                        slop=SLOP * size, push=PUSH * size,
-                        sweeps=int(settings.contact_sweeps))
+                        rest_speed=rest_speed(settings, dt), slop=SLOP * memory.size,
+                        substeps=int(settings.contact_substeps),
+                        gravity=-settings.gravity * np.asarray(up, dtype=np.float64))
 
 
 class GroundParams(NamedTuple):
@@ -489,5 +488,6 @@ def ground_phase(model, state, settings, dt: float, ground: float) -> None:
         return
     end = ground_rows(model, state, settings, dt, ground, 0)
     memory = state.contacts.memory
-    solve_contacts(state.bodies, memory, end, solver_params(memory, settings, dt))
+    solve_contacts(state.bodies, memory, end, solver_params(memory, settings, dt, model.up),
+                   state.loads)
     settle_on_ground(model, state, settings, dt, 0, end)

@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from blastvox.geometry import quaternion_nb
 from blastvox.jit import helper, kernel
 from blastvox.simulate.contact.pairs import bucket, hash_buckets
 from blastvox.simulate.integrate import (
@@ -28,25 +29,27 @@ from blastvox.simulate.integrate import (
     RW_EFF,
     RW_K,
     RW_KN,
-    RW_SEEN,
     RW_TARGET,
     RW_WIDTH,
     apply_at,
     corner_speed,
     moving,
     push_corner,
-    separate,
     turn_by,
 )
 
-#: The velocity sweeps stop once a sweep changes no contact point's normal velocity by
-#: more than this, or after params.sweeps (the scene's ``contact_sweeps``).
-SOLVED_SPEED = 1e-2  # m/s
-#: A row's changes to a body's velocities (m/s, summed) before the body's other rows are
-#: solved again: well below SOLVED_SPEED, so what they leave unsolved is too.
-ANNOUNCE_SPEED = 3e-4  # m/s
-#: Sweeps at most of the Gauss-Seidel solve of one pair's corners, in each velocity sweep.
+#: Natural frequency (Hz) and damping ratio of the soft push-out of contacts between
+#: moving bodies (twice the frequency against immovable ones), Box2D v3's defaults:
+#: an overdamped spring that removes a penetration over a few tens of milliseconds
+#: whatever the step. The frequency is capped at a quarter of the sub-step rate.
+CONTACT_HERTZ = 120.0
+CONTACT_DAMPING = 10.0
+#: The fastest a soft push-out moves bodies apart, m/s (Box2D v3's contactSpeed).
+PUSH_SPEED = 3.0
+#: Sweeps at most of the projected Gauss-Seidel solve of one row's corners together, and
+#: the change of a corner's normal velocity (m/s) at which it stops.
 CORNER_SWEEPS = 16
+CORNER_TOLERANCE = 1e-10
 #: Contacts only remove kinetic energy (their targets stop, or bounce with restitution
 #: <= 1): every sweep is a descent. The warm start is not: in a jammed pile (a piece
 #: wedged between others, contacts pushing from opposite sides) the impulses carried
@@ -117,164 +120,21 @@ def _body_locals(bw, e):
             bw[e, 20], bw[e, 21])
 
 
-@helper
-def _sweep_row(r, rows, ends, bw, rw, friction, b) -> float:
-    """One Gauss-Seidel update of row r: friction at its centre (both tangents at once,
-    kept within the circle of radius mu times the normal impulse) and twisting friction
-    about n, then the normal impulses of its corners (>= 0), solved together for the
-    pair: projected Gauss-Seidel on the corners' coupling matrix, to convergence
-    (:data:`CORNER_SWEEPS` at most). Returns the largest change it made to a corner's
-    normal velocity, m/s. b: (8,) scratch. Written out in
-    full, with both bodies' velocities in locals: the solver's hot loop."""
-    frame = rows.frame
-    ea, eb = ends[r, 0], ends[r, 1]
-    (avx, avy, avz, awx, awy, awz, ima,
-     a0, a1, a2, a3, a4, a5, a6, a7, a8) = _body_locals(bw, ea)
-    (bvx, bvy, bvz, bwx, bwy, bwz, imb,
-     b0, b1, b2, b3, b4, b5, b6, b7, b8) = _body_locals(bw, eb)
-    nx, ny, nz = frame[r, 0, 0], frame[r, 0, 1], frame[r, 0, 2]
-    used = rows.used[r]
-    friction *= rows.grip[r]
-    normal = 0.0
-    for i in range(used):
-        normal += rw[r, RW_ACC + i]
-    change = 0.0
-    if normal != 0.0 or rw[r, RW_ACC + 4] != 0.0 or rw[r, RW_ACC + 5] != 0.0 \
-            or rw[r, RW_ACC + 6] != 0.0:  # without load no friction
-        rax, ray, raz, rbx, rby, rbz = (rw[r, 0], rw[r, 1], rw[r, 2], rw[r, 3], rw[r, 4],
-                                        rw[r, 5])
-        t1x, t1y, t1z = frame[r, 1, 0], frame[r, 1, 1], frame[r, 1, 2]
-        t2x, t2y, t2z = frame[r, 2, 0], frame[r, 2, 1], frame[r, 2, 2]
-        vx = bvx + bwy * rbz - bwz * rby - avx - awy * raz + awz * ray
-        vy = bvy + bwz * rbx - bwx * rbz - avy - awz * rax + awx * raz
-        vz = bvz + bwx * rby - bwy * rbx - avz - awx * ray + awy * rax
-        old1, old2 = rw[r, RW_ACC + 4], rw[r, RW_ACC + 5]
-        new1 = old1 - (vx * t1x + vy * t1y + vz * t1z) * rw[r, RW_EFF]
-        new2 = old2 - (vx * t2x + vy * t2y + vz * t2z) * rw[r, RW_EFF + 1]
-        size = math.sqrt(new1 * new1 + new2 * new2)
-        if size > friction * normal:
-            new1 *= friction * normal / size
-            new2 *= friction * normal / size
-        d1, d2 = new1 - old1, new2 - old2
-        if d1 != 0.0 or d2 != 0.0:
-            rw[r, RW_ACC + 4], rw[r, RW_ACC + 5] = new1, new2
-            px, py, pz = d1 * t1x + d2 * t2x, d1 * t1y + d2 * t2y, d1 * t1z + d2 * t2z
-            cx, cy, cz = ray * pz - raz * py, raz * px - rax * pz, rax * py - ray * px
-            avx, avy, avz = avx - px * ima, avy - py * ima, avz - pz * ima
-            awx -= a0 * cx + a1 * cy + a2 * cz
-            awy -= a3 * cx + a4 * cy + a5 * cz
-            awz -= a6 * cx + a7 * cy + a8 * cz
-            cx, cy, cz = rby * pz - rbz * py, rbz * px - rbx * pz, rbx * py - rby * px
-            bvx, bvy, bvz = bvx + px * imb, bvy + py * imb, bvz + pz * imb
-            bwx += b0 * cx + b1 * cy + b2 * cz
-            bwy += b3 * cx + b4 * cy + b5 * cz
-            bwz += b6 * cx + b7 * cy + b8 * cz
-            change = max(abs(d1) * rw[r, RW_K], abs(d2) * rw[r, RW_K + 1])
-        arm = rows.arm[r]
-        if arm > 0.0:  # twisting friction, the spin about n
-            old = rw[r, RW_ACC + 6]
-            lim = friction * normal * arm
-            spin = (bwx - awx) * nx + (bwy - awy) * ny + (bwz - awz) * nz
-            new = min(max(old - spin * rw[r, RW_EFF + 2], -lim), lim)
-            d = new - old
-            if d != 0.0:
-                rw[r, RW_ACC + 6] = new
-                awx -= d * (a0 * nx + a1 * ny + a2 * nz)
-                awy -= d * (a3 * nx + a4 * ny + a5 * nz)
-                awz -= d * (a6 * nx + a7 * ny + a8 * nz)
-                bwx += d * (b0 * nx + b1 * ny + b2 * nz)
-                bwy += d * (b3 * nx + b4 * ny + b5 * nz)
-                bwz += d * (b6 * nx + b7 * ny + b8 * nz)
-                change = max(change, abs(d) * rw[r, RW_K + 2] * arm)
-    # the corners' normals, together: residuals b_i of their targets, then projected
-    # Gauss-Seidel on delta with the coupling matrix K (the other bodies held)
-    common = (bvx - avx) * nx + (bvy - avy) * ny + (bvz - avz) * nz
-    for i in range(4, 8):  # b[:4] the residuals, b[4:] delta
-        b[i] = 0.0
-    for i in range(used):
-        ca, cb = RW_CA + 3 * i, RW_CB + 3 * i
-        vn = common + rw[r, cb] * bwx + rw[r, cb + 1] * bwy + rw[r, cb + 2] * bwz \
-            - rw[r, ca] * awx - rw[r, ca + 1] * awy - rw[r, ca + 2] * awz
-        b[i] = rw[r, RW_TARGET + i] - vn
-    for _ in range(CORNER_SWEEPS):
-        moved = 0.0
-        for i in range(used):
-            res = b[i]
-            for j in range(used):
-                res -= rw[r, RW_KN + (i * (7 - i) // 2 + j if i <= j
-                                      else j * (7 - j) // 2 + i)] * b[4 + j]
-            kii = rw[r, RW_KN + i * (7 - i) // 2 + i]
-            if kii <= 0.0:
-                continue
-            new = max(rw[r, RW_ACC + i] + b[4 + i] + res / kii, 0.0) - rw[r, RW_ACC + i]
-            moved = max(moved, abs(new - b[4 + i]) * kii)
-            b[4 + i] = new
-        if moved <= 1e-9 * SOLVED_SPEED or used == 1:
-            break
-    total = normal = 0.0  # normal: now the largest change of a corner's velocity
-    cax = cay = caz = cbx = cby = cbz = 0.0
-    for i in range(used):
-        d = b[4 + i]
-        if d == 0.0:
-            continue
-        rw[r, RW_ACC + i] += d
-        total += d
-        ca, cb = RW_CA + 3 * i, RW_CB + 3 * i
-        cax, cay, caz = cax + d * rw[r, ca], cay + d * rw[r, ca + 1], caz + d * rw[r, ca + 2]
-        cbx, cby, cbz = cbx + d * rw[r, cb], cby + d * rw[r, cb + 1], cbz + d * rw[r, cb + 2]
-        normal = max(normal, abs(d) * rw[r, RW_KN + i * (7 - i) // 2 + i])
-    if total != 0.0 or cax != 0.0 or cay != 0.0 or caz != 0.0:
-        avx, avy, avz = avx - total * nx * ima, avy - total * ny * ima, avz - total * nz * ima
-        awx -= a0 * cax + a1 * cay + a2 * caz
-        awy -= a3 * cax + a4 * cay + a5 * caz
-        awz -= a6 * cax + a7 * cay + a8 * caz
-        bvx, bvy, bvz = bvx + total * nx * imb, bvy + total * ny * imb, bvz + total * nz * imb
-        bwx += b0 * cbx + b1 * cby + b2 * cbz
-        bwy += b3 * cbx + b4 * cby + b5 * cbz
-        bwz += b6 * cbx + b7 * cby + b8 * cbz
-    if change == 0.0 and normal == 0.0:
-        return 0.0
-    moved = max(change, normal)
-    if ea >= 0:
-        bw[ea, 0], bw[ea, 1], bw[ea, 2] = avx, avy, avz
-        bw[ea, 3], bw[ea, 4], bw[ea, 5] = awx, awy, awz
-        _announce(bw, ea, moved)
-    if eb >= 0:
-        bw[eb, 0], bw[eb, 1], bw[eb, 2] = bvx, bvy, bvz
-        bw[eb, 3], bw[eb, 4], bw[eb, 5] = bwx, bwy, bwz
-        _announce(bw, eb, moved)
-    return normal
-
-
-@helper
-def _announce(bw, e, moved) -> None:
-    """Count a change of body e's velocities (bw[e, 22], what makes a sweep solve its
-    other rows again) once the changes since the last count add up to ANNOUNCE_SPEED
-    (bw[e, 23], m/s): smaller ones are applied, but do not wake its neighbours."""
-    bw[e, 23] += moved
-    if bw[e, 23] > ANNOUNCE_SPEED:
-        bw[e, 22] += 1.0
-        bw[e, 23] = 0.0
-
-
 @kernel
-def solve_contacts(bodies, memory, count, params) -> None:
+def solve_contacts(bodies, memory, count, params, loads) -> None:
     """Solve the first ``count`` rows of memory.rows (see the module docstring).
 
-    Reads the rows, the bodies' poses and momenta; writes momenta (lin, ang), and,
-    where bodies interpenetrate beyond params.slop, positions and orientations
-    (pos, quat, rot). Also writes rows.approach and rows.impulse, and what
-    memory carries to the next step. Bodies that do not move (fixed, asleep) and
-    the ground are immovable. A corner's target normal velocity: a bounce of
-    restitution e (-e times the approach) for an impact (approach faster than
-    params.rest_speed) that the contact stops within the step, else the gap beyond
-    params.slop closed over the step (speculative contact: arrive, do not pass), or 0
-    when touching (within the slop either way: a resting contact stays put, and the
-    warm-started sweeps have nothing left to do).
+    Reads the rows, the bodies' poses and momenta; writes momenta (lin, ang), and
+    poses (pos, quat, rot) by what the sub-steps moved them beyond the final velocity
+    (see :func:`_place`). Also writes rows.approach and rows.impulse (the step's
+    total), and what memory carries to the next step. Bodies that do not move
+    (fixed, asleep) and the ground are immovable. loads: the step's blast impulses
+    (loads.impulse, loads.angular: N s, N m s, (B, 3)), which the engine has added to
+    the momenta with the step's gravity: the sub-steps hand both out evenly, so a push
+    that friction holds over the step is held at every sub-step.
     """
     rows, local = memory.rows, memory.local
     ends = np.full((count, 2), -1, dtype=np.int64)
-    dt = params.dt
     ids = np.empty(2 * count, dtype=np.int64)
     n = 0
     for r in range(count):
@@ -287,49 +147,35 @@ def solve_contacts(bodies, memory, count, params) -> None:
                 ids[n] = b
                 n += 1
             ends[r, side] = local[b]
-    bw = np.zeros((n, 24))
-    for e in range(n):
-        b = ids[e]
-        bw[e, 12] = 1.0 / bodies.mass[b]
-        _world_inverse(bodies.rot[b], bodies.inv_inertia[b], bw[e, 13:22])
-        ang = bodies.ang[b]
-        for a in range(3):
-            bw[e, a] = bodies.lin[b, a] * bw[e, 12]
-            bw[e, 3 + a] = (bw[e, 13 + 3 * a] * ang[0] + bw[e, 14 + 3 * a] * ang[1]
-                            + bw[e, 15 + 3 * a] * ang[2])
-        for j in range(6):  # not a slice copy (see integrate.separate)
-            bw[e, 6 + j] = bw[e, j]
+    bw = _solve_bodies(bodies, ids, n, loads, params)
     rw = np.zeros((count, RW_WIDTH))
-    bounce = np.zeros(count, dtype=np.bool_)
     deepest = 0.0
     for r in range(count):
         _prepare_row(r, rows, bodies.pos, ends, bw, rw)
-        rw[r, RW_SEEN], rw[r, RW_SEEN + 1] = -1.0, -1.0
         deepest = max(deepest, -rows.gap[r])
         rows.approach[r] = np.inf
-        for i in range(rows.used[r]):
+        for i in range(rows.used[r]):  # the approach, for restitution and impact effects
             vn = corner_speed(r, i, ends, rows.frame, bw, rw)
             rows.approach[r] = min(rows.approach[r], vn)
-            target = -max(rows.corner_gap[r, i] - params.slop, 0.0) / dt
-            if -vn > params.rest_speed and vn < target:  # an impact that binds
-                target = max(target, -rows.restitution[r] * vn)
-                bounce[r] = True
-            rw[r, RW_TARGET + i] = target
+            rw[r, RW_TARGET + i] = vn
     memory.deepest[0] = max(memory.deepest[0], deepest)
     before = _kinetic_energy(bw, 6, ids, n, bodies)
-    _warm_start(memory, count, ends, bw, rw, params.friction)
-    scratch = np.empty(8)
+    coef = _coefficients(params)
     order = _support_order(ends, n, count)
-    _sweeps(rows, ends, bw, rw, order, count, params, scratch, memory)
+    moved = np.zeros((n, 6))
+    total = np.zeros((count, 7))
+    _recall(memory, count, rw, params.friction)
+    _substeps(rows, ends, bw, rw, moved, total, order, coef, params)
     if _kinetic_energy(bw, 0, ids, n, bodies) > before * (1.0 + ENERGY_SLACK):
         # the warm start pumped energy in (see ENERGY_SLACK): solve again from no impulse
-        _restart(bw, rw, count, n)
-        _sweeps(rows, ends, bw, rw, order, count, params, scratch, memory)
+        _restart(bw, rw, moved, total, count, n)
+        _substeps(rows, ends, bw, rw, moved, total, order, coef, params)
         memory.stats[3] += 1
+    bounce = _restitution(rows, ends, bw, rw, total, count, params.rest_speed)
     memory.stats[0] += 1
-    _remember(memory, count, rw, bounce)
-    if deepest > params.slop:
-        separate(bodies, rows, count, ends, ids[:n], bw, rw, params)
+    memory.stats[1] += params.substeps
+    _remember(memory, count, rw, total, bounce)
+    _place(bodies, ids, n, bw, moved, params.dt)
     for e in range(n):  # momenta: m dv and I dw (I = R I_rest R^T, the world inertia)
         b = ids[e]
         rot, inertia = bodies.rot[b], bodies.inertia[b]
@@ -347,28 +193,294 @@ def solve_contacts(bodies, memory, count, params) -> None:
 
 
 @helper
-def _sweeps(rows, ends, bw, rw, order, count, params, scratch, memory) -> None:
-    """The velocity sweeps over the rows in ``order``, until no contact point's normal
-    velocity changes by more than SOLVED_SPEED, or params.sweeps."""
-    for sweep in range(params.sweeps):
-        change = 0.0
+def _solve_bodies(bodies, ids, n, loads, params):
+    """bw (n, 30) of the solve's moving bodies ids[:n] (see integrate's layout):
+    velocities now and before, 1 / mass, world inverse inertia, the step's change of
+    velocities by the blast's loads and gravity."""
+    bw = np.zeros((n, 30))
+    for e in range(n):
+        b = ids[e]
+        bw[e, 12] = 1.0 / bodies.mass[b]
+        _world_inverse(bodies.rot[b], bodies.inv_inertia[b], bw[e, 13:22])
+        ang = bodies.ang[b]
+        for a in range(3):
+            bw[e, a] = bodies.lin[b, a] * bw[e, 12]
+            bw[e, 3 + a] = (bw[e, 13 + 3 * a] * ang[0] + bw[e, 14 + 3 * a] * ang[1]
+                            + bw[e, 15 + 3 * a] * ang[2])
+        for j in range(6):  # not a slice copy (see integrate.separate)
+            bw[e, 6 + j] = bw[e, j]
+        lx, ly, lz = loads.angular[b, 0], loads.angular[b, 1], loads.angular[b, 2]
+        for a in range(3):
+            bw[e, 24 + a] = loads.impulse[b, a] * bw[e, 12] + params.gravity[a] * params.dt
+            bw[e, 27 + a] = (bw[e, 13 + 3 * a] * lx + bw[e, 14 + 3 * a] * ly
+                             + bw[e, 15 + 3 * a] * lz)
+    return bw
+
+
+@helper
+def _soft(hertz, zeta, h):
+    """Bias rate (1/s), mass scale and impulse scale of a soft constraint of natural
+    frequency ``hertz`` and damping ratio ``zeta`` over a sub-step h (s) (Catto, "Solver2D"
+    2024; Box2D v3's b2MakeSoft): an implicit spring-damper, stable at any h."""
+    omega = 2.0 * math.pi * hertz
+    a1 = 2.0 * zeta + h * omega
+    a2 = h * omega * a1
+    a3 = 1.0 / (1.0 + a2)
+    return omega / a1, a2 * a3, a3
+
+
+@helper
+def _coefficients(params):
+    """(10,) the sub-step solve's scalars: h (s), slop (m), the largest push-out speed
+    (m/s), the soft terms of contacts between moving bodies and with immovable ones
+    (bias rate, mass scale, impulse scale each), friction mu."""
+    h = params.dt / params.substeps
+    hertz = min(CONTACT_HERTZ, 0.25 / h)
+    coef = np.empty(10)
+    coef[0], coef[1], coef[2] = h, params.slop, PUSH_SPEED
+    coef[3], coef[4], coef[5] = _soft(hertz, CONTACT_DAMPING, h)
+    coef[6], coef[7], coef[8] = _soft(2.0 * hertz, CONTACT_DAMPING, h)
+    coef[9] = params.friction
+    return coef
+
+
+@helper
+def _substeps(rows, ends, bw, rw, moved, total, order, coef, params) -> None:
+    """The soft step (Box2D v3's solver): params.substeps sub-steps of h, each: its share
+    of the step's loads and gravity, the carried impulses applied again, one sweep with
+    the soft push-out, the positions moved, one rigid sweep (relax) that takes the
+    push-out's speed back out. moved (n, 6): displacement (m) and rotation vector (rad) of each
+    body so far; total (count, 7): impulses (N s, N m s) applied so far."""
+    h = coef[0]
+    n, count = bw.shape[0], order.shape[0]
+    share = 1.0 / params.substeps
+    scratch = np.empty(12)
+    for e in range(n):  # the engine gave a whole step's loads: hand them out by sub-step
+        for a in range(6):
+            bw[e, a] -= bw[e, 24 + a]
+    for _ in range(params.substeps):
+        for e in range(n):
+            for a in range(6):
+                bw[e, a] += bw[e, 24 + a] * share
+        _apply_carried(rows, ends, bw, rw, total, count)
         for q in range(count):
-            # from the supports out, then back: a stack's weight and an impact on its
-            # top each cross it in one sweep
-            r = order[q] if sweep % 2 == 0 else order[count - 1 - q]
-            ea, eb = ends[r, 0], ends[r, 1]
-            seen_a = bw[ea, 22] if ea >= 0 else 0.0
-            seen_b = bw[eb, 22] if eb >= 0 else 0.0
-            if rw[r, RW_SEEN] == seen_a and rw[r, RW_SEEN + 1] == seen_b:
+            _soft_row(order[q], rows, ends, bw, rw, moved, total, coef, True, scratch)
+        for e in range(n):
+            for a in range(6):
+                moved[e, a] += bw[e, a] * h
+        for q in range(count):
+            _soft_row(order[count - 1 - q], rows, ends, bw, rw, moved, total, coef, False, scratch)
+
+
+@helper
+def _soft_row(r, rows, ends, bw, rw, moved, total, coef, push, scratch) -> None:
+    """One sweep's update of row r: the normal impulses of its corners (>= 0), each
+    against its separation now (the start's, plus what the sub-steps moved the bodies),
+    speculative where apart, soft where deeper than the slop (push: the soft
+    push-out; else rigid), then friction at the centre within mu times their sum
+    (both tangents at once) and twisting friction about n. Written out in full, with
+    both bodies' velocities in locals: the solver's hot loop."""
+    frame = rows.frame
+    ea, eb = ends[r, 0], ends[r, 1]
+    (avx, avy, avz, awx, awy, awz, ima,
+     a0, a1, a2, a3, a4, a5, a6, a7, a8) = _body_locals(bw, ea)
+    (bvx, bvy, bvz, bwx, bwy, bwz, imb,
+     b0, b1, b2, b3, b4, b5, b6, b7, b8) = _body_locals(bw, eb)
+    nx, ny, nz = frame[r, 0, 0], frame[r, 0, 1], frame[r, 0, 2]
+    dpx = dpy = dpz = 0.0  # what the sub-steps moved b relative to a, and turned each
+    tax = tay = taz = tbx = tby = tbz = 0.0
+    if ea >= 0:
+        dpx, dpy, dpz = -moved[ea, 0], -moved[ea, 1], -moved[ea, 2]
+        tax, tay, taz = moved[ea, 3], moved[ea, 4], moved[ea, 5]
+    if eb >= 0:
+        dpx, dpy, dpz = dpx + moved[eb, 0], dpy + moved[eb, 1], dpz + moved[eb, 2]
+        tbx, tby, tbz = moved[eb, 3], moved[eb, 4], moved[eb, 5]
+    shift = dpx * nx + dpy * ny + dpz * nz
+    o = 6 if ea < 0 or eb < 0 else 3  # against an immovable body: stiffer
+    h, slop, rate, mass_scale = coef[0], coef[1], coef[o], coef[o + 1]
+    # the corners together: M delta = -(ms vn + bias + is k lambda), lambda + delta >= 0,
+    # M = ms K + is diag(k) (each corner's own soft terms; K the corners' coupling),
+    # projected Gauss-Seidel to convergence: a face's corners push alike, no spin
+    used = rows.used[r]
+    common = (bvx - avx) * nx + (bvy - avy) * ny + (bvz - avz) * nz
+    for i in range(used):
+        ca, cb = RW_CA + 3 * i, RW_CB + 3 * i
+        gap = rows.corner_gap[r, i] + shift \
+            + tbx * rw[r, cb] + tby * rw[r, cb + 1] + tbz * rw[r, cb + 2] \
+            - tax * rw[r, ca] - tay * rw[r, ca + 1] - taz * rw[r, ca + 2]
+        bias, ms = 0.0, 1.0
+        if gap > slop:
+            bias = (gap - slop) / h  # speculative: arrive, do not pass
+        elif push and gap < -slop:
+            bias = max(mass_scale * rate * (gap + slop), -coef[2])
+            ms = mass_scale
+        vn = common + rw[r, cb] * bwx + rw[r, cb + 1] * bwy + rw[r, cb + 2] * bwz \
+            - rw[r, ca] * awx - rw[r, ca + 1] * awy - rw[r, ca + 2] * awz
+        kii = rw[r, RW_KN + i * (7 - i) // 2 + i]
+        scratch[i] = -(ms * vn + bias + (1.0 - ms) * kii * rw[r, RW_ACC + i])
+        scratch[8 + i] = ms
+        scratch[4 + i] = 0.0
+    for _ in range(CORNER_SWEEPS):
+        change = 0.0
+        for i in range(used):
+            ms = scratch[8 + i]
+            kii = rw[r, RW_KN + i * (7 - i) // 2 + i]
+            if kii <= 0.0:
                 continue
-            change = max(change, _sweep_row(r, rows, ends, bw, rw, params.friction, scratch))
-            rw[r, RW_SEEN] = bw[ea, 22] if ea >= 0 else 0.0
-            rw[r, RW_SEEN + 1] = bw[eb, 22] if eb >= 0 else 0.0
-        memory.stats[1] += 1
-        if change <= SOLVED_SPEED:
+            res = scratch[i]
+            for j in range(used):
+                res -= ms * rw[r, RW_KN + (i * (7 - i) // 2 + j if i <= j
+                                           else j * (7 - j) // 2 + i)] * scratch[4 + j]
+            res -= (1.0 - ms) * kii * scratch[4 + i]
+            new = max(rw[r, RW_ACC + i] + scratch[4 + i] + res / kii, 0.0) \
+                - rw[r, RW_ACC + i]
+            change = max(change, abs(new - scratch[4 + i]) * kii)
+            scratch[4 + i] = new
+        if change <= CORNER_TOLERANCE or used == 1:
             break
-        if sweep == params.sweeps - 1:
-            memory.stats[2] += 1
+    normal = 0.0
+    tot = 0.0
+    cax = cay = caz = cbx = cby = cbz = 0.0
+    for i in range(used):
+        d = scratch[4 + i]
+        normal += rw[r, RW_ACC + i] + d
+        if d == 0.0:
+            continue
+        rw[r, RW_ACC + i] += d
+        total[r, i] += d
+        tot += d
+        ca, cb = RW_CA + 3 * i, RW_CB + 3 * i
+        cax, cay, caz = cax + d * rw[r, ca], cay + d * rw[r, ca + 1], caz + d * rw[r, ca + 2]
+        cbx, cby, cbz = cbx + d * rw[r, cb], cby + d * rw[r, cb + 1], cbz + d * rw[r, cb + 2]
+    if tot != 0.0 or cax != 0.0 or cay != 0.0 or caz != 0.0:
+        avx, avy, avz = avx - tot * nx * ima, avy - tot * ny * ima, avz - tot * nz * ima
+        awx -= a0 * cax + a1 * cay + a2 * caz
+        awy -= a3 * cax + a4 * cay + a5 * caz
+        awz -= a6 * cax + a7 * cay + a8 * caz
+        bvx, bvy, bvz = bvx + tot * nx * imb, bvy + tot * ny * imb, bvz + tot * nz * imb
+        bwx += b0 * cbx + b1 * cby + b2 * cbz
+        bwy += b3 * cbx + b4 * cby + b5 * cbz
+        bwz += b6 * cbx + b7 * cby + b8 * cbz
+    limit = coef[9] * rows.grip[r] * normal
+    if limit > 0.0 or rw[r, RW_ACC + 4] != 0.0 or rw[r, RW_ACC + 5] != 0.0 \
+            or rw[r, RW_ACC + 6] != 0.0:
+        rax, ray, raz, rbx, rby, rbz = (rw[r, 0], rw[r, 1], rw[r, 2], rw[r, 3], rw[r, 4],
+                                        rw[r, 5])
+        t1x, t1y, t1z = frame[r, 1, 0], frame[r, 1, 1], frame[r, 1, 2]
+        t2x, t2y, t2z = frame[r, 2, 0], frame[r, 2, 1], frame[r, 2, 2]
+        vx = bvx + bwy * rbz - bwz * rby - avx - awy * raz + awz * ray
+        vy = bvy + bwz * rbx - bwx * rbz - avy - awz * rax + awx * raz
+        vz = bvz + bwx * rby - bwy * rbx - avz - awx * ray + awy * rax
+        old1, old2 = rw[r, RW_ACC + 4], rw[r, RW_ACC + 5]
+        new1 = old1 - (vx * t1x + vy * t1y + vz * t1z) * rw[r, RW_EFF]
+        new2 = old2 - (vx * t2x + vy * t2y + vz * t2z) * rw[r, RW_EFF + 1]
+        size = math.sqrt(new1 * new1 + new2 * new2)
+        if size > limit:
+            scale = limit / size
+            new1, new2 = new1 * scale, new2 * scale
+        d1, d2 = new1 - old1, new2 - old2
+        if d1 != 0.0 or d2 != 0.0:
+            rw[r, RW_ACC + 4], rw[r, RW_ACC + 5] = new1, new2
+            total[r, 4] += d1
+            total[r, 5] += d2
+            px, py, pz = d1 * t1x + d2 * t2x, d1 * t1y + d2 * t2y, d1 * t1z + d2 * t2z
+            cx, cy, cz = ray * pz - raz * py, raz * px - rax * pz, rax * py - ray * px
+            avx, avy, avz = avx - px * ima, avy - py * ima, avz - pz * ima
+            awx -= a0 * cx + a1 * cy + a2 * cz
+            awy -= a3 * cx + a4 * cy + a5 * cz
+            awz -= a6 * cx + a7 * cy + a8 * cz
+            cx, cy, cz = rby * pz - rbz * py, rbz * px - rbx * pz, rbx * py - rby * px
+            bvx, bvy, bvz = bvx + px * imb, bvy + py * imb, bvz + pz * imb
+            bwx += b0 * cx + b1 * cy + b2 * cz
+            bwy += b3 * cx + b4 * cy + b5 * cz
+            bwz += b6 * cx + b7 * cy + b8 * cz
+        arm = rows.arm[r]
+        if arm > 0.0:  # twisting friction, the spin about n
+            old = rw[r, RW_ACC + 6]
+            lim = limit * arm
+            spin = (bwx - awx) * nx + (bwy - awy) * ny + (bwz - awz) * nz
+            new = min(max(old - spin * rw[r, RW_EFF + 2], -lim), lim)
+            d = new - old
+            if d != 0.0:
+                rw[r, RW_ACC + 6] = new
+                total[r, 6] += d
+                awx -= d * (a0 * nx + a1 * ny + a2 * nz)
+                awy -= d * (a3 * nx + a4 * ny + a5 * nz)
+                awz -= d * (a6 * nx + a7 * ny + a8 * nz)
+                bwx += d * (b0 * nx + b1 * ny + b2 * nz)
+                bwy += d * (b3 * nx + b4 * ny + b5 * nz)
+                bwz += d * (b6 * nx + b7 * ny + b8 * nz)
+    if ea >= 0:
+        bw[ea, 0], bw[ea, 1], bw[ea, 2] = avx, avy, avz
+        bw[ea, 3], bw[ea, 4], bw[ea, 5] = awx, awy, awz
+    if eb >= 0:
+        bw[eb, 0], bw[eb, 1], bw[eb, 2] = bvx, bvy, bvz
+        bw[eb, 3], bw[eb, 4], bw[eb, 5] = bwx, bwy, bwz
+
+
+@helper
+def _restitution(rows, ends, bw, rw, total, count, rest_speed):
+    """After the sub-steps: the corners that came in faster than rest_speed (m/s) and
+    were stopped (took an impulse) leave at restitution times their approach speed
+    (Box2D v3's restitution pass; a row's corners solved together, as in the sweeps,
+    so a face lands flat). Returns (count,) bool: the rows that bounced."""
+    bounce = np.zeros(count, dtype=np.bool_)
+    hit = np.zeros(4, dtype=np.bool_)
+    b = np.zeros(8)  # the corners' residuals, then their impulses
+    for r in range(count):
+        used = rows.used[r]
+        for i in range(used):
+            hit[i] = rw[r, RW_TARGET + i] <= -rest_speed and total[r, i] > 0.0
+            bounce[r] |= hit[i]
+        if not bounce[r] or rows.restitution[r] == 0.0:
+            continue
+        for i in range(used):
+            b[4 + i] = 0.0
+            b[i] = -(corner_speed(r, i, ends, rows.frame, bw, rw)
+                     + rows.restitution[r] * rw[r, RW_TARGET + i]) if hit[i] else 0.0
+        for _ in range(CORNER_SWEEPS):
+            change = 0.0
+            for i in range(used):
+                kii = rw[r, RW_KN + i * (7 - i) // 2 + i]
+                if not hit[i] or kii <= 0.0:
+                    continue
+                res = b[i]
+                for j in range(used):
+                    if hit[j]:
+                        res -= rw[r, RW_KN + (i * (7 - i) // 2 + j if i <= j
+                                              else j * (7 - j) // 2 + i)] * b[4 + j]
+                new = max(rw[r, RW_ACC + i] + b[4 + i] + res / kii, 0.0) - rw[r, RW_ACC + i]
+                change = max(change, abs(new - b[4 + i]) * kii)
+                b[4 + i] = new
+            if change <= CORNER_TOLERANCE:
+                break
+        for i in range(used):
+            d = b[4 + i]
+            if d == 0.0:
+                continue
+            rw[r, RW_ACC + i] += d
+            total[r, i] += d
+            for side in range(2):
+                e = ends[r, side]
+                if e >= 0:
+                    push_corner(e, d if side == 1 else -d, r, i, side, rows.frame, bw, rw)
+    return bounce
+
+
+@helper
+def _place(bodies, ids, n, bw, moved, dt) -> None:
+    """Move each solved body by what its sub-steps moved it (moved: displacement, m, and
+    rotation vector, rad) less what the engine's position half-step will move it at its
+    final velocity: the soft push-out moves bodies, never gives them momentum."""
+    for e in range(n):
+        b = ids[e]
+        for a in range(3):
+            bodies.pos[b, a] += moved[e, a] - bw[e, a] * dt
+        wx, wy, wz = (moved[e, 3] / dt - bw[e, 3], moved[e, 4] / dt - bw[e, 4],
+                      moved[e, 5] / dt - bw[e, 5])
+        if wx != 0.0 or wy != 0.0 or wz != 0.0:
+            quaternion_nb.integrate(bodies.quat[b], wx, wy, wz, dt)
+            quaternion_nb.matrix_into(bodies.quat[b], bodies.rot[b])
 
 
 @helper
@@ -392,18 +504,16 @@ def _kinetic_energy(bw, col, ids, n, bodies) -> float:
 
 
 @helper
-def _restart(bw, rw, count, n) -> None:
-    """Undo a solve: the bodies' velocities as before it, no accumulated impulse, every
-    row to be solved again."""
+def _restart(bw, rw, moved, total, count, n) -> None:
+    """Undo a solve: the bodies' velocities and poses as before it, no impulse."""
     for e in range(n):
         for j in range(6):
             bw[e, j] = bw[e, 6 + j]
-        bw[e, 22] = 0.0
-        bw[e, 23] = 0.0
+            moved[e, j] = 0.0
     for r in range(count):
         for j in range(7):
             rw[r, RW_ACC + j] = 0.0
-        rw[r, RW_SEEN], rw[r, RW_SEEN + 1] = -1.0, -1.0
+            total[r, j] = 0.0
 
 
 @helper
@@ -483,11 +593,11 @@ def _world_inverse(rot, inv, out) -> None:
 
 
 @helper
-def _warm_start(memory, count, ends, bw, rw, friction) -> None:
-    """Give each row the impulses its contact carried last step (memory.keys, carried):
-    the normal shared equally by its corners (their own solve shares it out), friction
-    and twist taken onto its current directions and within its current limits; apply
-    them."""
+def _recall(memory, count, rw, friction) -> None:
+    """Give each row the impulses (per sub-step) its contact carried last step
+    (memory.keys, carried): the normal shared equally by its corners (their own solve
+    shares it out), friction and twist taken onto its current directions and within
+    its current limits."""
     rows, keys, carried, p = memory.rows, memory.keys, memory.carried, memory.count[0]
     if p == 0 or count == 0:
         return
@@ -522,46 +632,56 @@ def _warm_start(memory, count, ends, bw, rw, friction) -> None:
             rw[r, RW_ACC + 5] *= mu * normal / size
         twist = mu * normal * rows.arm[r]
         rw[r, RW_ACC + 6] = min(max(rw[r, RW_ACC + 6], -twist), twist)
+
+
+@helper
+def _apply_carried(rows, ends, bw, rw, total, count) -> None:
+    """Apply each row's accumulated impulses (a sub-step's: the warm start of the next
+    sub-step) to its bodies, and count them in total."""
+    frame = rows.frame
+    for r in range(count):
+        for j in range(7):
+            total[r, j] += rw[r, RW_ACC + j]
         for side in range(2):
             e = ends[r, side]
             if e < 0:
                 continue
             sgn = 1.0 if side == 1 else -1.0
-            px, py, pz = 0.0, 0.0, 0.0
-            for a in range(3):
-                d = rw[r, RW_ACC + 4] * frame[r, 1, a] + rw[r, RW_ACC + 5] * frame[r, 2, a]
-                if a == 0:
-                    px = d
-                elif a == 1:
-                    py = d
-                else:
-                    pz = d
-            apply_at(e, sgn, px, py, pz, r, side, bw, rw)
+            f1, f2 = rw[r, RW_ACC + 4], rw[r, RW_ACC + 5]
+            if f1 != 0.0 or f2 != 0.0:
+                apply_at(e, sgn, f1 * frame[r, 1, 0] + f2 * frame[r, 2, 0],
+                         f1 * frame[r, 1, 1] + f2 * frame[r, 2, 1],
+                         f1 * frame[r, 1, 2] + f2 * frame[r, 2, 2], r, side, bw, rw)
             tw = sgn * rw[r, RW_ACC + 6]
-            turn_by(e, tw * frame[r, 0, 0], tw * frame[r, 0, 1], tw * frame[r, 0, 2], bw)
-            for i in range(used):
-                push_corner(e, sgn * rw[r, RW_ACC + i], r, i, side, rows.frame, bw, rw)
+            if tw != 0.0:
+                turn_by(e, tw * frame[r, 0, 0], tw * frame[r, 0, 1], tw * frame[r, 0, 2], bw)
+            for i in range(rows.used[r]):
+                if rw[r, RW_ACC + i] != 0.0:
+                    push_corner(e, sgn * rw[r, RW_ACC + i], r, i, side, frame, bw, rw)
 
 
 @helper
-def _remember(memory, count, rw, bounce) -> None:
-    """Keep the impulses of the rows that carried load (not bounces) for the next step,
-    and each row's normal impulse in rows.impulse, its friction in rows.friction."""
+def _remember(memory, count, rw, total, bounce) -> None:
+    """Keep the impulses (per sub-step) of the rows that carried load (not bounces) for
+    the next step, and each row's normal impulse over the step in rows.impulse, its
+    friction in rows.friction."""
     rows, keys, carried = memory.rows, memory.keys, memory.carried
     p = 0
     for r in range(count):
         normal = 0.0
+        last = 0.0
         for i in range(rows.used[r]):
-            normal += rw[r, RW_ACC + i]
+            normal += total[r, i]
+            last += rw[r, RW_ACC + i]
         rows.impulse[r] = normal
         for a in range(3):
-            rows.friction[r, a] = (rw[r, RW_ACC + 4] * rows.frame[r, 1, a]
-                                   + rw[r, RW_ACC + 5] * rows.frame[r, 2, a])
-        if bounce[r] or normal <= 0.0:
+            rows.friction[r, a] = (total[r, 4] * rows.frame[r, 1, a]
+                                   + total[r, 5] * rows.frame[r, 2, a])
+        if bounce[r] or last <= 0.0:
             continue
         sign = -1.0 if rows.voxel[r, 0] > rows.voxel[r, 1] else 1.0
         keys[p] = rows.key[r]
-        carried[p, 0] = normal
+        carried[p, 0] = last
         for a in range(3):
             carried[p, 1 + a] = sign * (rw[r, RW_ACC + 4] * rows.frame[r, 1, a]
                                         + rw[r, RW_ACC + 5] * rows.frame[r, 2, a])
