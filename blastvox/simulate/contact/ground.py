@@ -30,10 +30,12 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba as nb
 import numpy as np
 
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
+from blastvox.simulate.contact.rows import ContactRows
 from blastvox.simulate.contact.solver import solve_contacts
 from blastvox.simulate.integrate import angular_velocity
 from blastvox.simulate.limits import voxel_size
@@ -42,42 +44,6 @@ from blastvox.simulate.limits import voxel_size
 #: pass moves a contact apart in a step, as fractions of the typical voxel.
 SLOP = 1e-3
 PUSH = 0.05
-
-
-class ContactRows(NamedTuple):
-    """The contacts of one step, M rows (capacity; a step uses the first ``count``).
-
-    body (M, 2) int64: bodies a and b (-1: the ground), the normal pointing from a
-    to b; voxel (M, 2) int64: their voxels (-1: the ground); key (M,) int64: the
-    contact's identity from step to step (a voxel pair, or a body's corner on the
-    ground), for warm starting; frame (M, 3, 3): rows n, t1, t2, orthonormal;
-    corners (M, 4, 3) m and corner_gap (M, 4) m: the contact's points (up to four: a
-    face's manifold) and their separations along n at the step's start (< 0:
-    penetration); used (M,) int64: how many; gap (M,) m: the smallest; point (M, 3) m:
-    their centre, where friction acts; arm (M,) m: the lever of twisting friction
-    about it (0 for a point); restitution (M,). Written by the solver: approach (M,)
-    m/s, the fastest normal approach of a point before the solve (< 0: approaching);
-    impulse (M,) N s, the normal impulse of the step, all points together; friction
-    (M, 3) N s, the step's friction impulse on b, world vector (-friction on a).
-    grip (M,): the row's share of the scene's friction coefficient (1; 0 for a row
-    without friction this step, see :func:`~blastvox.simulate.contact.fragments.mute_member_rows`).
-    """
-
-    body: np.ndarray
-    voxel: np.ndarray
-    key: np.ndarray
-    frame: np.ndarray
-    corners: np.ndarray
-    corner_gap: np.ndarray
-    used: np.ndarray
-    gap: np.ndarray
-    point: np.ndarray
-    arm: np.ndarray
-    restitution: np.ndarray
-    approach: np.ndarray
-    impulse: np.ndarray
-    friction: np.ndarray
-    grip: np.ndarray
 
 
 class ContactMemory(NamedTuple):
@@ -113,7 +79,9 @@ class ContactMemory(NamedTuple):
 class SolverParams(NamedTuple):
     """dt: s; friction: Coulomb mu; rest_speed: m/s of approach below which a contact
     does not bounce; slop: m of penetration left alone; substeps: the solve's sub-steps;
-    gravity (3,): m/s^2, what the step's velocities already hold of it."""
+    gravity (3,): m/s^2, what the step's velocities already hold of it; threads: how
+    many the solve's islands are dealt to (numba's thread count: the bytes do not
+    depend on it)."""
 
     dt: float
     friction: float
@@ -121,6 +89,7 @@ class SolverParams(NamedTuple):
     slop: float
     substeps: int
     gravity: np.ndarray
+    threads: int
 
 
 def empty_rows(capacity: int) -> ContactRows:
@@ -180,7 +149,8 @@ def solver_params(memory: ContactMemory, settings, dt: float, up: np.ndarray) ->
     return SolverParams(dt=dt, friction=settings.friction,
                         rest_speed=rest_speed(settings, dt), slop=SLOP * memory.size,
                         substeps=int(settings.contact_substeps),
-                        gravity=-settings.gravity * np.asarray(up, dtype=np.float64))
+                        gravity=-settings.gravity * np.asarray(up, dtype=np.float64),
+                        threads=nb.get_num_threads())
 
 
 class GroundParams(NamedTuple):

@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
 from blastvox.geometry import quaternion_nb
-from blastvox.jit import helper, kernel
+from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.contact.pairs import bucket, hash_buckets
+from blastvox.simulate.contact.rows import ContactRows
 from blastvox.simulate.integrate import (
     RW_ACC,
     RW_CA,
@@ -45,11 +47,15 @@ from blastvox.simulate.integrate import (
 CONTACT_HERTZ = 120.0
 CONTACT_DAMPING = 10.0
 #: The fastest a soft push-out moves bodies apart, m/s (Box2D v3's contactSpeed).
-PUSH_SPEED = 3.0
+PUSH_SPEED = 1.0
 #: Sweeps at most of the projected Gauss-Seidel solve of one row's corners together, and
 #: the change of a corner's normal velocity (m/s) at which it stops.
 CORNER_SWEEPS = 16
 CORNER_TOLERANCE = 1e-10
+#: Sweeps at most of the restitution pass, which stops once no bounce changes a
+#: corner's normal velocity by more than SOLVED_SPEED (m/s).
+RESTITUTION_SWEEPS = 8
+SOLVED_SPEED = 1e-3
 #: Contacts only remove kinetic energy (their targets stop, or bounce with restitution
 #: <= 1): every sweep is a descent. The warm start is not: in a jammed pile (a piece
 #: wedged between others, contacts pushing from opposite sides) the impulses carried
@@ -58,6 +64,9 @@ CORNER_TOLERANCE = 1e-10
 #: leaving at 90 m/s). A solve that ends with more kinetic energy than this fraction
 #: above what it started with is done again without the warm start.
 ENERGY_SLACK = 1e-6
+#: ... and more than the island's mass would have at this speed (m/s) plus its fastest
+#: push-out: what the rigid sweeps leave of a push-out is not a warm start's pump.
+ENERGY_SPEED = 1e-3
 
 
 @helper
@@ -120,8 +129,7 @@ def _body_locals(bw, e):
             bw[e, 20], bw[e, 21])
 
 
-@kernel
-def solve_contacts(bodies, memory, count, params, loads) -> None:
+def solve_contacts(bodies, memory, count: int, params, loads) -> None:
     """Solve the first ``count`` rows of memory.rows (see the module docstring).
 
     Reads the rows, the bodies' poses and momenta; writes momenta (lin, ang), and
@@ -132,7 +140,32 @@ def solve_contacts(bodies, memory, count, params, loads) -> None:
     (loads.impulse, loads.angular: N s, N m s, (B, 3)), which the engine has added to
     the momenta with the step's gravity: the sub-steps hand both out evenly, so a push
     that friction holds over the step is held at every sub-step.
+
+    Islands (bodies that touch, through moving bodies) are solved on their own, on
+    every core: no island shares a body with another, so the bytes are the same for
+    any thread count.
     """
+    ends, ids, bw, rw, order, coef, islands = _begin(bodies, memory, count, params, loads)
+    n = bw.shape[0]
+    moved = np.zeros((n, 6))
+    total = np.zeros((count, 7))
+    bounce = np.zeros(count, dtype=np.bool_)
+    restarts = np.zeros(len(islands[4]) - 1, dtype=np.int64)
+    masses = (ids, bodies.mass, bodies.rot, bodies.inertia)
+    scalars = (params.dt, float(params.substeps), params.rest_speed)
+    _solve_islands(tuple(memory.rows), (ends, bw, rw, moved, total, bounce), islands, masses,
+                   coef, scalars, restarts)
+    _finish(bodies, memory, count, (ids, bw, rw, moved, total, bounce), params.substeps,
+            int(restarts.sum()), params.dt)
+
+
+@kernel
+def _begin(bodies, memory, count, params, loads):
+    """The solve's set-up: each row's bodies as solve indices (ends (count, 2), -1: does
+    not move), the moving bodies (ids), their bw and the rows' rw (see integrate's
+    layout), the rows' approach (rows.approach; each corner's in rw's RW_TARGET
+    columns), the carried impulses (:func:`_recall`), the support order, the sub-steps'
+    coefficients and the islands (:func:`_islands`)."""
     rows, local = memory.rows, memory.local
     ends = np.full((count, 2), -1, dtype=np.int64)
     ids = np.empty(2 * count, dtype=np.int64)
@@ -159,23 +192,154 @@ def solve_contacts(bodies, memory, count, params, loads) -> None:
             rows.approach[r] = min(rows.approach[r], vn)
             rw[r, RW_TARGET + i] = vn
     memory.deepest[0] = max(memory.deepest[0], deepest)
-    before = _kinetic_energy(bw, 6, ids, n, bodies)
-    coef = _coefficients(params)
-    order = _support_order(ends, n, count)
-    moved = np.zeros((n, 6))
-    total = np.zeros((count, 7))
     _recall(memory, count, rw, params.friction)
-    _substeps(rows, ends, bw, rw, moved, total, order, coef, params)
-    if _kinetic_energy(bw, 0, ids, n, bodies) > before * (1.0 + ENERGY_SLACK):
-        # the warm start pumped energy in (see ENERGY_SLACK): solve again from no impulse
-        _restart(bw, rw, moved, total, count, n)
-        _substeps(rows, ends, bw, rw, moved, total, order, coef, params)
-        memory.stats[3] += 1
-    bounce = _restitution(rows, ends, bw, rw, total, count, params.rest_speed)
+    order = _support_order(ends, n, count)
+    return ends, ids[:n], bw, rw, order, _coefficients(params), _islands(ends, n, order,
+                                                                         params.threads)
+
+
+@helper
+def _islands(ends, n, order, threads):
+    """The solve's islands: bodies joined by rows between two moving bodies (union-find),
+    each island's rows in ``order`` and its bodies, and the islands dealt to ``threads``
+    bins, largest first to the emptiest (which bin solves an island changes no byte).
+    Returns (row_start, rows, body_start, bodies, bin_start, bin_islands): CSR arrays,
+    island k's rows rows[row_start[k]:row_start[k + 1]] and so on; rows of no moving
+    body are in none."""
+    count = ends.shape[0]
+    parent = np.arange(n)
+    for r in range(count):
+        ea, eb = ends[r, 0], ends[r, 1]
+        if ea >= 0 and eb >= 0:
+            ra, rb = _root(parent, ea), _root(parent, eb)
+            if ra != rb:
+                parent[max(ra, rb)] = min(ra, rb)
+    island = np.full(n, -1, dtype=np.int64)
+    k = 0
+    for e in range(n):
+        root = _root(parent, e)
+        if island[root] < 0:
+            island[root] = k
+            k += 1
+        island[e] = island[root]
+    body_start = np.zeros(k + 1, dtype=np.int64)
+    for e in range(n):
+        body_start[island[e] + 1] += 1
+    row_start = np.zeros(k + 1, dtype=np.int64)
+    for q in range(count):
+        e = ends[order[q], 0] if ends[order[q], 0] >= 0 else ends[order[q], 1]
+        if e >= 0:
+            row_start[island[e] + 1] += 1
+    for j in range(k):
+        body_start[j + 1] += body_start[j]
+        row_start[j + 1] += row_start[j]
+    members = np.empty(n, dtype=np.int64)
+    fill = body_start[:-1].copy()
+    for e in range(n):
+        members[fill[island[e]]] = e
+        fill[island[e]] += 1
+    island_rows = np.empty(row_start[k], dtype=np.int64)
+    fill = row_start[:-1].copy()
+    for q in range(count):
+        r = order[q]
+        e = ends[r, 0] if ends[r, 0] >= 0 else ends[r, 1]
+        if e >= 0:
+            island_rows[fill[island[e]]] = r
+            fill[island[e]] += 1
+    load = np.zeros(threads, dtype=np.int64)
+    deal = np.empty(k, dtype=np.int64)
+    by_size = np.argsort(-(row_start[1:] - row_start[:-1]), kind="mergesort")
+    for j in by_size:
+        target = np.argmin(load)
+        deal[j] = target
+        load[target] += row_start[j + 1] - row_start[j] + 1
+    bin_start = np.zeros(threads + 1, dtype=np.int64)
+    for j in range(k):
+        bin_start[deal[j] + 1] += 1
+    for t in range(threads):
+        bin_start[t + 1] += bin_start[t]
+    bin_islands = np.empty(k, dtype=np.int64)
+    fill = bin_start[:-1].copy()
+    for j in range(k):
+        bin_islands[fill[deal[j]]] = j
+        fill[deal[j]] += 1
+    return row_start, island_rows, body_start, members, bin_start, bin_islands
+
+
+@helper
+def _root(parent, e):
+    """Union-find's root of e, halving the path."""
+    while parent[e] != e:
+        parent[e] = parent[parent[e]]
+        e = parent[e]
+    return e
+
+
+@parallel_kernel
+def _solve_islands(row_fields, work, islands, masses, coef, scalars, restarts):
+    """Each bin of islands on its own thread: per island, the sub-steps, the energy check
+    (solved again without the warm start if it gained energy, see ENERGY_SLACK) and the
+    restitution pass. row_fields: the ContactRows as a tuple; work: (ends, bw, rw,
+    moved, total, bounce); islands: :func:`_islands`; masses: (ids, mass, rot,
+    inertia) of the bodies; scalars: (dt, sub-steps, rest_speed); restarts (bins,):
+    counts the islands solved again."""
+    ends, bw, rw, moved, total, bounce = work
+    row_start, island_rows, body_start, members, bin_start, bin_islands = islands
+    ids, mass, rot, inertia = masses
+    dt, substeps, rest_speed = scalars
+    (body, voxel, key, frame, corners, corner_gap, used, gap, point, arm, restitution,
+     approach, impulse, friction, grip) = row_fields
+    for t in nb.prange(len(bin_start) - 1):
+        rows = ContactRows(body, voxel, key, frame, corners, corner_gap, used, gap, point,
+                           arm, restitution, approach, impulse, friction, grip)
+        scratch = np.zeros(12)
+        for j in range(bin_start[t], bin_start[t + 1]):
+            k = bin_islands[j]
+            rs = island_rows[row_start[k]:row_start[k + 1]]
+            es = members[body_start[k]:body_start[k + 1]]
+            before = _kinetic_energy(bw, 6, es, ids, mass, rot, inertia)
+            _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, dt, int(substeps),
+                      scratch)
+            heft = 0.0
+            for e in es:
+                heft += mass[ids[e]]
+            speed = ENERGY_SPEED + _push_speed(rows, ends, rs, coef)
+            if _kinetic_energy(bw, 0, es, ids, mass, rot, inertia) > before * (
+                    1.0 + ENERGY_SLACK) + 0.5 * heft * speed * speed:
+                # the warm start pumped energy in (see ENERGY_SLACK): again from no impulse
+                _restart(bw, rw, moved, total, rs, es)
+                _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, dt, int(substeps),
+                          scratch)
+                restarts[t] += 1
+            _restitution(rows, ends, bw, rw, total, rs, rest_speed, bounce)
+
+
+@helper
+def _push_speed(rows, ends, rs, coef) -> float:
+    """The fastest soft push-out (m/s) of rows rs at the step's start: what an island's
+    bodies may still move apart at after the sub-steps' rigid sweeps."""
+    fastest = 0.0
+    for r in rs:
+        o = 6 if ends[r, 0] < 0 or ends[r, 1] < 0 else 3
+        for i in range(rows.used[r]):
+            depth = -(rows.corner_gap[r, i] + coef[1])
+            if depth > 0.0:
+                fastest = max(fastest, min(coef[o + 1] * coef[o] * depth, coef[2]))
+    return fastest
+
+
+@kernel
+def _finish(bodies, memory, count, work, substeps, restarts, dt) -> None:
+    """After the islands: the stats, what memory carries to the next step, the bodies'
+    poses (:func:`_place`) and momenta. work: (ids, bw, rw, moved, total, bounce)."""
+    ids, bw, rw, moved, total, bounce = work
+    n = ids.shape[0]
     memory.stats[0] += 1
-    memory.stats[1] += params.substeps
+    memory.stats[1] += substeps
+    memory.stats[3] += restarts
     _remember(memory, count, rw, total, bounce)
-    _place(bodies, ids, n, bw, moved, params.dt)
+    _place(bodies, ids, n, bw, moved, dt)
+    local = memory.local
     for e in range(n):  # momenta: m dv and I dw (I = R I_rest R^T, the world inertia)
         b = ids[e]
         rot, inertia = bodies.rot[b], bodies.inertia[b]
@@ -245,31 +409,33 @@ def _coefficients(params):
 
 
 @helper
-def _substeps(rows, ends, bw, rw, moved, total, order, coef, params) -> None:
-    """The soft step (Box2D v3's solver): params.substeps sub-steps of h, each: its share
-    of the step's loads and gravity, the carried impulses applied again, one sweep with
+def _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, dt, substeps, scratch) -> None:
+    """The soft step (Box2D v3's solver) of one island, rows rs (in support order) and
+    moving bodies es: ``substeps`` sub-steps of h = dt / substeps, each: its share of
+    the step's loads and gravity, the carried impulses applied again, one sweep with
     the soft push-out, the positions moved, one rigid sweep (relax) that takes the
-    push-out's speed back out. moved (n, 6): displacement (m) and rotation vector (rad) of each
-    body so far; total (count, 7): impulses (N s, N m s) applied so far."""
+    push-out's speed back out. moved (n, 6): displacement (m) and rotation vector (rad)
+    of each body so far; total (count, 7): impulses (N s, N m s) applied so far;
+    scratch (12,)."""
     h = coef[0]
-    n, count = bw.shape[0], order.shape[0]
-    share = 1.0 / params.substeps
-    scratch = np.empty(12)
-    for e in range(n):  # the engine gave a whole step's loads: hand them out by sub-step
+    share = 1.0 / substeps
+    count = rs.shape[0]
+    for e in es:  # the engine gave a whole step's loads: hand them out by sub-step
         for a in range(6):
             bw[e, a] -= bw[e, 24 + a]
-    for _ in range(params.substeps):
-        for e in range(n):
+    for _ in range(substeps):
+        for e in es:
             for a in range(6):
                 bw[e, a] += bw[e, 24 + a] * share
-        _apply_carried(rows, ends, bw, rw, total, count)
+        _apply_carried(rows, ends, bw, rw, total, rs)
         for q in range(count):
-            _soft_row(order[q], rows, ends, bw, rw, moved, total, coef, True, scratch)
-        for e in range(n):
+            _soft_row(rs[q], rows, ends, bw, rw, moved, total, coef, True, scratch)
+        for e in es:
             for a in range(6):
                 moved[e, a] += bw[e, a] * h
         for q in range(count):
-            _soft_row(order[count - 1 - q], rows, ends, bw, rw, moved, total, coef, False, scratch)
+            _soft_row(rs[count - 1 - q], rows, ends, bw, rw, moved, total, coef, False,
+                      scratch)
 
 
 @helper
@@ -419,52 +585,67 @@ def _soft_row(r, rows, ends, bw, rw, moved, total, coef, push, scratch) -> None:
 
 
 @helper
-def _restitution(rows, ends, bw, rw, total, count, rest_speed):
+def _restitution(rows, ends, bw, rw, total, rs, rest_speed, bounce) -> None:
     """After the sub-steps: the corners that came in faster than rest_speed (m/s) and
     were stopped (took an impulse) leave at restitution times their approach speed
-    (Box2D v3's restitution pass; a row's corners solved together, as in the sweeps,
-    so a face lands flat). Returns (count,) bool: the rows that bounced."""
-    bounce = np.zeros(count, dtype=np.bool_)
+    (Box2D v3's restitution pass), over the island's rows rs, a row's corners solved
+    together (so a face lands flat), in sweeps until no bounce changes by more than
+    SOLVED_SPEED (a piece that lands on two others at once bounces once, not twice).
+    Sets bounce (count,) bool of the rows that bounced."""
     hit = np.zeros(4, dtype=np.bool_)
     b = np.zeros(8)  # the corners' residuals, then their impulses
-    for r in range(count):
-        used = rows.used[r]
+    for r in rs:
+        for i in range(rows.used[r]):
+            bounce[r] |= rw[r, RW_TARGET + i] <= -rest_speed and total[r, i] > 0.0
+    for _ in range(RESTITUTION_SWEEPS):
+        largest = 0.0
+        for r in rs:
+            if bounce[r] and rows.restitution[r] != 0.0:
+                largest = max(largest, _bounce_row(r, rows, ends, bw, rw, total, rest_speed,
+                                                   hit, b))
+        if largest <= SOLVED_SPEED:
+            return
+
+
+@helper
+def _bounce_row(r, rows, ends, bw, rw, total, rest_speed, hit, b) -> float:
+    """One restitution update of row r (see :func:`_restitution`); returns the largest
+    change of a corner's normal velocity, m/s. hit (4,), b (8,): scratch."""
+    used = rows.used[r]
+    for i in range(used):
+        hit[i] = rw[r, RW_TARGET + i] <= -rest_speed and total[r, i] > 0.0
+        b[4 + i] = 0.0
+        b[i] = -(corner_speed(r, i, ends, rows.frame, bw, rw)
+                 + rows.restitution[r] * rw[r, RW_TARGET + i]) if hit[i] else 0.0
+    for _ in range(CORNER_SWEEPS):
+        change = 0.0
         for i in range(used):
-            hit[i] = rw[r, RW_TARGET + i] <= -rest_speed and total[r, i] > 0.0
-            bounce[r] |= hit[i]
-        if not bounce[r] or rows.restitution[r] == 0.0:
-            continue
-        for i in range(used):
-            b[4 + i] = 0.0
-            b[i] = -(corner_speed(r, i, ends, rows.frame, bw, rw)
-                     + rows.restitution[r] * rw[r, RW_TARGET + i]) if hit[i] else 0.0
-        for _ in range(CORNER_SWEEPS):
-            change = 0.0
-            for i in range(used):
-                kii = rw[r, RW_KN + i * (7 - i) // 2 + i]
-                if not hit[i] or kii <= 0.0:
-                    continue
-                res = b[i]
-                for j in range(used):
-                    if hit[j]:
-                        res -= rw[r, RW_KN + (i * (7 - i) // 2 + j if i <= j
-                                              else j * (7 - j) // 2 + i)] * b[4 + j]
-                new = max(rw[r, RW_ACC + i] + b[4 + i] + res / kii, 0.0) - rw[r, RW_ACC + i]
-                change = max(change, abs(new - b[4 + i]) * kii)
-                b[4 + i] = new
-            if change <= CORNER_TOLERANCE:
-                break
-        for i in range(used):
-            d = b[4 + i]
-            if d == 0.0:
+            kii = rw[r, RW_KN + i * (7 - i) // 2 + i]
+            if not hit[i] or kii <= 0.0:
                 continue
-            rw[r, RW_ACC + i] += d
-            total[r, i] += d
-            for side in range(2):
-                e = ends[r, side]
-                if e >= 0:
-                    push_corner(e, d if side == 1 else -d, r, i, side, rows.frame, bw, rw)
-    return bounce
+            res = b[i]
+            for j in range(used):
+                if hit[j]:
+                    res -= rw[r, RW_KN + (i * (7 - i) // 2 + j if i <= j
+                                          else j * (7 - j) // 2 + i)] * b[4 + j]
+            new = max(rw[r, RW_ACC + i] + b[4 + i] + res / kii, 0.0) - rw[r, RW_ACC + i]
+            change = max(change, abs(new - b[4 + i]) * kii)
+            b[4 + i] = new
+        if change <= CORNER_TOLERANCE:
+            break
+    largest = 0.0
+    for i in range(used):
+        d = b[4 + i]
+        if d == 0.0:
+            continue
+        largest = max(largest, abs(d) * rw[r, RW_KN + i * (7 - i) // 2 + i])
+        rw[r, RW_ACC + i] += d
+        total[r, i] += d
+        for side in range(2):
+            e = ends[r, side]
+            if e >= 0:
+                push_corner(e, d if side == 1 else -d, r, i, side, rows.frame, bw, rw)
+    return largest
 
 
 @helper
@@ -484,15 +665,16 @@ def _place(bodies, ids, n, bw, moved, dt) -> None:
 
 
 @helper
-def _kinetic_energy(bw, col, ids, n, bodies) -> float:
-    """Kinetic energy (J) of the solve's n moving bodies at the velocities in bw's
-    columns col..col+5 (0: now, 6: before the solve): m v^2 / 2 + w . (R I R^T) w / 2."""
+def _kinetic_energy(bw, col, es, ids, mass, rot_all, inertia_all) -> float:
+    """Kinetic energy (J) of the solve's bodies es at the velocities in bw's columns
+    col..col+5 (0: now, 6: before the solve): m v^2 / 2 + w . (R I R^T) w / 2. ids:
+    their bodies; mass, rot_all, inertia_all: every body's."""
     total = 0.0
-    for e in range(n):
+    for e in es:
         b = ids[e]
-        rot, inertia = bodies.rot[b], bodies.inertia[b]
+        rot, inertia = rot_all[b], inertia_all[b]
         vx, vy, vz = bw[e, col], bw[e, col + 1], bw[e, col + 2]
-        total += 0.5 * bodies.mass[b] * (vx * vx + vy * vy + vz * vz)
+        total += 0.5 * mass[b] * (vx * vx + vy * vy + vz * vz)
         wx, wy, wz = bw[e, col + 3], bw[e, col + 4], bw[e, col + 5]
         ux = rot[0, 0] * wx + rot[1, 0] * wy + rot[2, 0] * wz  # R^T w: the rest frame
         uy = rot[0, 1] * wx + rot[1, 1] * wy + rot[2, 1] * wz
@@ -504,13 +686,14 @@ def _kinetic_energy(bw, col, ids, n, bodies) -> float:
 
 
 @helper
-def _restart(bw, rw, moved, total, count, n) -> None:
-    """Undo a solve: the bodies' velocities and poses as before it, no impulse."""
-    for e in range(n):
+def _restart(bw, rw, moved, total, rs, es) -> None:
+    """Undo an island's solve: its bodies es' velocities and poses as before it, no
+    impulse on its rows rs."""
+    for e in es:
         for j in range(6):
             bw[e, j] = bw[e, 6 + j]
             moved[e, j] = 0.0
-    for r in range(count):
+    for r in rs:
         for j in range(7):
             rw[r, RW_ACC + j] = 0.0
             total[r, j] = 0.0
@@ -635,11 +818,11 @@ def _recall(memory, count, rw, friction) -> None:
 
 
 @helper
-def _apply_carried(rows, ends, bw, rw, total, count) -> None:
-    """Apply each row's accumulated impulses (a sub-step's: the warm start of the next
-    sub-step) to its bodies, and count them in total."""
+def _apply_carried(rows, ends, bw, rw, total, rs) -> None:
+    """Apply each of rows rs' accumulated impulses (a sub-step's: the warm start of the
+    next sub-step) to its bodies, and count them in total."""
     frame = rows.frame
-    for r in range(count):
+    for r in rs:
         for j in range(7):
             total[r, j] += rw[r, RW_ACC + j]
         for side in range(2):
