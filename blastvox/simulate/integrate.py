@@ -25,9 +25,9 @@ rad per step falls back to one explicit update (and
 :mod:`blastvox.simulate.limits` warns).
 
 Between the halves, the contact solver (:func:`blastvox.simulate.contact.solver.solve_contacts`)
-works on velocities; what it needs of a contact row (the velocity at its point, an
-impulse there) and its position pass (:func:`separate`, split impulses: bodies moved
-apart by pseudo-velocities that are then forgotten) are at the end of this module.
+works on velocities (and moves the bodies its sub-steps push apart); what it needs of
+a contact row (the velocity at its point, an impulse there) is at the end of this
+module.
 """
 
 from __future__ import annotations
@@ -179,26 +179,25 @@ def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
 
 # --------------------------------------------------------------------------- contacts
 # The contact solver (:func:`blastvox.simulate.contact.solver.solve_contacts`) changes the
-# velocities between the two halves; its position pass moves bodies, as the second half
-# does, by pseudo-velocities it then forgets. What both need of a contact row is here.
+# velocities between the two halves, and moves the bodies it pushes apart. What it
+# needs of a contact row is here.
 
-#: Sweeps of the position pass (split impulses), run only when something interpenetrates.
-POSITION_SWEEPS = 4
-#: Fraction of a penetration (beyond the slop) the position pass removes in a step.
-POSITION_RATE = 0.2
-
-# Work arrays of a solve. bw (n, 24), by moving body: velocity (m/s), angular velocity
+# Work arrays of a solve. bw (n, 30), by moving body: velocity (m/s), angular velocity
 # (rad/s), then both as they were before the solve, 1 / mass (1/kg), world inverse
-# inertia R I^-1 R^T (1/(kg m^2), row by row), how many times its velocities changed
-# (by enough to matter: see the solver's _announce), the changes (m/s) not yet counted.
-# rw (count, RW_WIDTH), by row: lever arms r_a, r_b of its centre (m, from each centre
-# of mass; 0 for a body that does not move); effective masses of friction along t1, t2
-# (kg) and of twist about n (kg m^2), and their inverses; the accumulated impulses
-# (the corners' normals (N s, four), friction along t1, t2 (N s), twist (N m s)); the
-# corners' normal targets (m/s); r_a x n and r_b x n of each corner (m); the corners'
-# coupling matrix K (1/kg, its upper triangle by rows); the change counts of a's and
-# b's velocities when the row was last solved (a sweep skips a row whose bodies have
-# not changed since: it would change nothing).
+# inertia R I^-1 R^T (1/(kg m^2), row by row), a counter of changes (turn_by's, unread),
+# unused, then the step's change of velocity and angular velocity by its loads and
+# gravity (m/s, rad/s). rw (count, RW_WIDTH), by row: lever arms r_a, r_b of its centre
+# (m, from each centre of mass; 0 for a body that does not move); effective masses of
+# friction along t1, t2 (kg) and of twist about n (kg m^2), and their inverses; the
+# accumulated impulses of a sub-step (the corners' normals (N s, four), friction along
+# t1, t2 (N s), twist (N m s)); the corners' normal velocities before the solve (m/s,
+# < 0: approaching); r_a x n and r_b x n of each corner (m); the corners' coupling
+# matrix K (1/kg, its upper triangle by rows); two unused columns.
+#: Sweeps at most of the projected Gauss-Seidel solve of one row's corners together, and
+#: the change of a corner's normal velocity (m/s) at which it stops.
+CORNER_SWEEPS = 16
+CORNER_TOLERANCE = 1e-10
+
 RW_EFF, RW_K, RW_ACC, RW_TARGET, RW_CA, RW_CB, RW_KN, RW_SEEN, RW_WIDTH = (
     6, 9, 12, 19, 23, 35, 47, 57, 59)
 
@@ -276,61 +275,3 @@ def turn_by(e, mx, my, mz, bw) -> None:
     bw[e, 4] += wy
     bw[e, 5] += wz
     bw[e, 22] += 1.0
-
-
-@helper
-def separate(bodies, rows, count, ends, ids, bw, rw, params) -> None:
-    """The contact solver's position pass (split impulses): pseudo-velocities from
-    normal impulses at the rows' corners that close a part (POSITION_RATE, at most
-    params.push m) of each corner's penetration deeper than params.slop by the step's
-    end, every corner keeping its pseudo-impulse >= 0; they move and turn the bodies
-    (pos, quat, rot) and are then forgotten, so no momentum is added. A row with
-    nothing to push whose bodies no push has reached yet is skipped (it would do
-    nothing). rows: :class:`~blastvox.simulate.contact.ground.ContactRows`; ends, ids, bw, rw:
-    the solve's (see :func:`~blastvox.simulate.contact.solver.solve_contacts`); params:
-    :class:`~blastvox.simulate.contact.ground.SolverParams`."""
-    dt, frame = params.dt, rows.frame
-    pseudo = np.zeros((ids.shape[0], 23))
-    for e in range(ids.shape[0]):  # loops, not slice copies: numba compiles a slice
-        for j in range(12, 22):  # copy's shape-mismatch message (strings, seconds)
-            pseudo[e, j] = bw[e, j]
-    target = np.zeros((count, 4))
-    acc = np.zeros((count, 4))
-    for r in range(count):
-        for i in range(rows.used[r]):
-            depth = -(rows.corner_gap[r, i] + corner_speed(r, i, ends, frame, bw, rw) * dt) \
-                - params.slop
-            if depth > 0.0:
-                target[r, i] = min(POSITION_RATE * depth, params.push) / dt
-    for _ in range(POSITION_SWEEPS):
-        for r in range(count):
-            ea, eb = ends[r, 0], ends[r, 1]
-            if (ea < 0 or pseudo[ea, 22] == 0.0) and (eb < 0 or pseudo[eb, 22] == 0.0):
-                idle = True
-                for i in range(rows.used[r]):
-                    idle &= target[r, i] == 0.0 and acc[r, i] == 0.0
-                if idle:
-                    continue
-            for i in range(rows.used[r]):
-                k = rw[r, RW_KN + i * (7 - i) // 2 + i]
-                if k <= 0.0:
-                    continue
-                vn = corner_speed(r, i, ends, frame, pseudo, rw)
-                new = max(acc[r, i] + (target[r, i] - vn) / k, 0.0)
-                d = new - acc[r, i]
-                if d != 0.0:
-                    acc[r, i] = new
-                    if ea >= 0:
-                        push_corner(ea, -d, r, i, 0, frame, pseudo, rw)
-                    if eb >= 0:
-                        push_corner(eb, d, r, i, 1, frame, pseudo, rw)
-    for e in range(ids.shape[0]):
-        if pseudo[e, 22] == 0.0:
-            continue
-        b = ids[e]
-        for a in range(3):
-            bodies.pos[b, a] += pseudo[e, a] * dt
-        if pseudo[e, 3] != 0.0 or pseudo[e, 4] != 0.0 or pseudo[e, 5] != 0.0:
-            quaternion_nb.integrate(bodies.quat[b], pseudo[e, 3], pseudo[e, 4], pseudo[e, 5],
-                                    dt)
-            quaternion_nb.matrix_into(bodies.quat[b], bodies.rot[b])

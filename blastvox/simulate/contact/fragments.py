@@ -535,7 +535,7 @@ def mute_member_rows(rows, count, bodies, voxels, held_p, since, holds, half, de
     wall's first pieces to break free, pressed by the wave against the part still
     founded, gave their momentum to the ground, more the finer the step (a founded
     brick wall's debris: 9,030 N s at dt 1/240 s, 2,388 at 1/10,000). Once the waves
-    have passed, contacts hold again and the position pass separates what overlaps.
+    have passed, contacts hold again and the soft push-out separates what overlaps.
     since: the step the current waves began loading; holds (B,) bool: work."""
     body = voxels.body
     holds[:] = False

@@ -1,16 +1,16 @@
 """The contact solver that the fragment and ground phases both feed
-(:func:`solve_contacts`, on the :class:`~blastvox.simulate.contact.ground.ContactRows` they
+(:func:`solve_contacts`, on the :class:`~blastvox.simulate.contact.rows.ContactRows` they
 gather).
 
-Sequential impulses (Catto 2005; Bullet's and Box2D's solvers): projected
-Gauss-Seidel sweeps over the contact rows of the step, normal impulses >= 0,
-Coulomb friction within mu times the normal impulse, warm started from the
-impulses the same contacts carried the step before (so a stack holds its weight
-from the first sweep, however tall), and a separate position pass (split
-impulses, Bullet's ``splitImpulse``) that pushes interpenetrating bodies apart by
-moving them, never by giving them momentum. A sweep solves again only the rows
-whose bodies other rows changed by enough to matter since (:func:`_announce`): in a
-pile, the few contacts still converging do not keep every other contact of it busy.
+The soft step (Catto, "Solver2D", 2024; Box2D v3's solver): the step is cut into
+sub-steps, each one sweep over the contact rows with a soft push-out (an implicit
+spring-damper, stable at any step), the bodies moved, and one rigid sweep (relax)
+that takes the push-out's speed back out, so interpenetrating bodies are pushed
+apart by moving them, never by giving them momentum. Normal impulses >= 0, a
+face's corners solved together; Coulomb friction and twisting friction at the
+patch centre; warm started from the impulses the same contacts carried the
+sub-step before; a restitution pass after the sub-steps. Islands of bodies that
+touch are solved on their own, on every core (:func:`_solve_islands`).
 """
 
 from __future__ import annotations
@@ -22,9 +22,13 @@ import numpy as np
 
 from blastvox.geometry import quaternion_nb
 from blastvox.jit import helper, kernel, parallel_kernel
-from blastvox.simulate.contact.pairs import bucket, hash_buckets
+from blastvox.simulate.contact.islands import islands
+from blastvox.simulate.contact.restitution import restitution
 from blastvox.simulate.contact.rows import ContactRows
+from blastvox.simulate.contact.warmstart import apply_carried, recall, remember
 from blastvox.simulate.integrate import (
+    CORNER_SWEEPS,
+    CORNER_TOLERANCE,
     RW_ACC,
     RW_CA,
     RW_CB,
@@ -33,11 +37,8 @@ from blastvox.simulate.integrate import (
     RW_KN,
     RW_TARGET,
     RW_WIDTH,
-    apply_at,
     corner_speed,
     moving,
-    push_corner,
-    turn_by,
 )
 
 #: Natural frequency (Hz) and damping ratio of the soft push-out of contacts between
@@ -48,14 +49,6 @@ CONTACT_HERTZ = 120.0
 CONTACT_DAMPING = 10.0
 #: The fastest a soft push-out moves bodies apart, m/s (Box2D v3's contactSpeed).
 PUSH_SPEED = 1.0
-#: Sweeps at most of the projected Gauss-Seidel solve of one row's corners together, and
-#: the change of a corner's normal velocity (m/s) at which it stops.
-CORNER_SWEEPS = 16
-CORNER_TOLERANCE = 1e-10
-#: Sweeps at most of the restitution pass, which stops once no bounce changes a
-#: corner's normal velocity by more than SOLVED_SPEED (m/s).
-RESTITUTION_SWEEPS = 8
-SOLVED_SPEED = 1e-3
 #: Contacts only remove kinetic energy (their targets stop, or bounce with restitution
 #: <= 1): every sweep is a descent. The warm start is not: in a jammed pile (a piece
 #: wedged between others, contacts pushing from opposite sides) the impulses carried
@@ -145,15 +138,15 @@ def solve_contacts(bodies, memory, count: int, params, loads) -> None:
     every core: no island shares a body with another, so the bytes are the same for
     any thread count.
     """
-    ends, ids, bw, rw, order, coef, islands = _begin(bodies, memory, count, params, loads)
+    ends, ids, bw, rw, order, coef, groups = _begin(bodies, memory, count, params, loads)
     n = bw.shape[0]
     moved = np.zeros((n, 6))
     total = np.zeros((count, 7))
     bounce = np.zeros(count, dtype=np.bool_)
-    restarts = np.zeros(len(islands[4]) - 1, dtype=np.int64)
+    restarts = np.zeros(len(groups[4]) - 1, dtype=np.int64)
     masses = (ids, bodies.mass, bodies.rot, bodies.inertia)
     scalars = (params.dt, float(params.substeps), params.rest_speed)
-    _solve_islands(tuple(memory.rows), (ends, bw, rw, moved, total, bounce), islands, masses,
+    _solve_islands(tuple(memory.rows), (ends, bw, rw, moved, total, bounce), groups, masses,
                    coef, scalars, restarts)
     _finish(bodies, memory, count, (ids, bw, rw, moved, total, bounce), params.substeps,
             int(restarts.sum()), params.dt)
@@ -164,8 +157,9 @@ def _begin(bodies, memory, count, params, loads):
     """The solve's set-up: each row's bodies as solve indices (ends (count, 2), -1: does
     not move), the moving bodies (ids), their bw and the rows' rw (see integrate's
     layout), the rows' approach (rows.approach; each corner's in rw's RW_TARGET
-    columns), the carried impulses (:func:`_recall`), the support order, the sub-steps'
-    coefficients and the islands (:func:`_islands`)."""
+    columns), the carried impulses (:mod:`~blastvox.simulate.contact.warmstart`), the
+    support order, the sub-steps' coefficients and the islands
+    (:func:`~blastvox.simulate.contact.islands.islands`)."""
     rows, local = memory.rows, memory.local
     ends = np.full((count, 2), -1, dtype=np.int64)
     ids = np.empty(2 * count, dtype=np.int64)
@@ -192,114 +186,37 @@ def _begin(bodies, memory, count, params, loads):
             rows.approach[r] = min(rows.approach[r], vn)
             rw[r, RW_TARGET + i] = vn
     memory.deepest[0] = max(memory.deepest[0], deepest)
-    _recall(memory, count, rw, params.friction)
+    recall(memory, count, rw, params.friction)
     order = _support_order(ends, n, count)
-    return ends, ids[:n], bw, rw, order, _coefficients(params), _islands(ends, n, order,
+    return ends, ids[:n], bw, rw, order, _coefficients(params), islands(ends, n, order,
                                                                          params.threads)
 
 
-@helper
-def _islands(ends, n, order, threads):
-    """The solve's islands: bodies joined by rows between two moving bodies (union-find),
-    each island's rows in ``order`` and its bodies, and the islands dealt to ``threads``
-    bins, largest first to the emptiest (which bin solves an island changes no byte).
-    Returns (row_start, rows, body_start, bodies, bin_start, bin_islands): CSR arrays,
-    island k's rows rows[row_start[k]:row_start[k + 1]] and so on; rows of no moving
-    body are in none."""
-    count = ends.shape[0]
-    parent = np.arange(n)
-    for r in range(count):
-        ea, eb = ends[r, 0], ends[r, 1]
-        if ea >= 0 and eb >= 0:
-            ra, rb = _root(parent, ea), _root(parent, eb)
-            if ra != rb:
-                parent[max(ra, rb)] = min(ra, rb)
-    island = np.full(n, -1, dtype=np.int64)
-    k = 0
-    for e in range(n):
-        root = _root(parent, e)
-        if island[root] < 0:
-            island[root] = k
-            k += 1
-        island[e] = island[root]
-    body_start = np.zeros(k + 1, dtype=np.int64)
-    for e in range(n):
-        body_start[island[e] + 1] += 1
-    row_start = np.zeros(k + 1, dtype=np.int64)
-    for q in range(count):
-        e = ends[order[q], 0] if ends[order[q], 0] >= 0 else ends[order[q], 1]
-        if e >= 0:
-            row_start[island[e] + 1] += 1
-    for j in range(k):
-        body_start[j + 1] += body_start[j]
-        row_start[j + 1] += row_start[j]
-    members = np.empty(n, dtype=np.int64)
-    fill = body_start[:-1].copy()
-    for e in range(n):
-        members[fill[island[e]]] = e
-        fill[island[e]] += 1
-    island_rows = np.empty(row_start[k], dtype=np.int64)
-    fill = row_start[:-1].copy()
-    for q in range(count):
-        r = order[q]
-        e = ends[r, 0] if ends[r, 0] >= 0 else ends[r, 1]
-        if e >= 0:
-            island_rows[fill[island[e]]] = r
-            fill[island[e]] += 1
-    load = np.zeros(threads, dtype=np.int64)
-    deal = np.empty(k, dtype=np.int64)
-    by_size = np.argsort(-(row_start[1:] - row_start[:-1]), kind="mergesort")
-    for j in by_size:
-        target = np.argmin(load)
-        deal[j] = target
-        load[target] += row_start[j + 1] - row_start[j] + 1
-    bin_start = np.zeros(threads + 1, dtype=np.int64)
-    for j in range(k):
-        bin_start[deal[j] + 1] += 1
-    for t in range(threads):
-        bin_start[t + 1] += bin_start[t]
-    bin_islands = np.empty(k, dtype=np.int64)
-    fill = bin_start[:-1].copy()
-    for j in range(k):
-        bin_islands[fill[deal[j]]] = j
-        fill[deal[j]] += 1
-    return row_start, island_rows, body_start, members, bin_start, bin_islands
-
-
-@helper
-def _root(parent, e):
-    """Union-find's root of e, halving the path."""
-    while parent[e] != e:
-        parent[e] = parent[parent[e]]
-        e = parent[e]
-    return e
-
-
 @parallel_kernel
-def _solve_islands(row_fields, work, islands, masses, coef, scalars, restarts):
+def _solve_islands(row_fields, work, groups, masses, coef, scalars, restarts):
     """Each bin of islands on its own thread: per island, the sub-steps, the energy check
     (solved again without the warm start if it gained energy, see ENERGY_SLACK) and the
     restitution pass. row_fields: the ContactRows as a tuple; work: (ends, bw, rw,
-    moved, total, bounce); islands: :func:`_islands`; masses: (ids, mass, rot,
+    moved, total, bounce); groups: the islands
+    (:func:`~blastvox.simulate.contact.islands.islands`); masses: (ids, mass, rot,
     inertia) of the bodies; scalars: (dt, sub-steps, rest_speed); restarts (bins,):
     counts the islands solved again."""
     ends, bw, rw, moved, total, bounce = work
-    row_start, island_rows, body_start, members, bin_start, bin_islands = islands
+    row_start, island_rows, body_start, members, bin_start, bin_islands = groups
     ids, mass, rot, inertia = masses
     dt, substeps, rest_speed = scalars
-    (body, voxel, key, frame, corners, corner_gap, used, gap, point, arm, restitution,
+    (body, voxel, key, frame, corners, corner_gap, used, gap, point, arm, bounciness,
      approach, impulse, friction, grip) = row_fields
     for t in nb.prange(len(bin_start) - 1):
         rows = ContactRows(body, voxel, key, frame, corners, corner_gap, used, gap, point,
-                           arm, restitution, approach, impulse, friction, grip)
+                           arm, bounciness, approach, impulse, friction, grip)
         scratch = np.zeros(12)
         for j in range(bin_start[t], bin_start[t + 1]):
             k = bin_islands[j]
             rs = island_rows[row_start[k]:row_start[k + 1]]
             es = members[body_start[k]:body_start[k + 1]]
             before = _kinetic_energy(bw, 6, es, ids, mass, rot, inertia)
-            _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, dt, int(substeps),
-                      scratch)
+            _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, scratch)
             heft = 0.0
             for e in es:
                 heft += mass[ids[e]]
@@ -308,10 +225,9 @@ def _solve_islands(row_fields, work, islands, masses, coef, scalars, restarts):
                     1.0 + ENERGY_SLACK) + 0.5 * heft * speed * speed:
                 # the warm start pumped energy in (see ENERGY_SLACK): again from no impulse
                 _restart(bw, rw, moved, total, rs, es)
-                _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, dt, int(substeps),
-                          scratch)
+                _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, scratch)
                 restarts[t] += 1
-            _restitution(rows, ends, bw, rw, total, rs, rest_speed, bounce)
+            restitution(rows, ends, bw, rw, total, rs, rest_speed, bounce)
 
 
 @helper
@@ -337,7 +253,7 @@ def _finish(bodies, memory, count, work, substeps, restarts, dt) -> None:
     memory.stats[0] += 1
     memory.stats[1] += substeps
     memory.stats[3] += restarts
-    _remember(memory, count, rw, total, bounce)
+    remember(memory, count, rw, total, bounce)
     _place(bodies, ids, n, bw, moved, dt)
     local = memory.local
     for e in range(n):  # momenta: m dv and I dw (I = R I_rest R^T, the world inertia)
@@ -371,7 +287,8 @@ def _solve_bodies(bodies, ids, n, loads, params):
             bw[e, a] = bodies.lin[b, a] * bw[e, 12]
             bw[e, 3 + a] = (bw[e, 13 + 3 * a] * ang[0] + bw[e, 14 + 3 * a] * ang[1]
                             + bw[e, 15 + 3 * a] * ang[2])
-        for j in range(6):  # not a slice copy (see integrate.separate)
+        for j in range(6):  # loops, not a slice copy: numba compiles a slice copy's
+            # shape-mismatch message (strings, seconds)
             bw[e, 6 + j] = bw[e, j]
         lx, ly, lz = loads.angular[b, 0], loads.angular[b, 1], loads.angular[b, 2]
         for a in range(3):
@@ -395,29 +312,30 @@ def _soft(hertz, zeta, h):
 
 @helper
 def _coefficients(params):
-    """(10,) the sub-step solve's scalars: h (s), slop (m), the largest push-out speed
+    """(11,) the sub-step solve's scalars: h (s), slop (m), the largest push-out speed
     (m/s), the soft terms of contacts between moving bodies and with immovable ones
-    (bias rate, mass scale, impulse scale each), friction mu."""
+    (bias rate, mass scale, impulse scale each), friction mu, the sub-steps."""
     h = params.dt / params.substeps
     hertz = min(CONTACT_HERTZ, 0.25 / h)
-    coef = np.empty(10)
+    coef = np.empty(11)
     coef[0], coef[1], coef[2] = h, params.slop, PUSH_SPEED
     coef[3], coef[4], coef[5] = _soft(hertz, CONTACT_DAMPING, h)
     coef[6], coef[7], coef[8] = _soft(2.0 * hertz, CONTACT_DAMPING, h)
     coef[9] = params.friction
+    coef[10] = params.substeps
     return coef
 
 
 @helper
-def _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, dt, substeps, scratch) -> None:
+def _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, scratch) -> None:
     """The soft step (Box2D v3's solver) of one island, rows rs (in support order) and
-    moving bodies es: ``substeps`` sub-steps of h = dt / substeps, each: its share of
+    moving bodies es: coef[10] sub-steps of h = coef[0], each: its share of
     the step's loads and gravity, the carried impulses applied again, one sweep with
     the soft push-out, the positions moved, one rigid sweep (relax) that takes the
     push-out's speed back out. moved (n, 6): displacement (m) and rotation vector (rad)
     of each body so far; total (count, 7): impulses (N s, N m s) applied so far;
     scratch (12,)."""
-    h = coef[0]
+    h, substeps = coef[0], int(coef[10])
     share = 1.0 / substeps
     count = rs.shape[0]
     for e in es:  # the engine gave a whole step's loads: hand them out by sub-step
@@ -427,7 +345,7 @@ def _substeps(rows, ends, bw, rw, moved, total, rs, es, coef, dt, substeps, scra
         for e in es:
             for a in range(6):
                 bw[e, a] += bw[e, 24 + a] * share
-        _apply_carried(rows, ends, bw, rw, total, rs)
+        apply_carried(rows, ends, bw, rw, total, rs)
         for q in range(count):
             _soft_row(rs[q], rows, ends, bw, rw, moved, total, coef, True, scratch)
         for e in es:
@@ -585,70 +503,6 @@ def _soft_row(r, rows, ends, bw, rw, moved, total, coef, push, scratch) -> None:
 
 
 @helper
-def _restitution(rows, ends, bw, rw, total, rs, rest_speed, bounce) -> None:
-    """After the sub-steps: the corners that came in faster than rest_speed (m/s) and
-    were stopped (took an impulse) leave at restitution times their approach speed
-    (Box2D v3's restitution pass), over the island's rows rs, a row's corners solved
-    together (so a face lands flat), in sweeps until no bounce changes by more than
-    SOLVED_SPEED (a piece that lands on two others at once bounces once, not twice).
-    Sets bounce (count,) bool of the rows that bounced."""
-    hit = np.zeros(4, dtype=np.bool_)
-    b = np.zeros(8)  # the corners' residuals, then their impulses
-    for r in rs:
-        for i in range(rows.used[r]):
-            bounce[r] |= rw[r, RW_TARGET + i] <= -rest_speed and total[r, i] > 0.0
-    for _ in range(RESTITUTION_SWEEPS):
-        largest = 0.0
-        for r in rs:
-            if bounce[r] and rows.restitution[r] != 0.0:
-                largest = max(largest, _bounce_row(r, rows, ends, bw, rw, total, rest_speed,
-                                                   hit, b))
-        if largest <= SOLVED_SPEED:
-            return
-
-
-@helper
-def _bounce_row(r, rows, ends, bw, rw, total, rest_speed, hit, b) -> float:
-    """One restitution update of row r (see :func:`_restitution`); returns the largest
-    change of a corner's normal velocity, m/s. hit (4,), b (8,): scratch."""
-    used = rows.used[r]
-    for i in range(used):
-        hit[i] = rw[r, RW_TARGET + i] <= -rest_speed and total[r, i] > 0.0
-        b[4 + i] = 0.0
-        b[i] = -(corner_speed(r, i, ends, rows.frame, bw, rw)
-                 + rows.restitution[r] * rw[r, RW_TARGET + i]) if hit[i] else 0.0
-    for _ in range(CORNER_SWEEPS):
-        change = 0.0
-        for i in range(used):
-            kii = rw[r, RW_KN + i * (7 - i) // 2 + i]
-            if not hit[i] or kii <= 0.0:
-                continue
-            res = b[i]
-            for j in range(used):
-                if hit[j]:
-                    res -= rw[r, RW_KN + (i * (7 - i) // 2 + j if i <= j
-                                          else j * (7 - j) // 2 + i)] * b[4 + j]
-            new = max(rw[r, RW_ACC + i] + b[4 + i] + res / kii, 0.0) - rw[r, RW_ACC + i]
-            change = max(change, abs(new - b[4 + i]) * kii)
-            b[4 + i] = new
-        if change <= CORNER_TOLERANCE:
-            break
-    largest = 0.0
-    for i in range(used):
-        d = b[4 + i]
-        if d == 0.0:
-            continue
-        largest = max(largest, abs(d) * rw[r, RW_KN + i * (7 - i) // 2 + i])
-        rw[r, RW_ACC + i] += d
-        total[r, i] += d
-        for side in range(2):
-            e = ends[r, side]
-            if e >= 0:
-                push_corner(e, d if side == 1 else -d, r, i, side, rows.frame, bw, rw)
-    return largest
-
-
-@helper
 def _place(bodies, ids, n, bw, moved, dt) -> None:
     """Move each solved body by what its sub-steps moved it (moved: displacement, m, and
     rotation vector, rad) less what the engine's position half-step will move it at its
@@ -773,101 +627,3 @@ def _world_inverse(rot, inv, out) -> None:
                 for m in range(3):
                     s += rot[i, k] * inv[k, m] * rot[j, m]
             out[3 * i + j] = s
-
-
-@helper
-def _recall(memory, count, rw, friction) -> None:
-    """Give each row the impulses (per sub-step) its contact carried last step
-    (memory.keys, carried): the normal shared equally by its corners (their own solve
-    shares it out), friction and twist taken onto its current directions and within
-    its current limits."""
-    rows, keys, carried, p = memory.rows, memory.keys, memory.carried, memory.count[0]
-    if p == 0 or count == 0:
-        return
-    frame = rows.frame
-    start, entries = hash_buckets(keys[:p])
-    for r in range(count):
-        key = rows.key[r]
-        lo, hi = bucket(key, start)
-        found = -1
-        for s in range(lo, hi):
-            if keys[entries[s]] == key:
-                found = entries[s]
-                break
-        if found < 0:
-            continue
-        sign = -1.0 if rows.voxel[r, 0] > rows.voxel[r, 1] else 1.0
-        used = rows.used[r]
-        normal = carried[found, 0]
-        mu = friction * rows.grip[r]
-        for i in range(used):
-            rw[r, RW_ACC + i] = normal / used
-        for j in range(3):
-            axis = (j + 1) % 3  # t1, t2, then n (twist)
-            o = 1 if j < 2 else 4
-            rw[r, RW_ACC + 4 + j] = sign * (carried[found, o] * frame[r, axis, 0]
-                                            + carried[found, o + 1] * frame[r, axis, 1]
-                                            + carried[found, o + 2] * frame[r, axis, 2])
-        f1, f2 = rw[r, RW_ACC + 4], rw[r, RW_ACC + 5]
-        size = math.sqrt(f1 * f1 + f2 * f2)
-        if size > mu * normal:
-            rw[r, RW_ACC + 4] *= mu * normal / size
-            rw[r, RW_ACC + 5] *= mu * normal / size
-        twist = mu * normal * rows.arm[r]
-        rw[r, RW_ACC + 6] = min(max(rw[r, RW_ACC + 6], -twist), twist)
-
-
-@helper
-def _apply_carried(rows, ends, bw, rw, total, rs) -> None:
-    """Apply each of rows rs' accumulated impulses (a sub-step's: the warm start of the
-    next sub-step) to its bodies, and count them in total."""
-    frame = rows.frame
-    for r in rs:
-        for j in range(7):
-            total[r, j] += rw[r, RW_ACC + j]
-        for side in range(2):
-            e = ends[r, side]
-            if e < 0:
-                continue
-            sgn = 1.0 if side == 1 else -1.0
-            f1, f2 = rw[r, RW_ACC + 4], rw[r, RW_ACC + 5]
-            if f1 != 0.0 or f2 != 0.0:
-                apply_at(e, sgn, f1 * frame[r, 1, 0] + f2 * frame[r, 2, 0],
-                         f1 * frame[r, 1, 1] + f2 * frame[r, 2, 1],
-                         f1 * frame[r, 1, 2] + f2 * frame[r, 2, 2], r, side, bw, rw)
-            tw = sgn * rw[r, RW_ACC + 6]
-            if tw != 0.0:
-                turn_by(e, tw * frame[r, 0, 0], tw * frame[r, 0, 1], tw * frame[r, 0, 2], bw)
-            for i in range(rows.used[r]):
-                if rw[r, RW_ACC + i] != 0.0:
-                    push_corner(e, sgn * rw[r, RW_ACC + i], r, i, side, frame, bw, rw)
-
-
-@helper
-def _remember(memory, count, rw, total, bounce) -> None:
-    """Keep the impulses (per sub-step) of the rows that carried load (not bounces) for
-    the next step, and each row's normal impulse over the step in rows.impulse, its
-    friction in rows.friction."""
-    rows, keys, carried = memory.rows, memory.keys, memory.carried
-    p = 0
-    for r in range(count):
-        normal = 0.0
-        last = 0.0
-        for i in range(rows.used[r]):
-            normal += total[r, i]
-            last += rw[r, RW_ACC + i]
-        rows.impulse[r] = normal
-        for a in range(3):
-            rows.friction[r, a] = (total[r, 4] * rows.frame[r, 1, a]
-                                   + total[r, 5] * rows.frame[r, 2, a])
-        if bounce[r] or last <= 0.0:
-            continue
-        sign = -1.0 if rows.voxel[r, 0] > rows.voxel[r, 1] else 1.0
-        keys[p] = rows.key[r]
-        carried[p, 0] = last
-        for a in range(3):
-            carried[p, 1 + a] = sign * (rw[r, RW_ACC + 4] * rows.frame[r, 1, a]
-                                        + rw[r, RW_ACC + 5] * rows.frame[r, 2, a])
-            carried[p, 4 + a] = sign * rw[r, RW_ACC + 6] * rows.frame[r, 0, a]
-        p += 1
-    memory.count[0] = p

@@ -1,0 +1,86 @@
+"""The contact solve's islands: moving bodies joined by contacts between them, which
+the solver solves each on its own (:func:`islands`), and how they are dealt to
+threads."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from blastvox.jit import helper
+
+
+@helper
+def islands(ends, n, order, threads):
+    """The solve's islands: bodies joined by rows between two moving bodies (union-find),
+    each island's rows in ``order`` and its bodies, and the islands dealt to ``threads``
+    bins, largest first to the emptiest (which bin solves an island changes no byte).
+    Returns (row_start, rows, body_start, bodies, bin_start, bin_islands): CSR arrays,
+    island k's rows rows[row_start[k]:row_start[k + 1]] and so on; rows of no moving
+    body are in none."""
+    count = ends.shape[0]
+    parent = np.arange(n)
+    for r in range(count):
+        ea, eb = ends[r, 0], ends[r, 1]
+        if ea >= 0 and eb >= 0:
+            ra, rb = find_root(parent, ea), find_root(parent, eb)
+            if ra != rb:
+                parent[max(ra, rb)] = min(ra, rb)
+    island = np.full(n, -1, dtype=np.int64)
+    k = 0
+    for e in range(n):
+        root = find_root(parent, e)
+        if island[root] < 0:
+            island[root] = k
+            k += 1
+        island[e] = island[root]
+    body_start = np.zeros(k + 1, dtype=np.int64)
+    for e in range(n):
+        body_start[island[e] + 1] += 1
+    row_start = np.zeros(k + 1, dtype=np.int64)
+    for q in range(count):
+        e = ends[order[q], 0] if ends[order[q], 0] >= 0 else ends[order[q], 1]
+        if e >= 0:
+            row_start[island[e] + 1] += 1
+    for j in range(k):
+        body_start[j + 1] += body_start[j]
+        row_start[j + 1] += row_start[j]
+    members = np.empty(n, dtype=np.int64)
+    fill = body_start[:-1].copy()
+    for e in range(n):
+        members[fill[island[e]]] = e
+        fill[island[e]] += 1
+    island_rows = np.empty(row_start[k], dtype=np.int64)
+    fill = row_start[:-1].copy()
+    for q in range(count):
+        r = order[q]
+        e = ends[r, 0] if ends[r, 0] >= 0 else ends[r, 1]
+        if e >= 0:
+            island_rows[fill[island[e]]] = r
+            fill[island[e]] += 1
+    load = np.zeros(threads, dtype=np.int64)
+    deal = np.empty(k, dtype=np.int64)
+    by_size = np.argsort(-(row_start[1:] - row_start[:-1]), kind="mergesort")
+    for j in by_size:
+        target = np.argmin(load)
+        deal[j] = target
+        load[target] += row_start[j + 1] - row_start[j] + 1
+    bin_start = np.zeros(threads + 1, dtype=np.int64)
+    for j in range(k):
+        bin_start[deal[j] + 1] += 1
+    for t in range(threads):
+        bin_start[t + 1] += bin_start[t]
+    bin_islands = np.empty(k, dtype=np.int64)
+    fill = bin_start[:-1].copy()
+    for j in range(k):
+        bin_islands[fill[deal[j]]] = j
+        fill[deal[j]] += 1
+    return row_start, island_rows, body_start, members, bin_start, bin_islands
+
+
+@helper
+def find_root(parent, e):
+    """Union-find's root of e, halving the path."""
+    while parent[e] != e:
+        parent[e] = parent[parent[e]]
+        e = parent[e]
+    return e
