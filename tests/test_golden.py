@@ -120,10 +120,11 @@ def test_the_library_after_numpy_scipy_and_trimesh_gives_the_cli_s_bytes(tmp_pat
 
 def test_one_thread_and_two_give_the_same_bytes(tmp_path):
     """Kernels that run on every core (numba's parallel loops: the wave's element views,
-    blastvox.simulate.fracture.views_ahead) write each iteration's own outputs and
-    reduce nothing, so a shot is the same bytes on one core or two; the house dusts
-    most of its voxels, so the views worked out again after dust opens the grid are
-    covered too."""
+    blastvox.simulate.fracture.views_ahead, and the contact solve's islands,
+    blastvox.simulate.contact.solver) write each iteration's own outputs and reduce
+    nothing, so a shot is the same bytes on one core or two; the house dusts most of
+    its voxels, so the views worked out again after dust opens the grid are covered
+    too, and its rubble piles up on the ground."""
     import os
 
     model = _bake(tmp_path, "house") / "model.npz"
