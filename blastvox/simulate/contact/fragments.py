@@ -24,16 +24,17 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba as nb
 import numpy as np
 
-from blastvox.jit import helper, kernel
+from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.boundary import boundary_of
+from blastvox.simulate.contact.boxes import box_contact
 from blastvox.simulate.contact.ground import (
     SLOP,
     ground_rows,
     grow_rows,
     new_memory,
-    pick_four,
     rest_speed,
     settle_on_ground,
     solver_params,
@@ -101,7 +102,6 @@ def voxel_boxes(vertices, corners, contact_radius):
     return half, radius
 
 
-@kernel
 def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, memory) -> int:
     """Contact rows (memory.rows, from row 0) of voxel boxes of different bodies, once each.
 
@@ -111,12 +111,29 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
     (:func:`~blastvox.simulate.contact.pairs.near_voxels`) go into a spatial hash
     each step; voxels of bodies at rest (fixed or asleep) come from ``static``,
     so a big standing structure costs nothing per step. Pairs whose bounding
-    spheres (memory.radius) may touch within the step (:func:`_lookahead`) go to the
-    box test
-    (:func:`_box_contact`), in hash order (deterministic). Returns the number of
-    rows; rows past the capacity are counted, not written (grow and call again). When
-    they fit, the sleeping bodies they strike wake (:func:`_wake_struck`).
+    spheres (memory.radius) may touch within the step (:func:`_lookahead`) are the
+    candidates (:func:`_candidates`, in hash order: deterministic); their box tests
+    (:func:`~blastvox.simulate.contact.boxes.box_contact`) run on every core
+    (:func:`_box_tests`), and the contacts become rows in the candidates' order
+    (:func:`_emit_rows`), so the rows are the same for any thread count. Returns the
+    number of rows; rows past the capacity are counted, not written (grow and call
+    again). When they fit, the sleeping
+    bodies they strike wake (:func:`_wake_struck`).
     """
+    pairs, centres, ahead = _candidates(geometry, voxels, bodies, params, boundary, static,
+                                        rest, memory)
+    patches = np.empty((len(ahead), 32))
+    hit = np.zeros(len(ahead), dtype=bool)
+    if len(ahead):
+        _box_tests(bodies.rot, memory.half, pairs, centres, ahead, patches, hit)
+    return _emit_rows(geometry, bodies, params, memory, pairs, patches, hit)
+
+
+@kernel
+def _candidates(geometry, voxels, bodies, params, boundary, static, rest, memory):
+    """The pairs of voxel boxes of different bodies whose bounding spheres may touch
+    within the step (see :func:`collide_bodies`), in hash order: pairs (C, 4) int64
+    (body, voxel of a, then of b), centres (C, 2, 3) m, ahead (C,) m (the lookahead)."""
     offsets, members = boundary
     static_vox, static_pos, static_keys, static_start = static
     voxel_alive, voxel_body = voxels.alive, voxels.body
@@ -124,8 +141,11 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
     world = np.empty((members.shape[0], 3))  # world centres, by boundary slot
     near = np.zeros(members.shape[0], dtype=np.bool_)
     count = near_voxels(geometry.centroid, offsets, members, bodies, cell, rest, world, near)
+    pairs = np.empty((max(count, 16), 4), dtype=np.int64)
+    centres = np.empty((max(count, 16), 2, 3))
+    ahead_of = np.empty(max(count, 16))
     if count == 0:
-        return 0
+        return pairs[:0], centres[:0], ahead_of[:0]
     slot = np.empty(count, dtype=np.int64)
     ijk = np.empty((count, 3), dtype=np.int64)
     keys = np.empty(count, dtype=np.int64)
@@ -140,18 +160,13 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
             _motion(members[k], voxel_body[members[k]], world[k], bodies, radius, motion[n])
             n += 1
     start, entries = hash_buckets(keys)
-    centres = np.empty((2, 3))
     still = np.zeros(4)
-    work = (np.empty((3, 3)), np.empty((3, 8, 3)), np.empty(32))
-    pair = np.empty(8, dtype=np.int64)  # bodies and voxels, then picks
-    found = np.int64(0)  # not a literal 0: the callee would compile twice
+    found = 0
     for i in range(n):
         vi = members[slot[i]]
         bi = voxel_body[vi]
         if not voxel_alive[vi]:
             continue
-        for a in range(3):
-            centres[0, a] = world[slot[i], a]
         for dx in range(-1, 2):
             for dy in range(-1, 2):
                 for dz in range(-1, 2):
@@ -170,16 +185,14 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
                         if (not forward and vj <= vi) or bj == bi or not voxel_alive[vj]:
                             continue
                         ahead = _lookahead(motion[i], motion[j], reach, params.dt)
-                        if not _touching(centres[0], world[slot[j]],
+                        if not _touching(world[slot[i]], world[slot[j]],
                                          radius[vi] + radius[vj] + ahead):
                             continue
-                        for a in range(3):
-                            centres[1, a] = world[slot[j], a]
-                        pair[0], pair[1], pair[2], pair[3] = bi, vi, bj, vj
-                        if _box_contact(bodies.rot, memory.half, pair, centres, ahead, work):
-                            _emit(found, vi, vj, bi, bj, work[2], geometry.restitution,
-                                  memory.rows)
-                            found += 1
+                        if found == len(ahead_of):
+                            pairs, centres, ahead_of = _grown(pairs, centres, ahead_of)
+                        _candidate(found, bi, vi, bj, vj, world[slot[i]], world[slot[j]],
+                                   ahead, pairs, centres, ahead_of)
+                        found += 1
                     # moving against resting
                     if static_vox.shape[0] == 0:
                         continue
@@ -192,16 +205,68 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
                         if bj == bi or not voxel_alive[vj]:
                             continue
                         ahead = _lookahead(motion[i], still, reach, params.dt)
-                        if not _touching(centres[0], static_pos[jj],
+                        if not _touching(world[slot[i]], static_pos[jj],
                                          radius[vi] + radius[vj] + ahead):
                             continue
-                        for a in range(3):
-                            centres[1, a] = static_pos[jj, a]
-                        pair[0], pair[1], pair[2], pair[3] = bi, vi, bj, vj
-                        if _box_contact(bodies.rot, memory.half, pair, centres, ahead, work):
-                            _emit(found, vi, vj, bi, bj, work[2], geometry.restitution,
-                                  memory.rows)
-                            found += 1
+                        if found == len(ahead_of):
+                            pairs, centres, ahead_of = _grown(pairs, centres, ahead_of)
+                        _candidate(found, bi, vi, bj, vj, world[slot[i]], static_pos[jj],
+                                   ahead, pairs, centres, ahead_of)
+                        found += 1
+    return pairs[:found], centres[:found], ahead_of[:found]
+
+
+@helper
+def _candidate(c, bi, vi, bj, vj, ci, cj, ahead, pairs, centres, ahead_of) -> None:
+    """Write candidate c: bodies and voxels, centres ci, cj (3,) m, lookahead (m)."""
+    pairs[c, 0], pairs[c, 1], pairs[c, 2], pairs[c, 3] = bi, vi, bj, vj
+    for a in range(3):
+        centres[c, 0, a] = ci[a]
+        centres[c, 1, a] = cj[a]
+    ahead_of[c] = ahead
+
+
+@helper
+def _grown(pairs, centres, ahead_of):
+    """The candidates' arrays at twice their length, the first rows kept."""
+    m = 2 * len(ahead_of)
+    bigger = (np.empty((m, 4), dtype=np.int64), np.empty((m, 2, 3)), np.empty(m))
+    for c in range(len(ahead_of)):  # loops, not slice copies (their messages compile slowly)
+        for a in range(4):
+            bigger[0][c, a] = pairs[c, a]
+        for a in range(3):
+            bigger[1][c, 0, a] = centres[c, 0, a]
+            bigger[1][c, 1, a] = centres[c, 1, a]
+        bigger[2][c] = ahead_of[c]
+    return bigger
+
+
+@parallel_kernel
+def _box_tests(rot, half, pairs, centres, ahead, patches, hit) -> None:
+    """The box test (:func:`~blastvox.simulate.contact.boxes.box_contact`) of every
+    candidate (see :func:`_candidates`), each on its own: hit (C,) whether it touches,
+    patches (C, 32) its patch."""
+    for c in nb.prange(len(ahead)):
+        work = (np.empty((3, 3)), np.empty((3, 8, 3)), np.empty(32))
+        pair = np.empty(8, dtype=np.int64)  # bodies and voxels, then the manifold's picks
+        for k in range(4):
+            pair[k] = pairs[c, k]
+        hit[c] = box_contact(rot, half, pair, centres[c], ahead[c], work)
+        if hit[c]:
+            for k in range(32):
+                patches[c, k] = work[2][k]
+
+
+@kernel
+def _emit_rows(geometry, bodies, params, memory, pairs, patches, hit) -> int:
+    """The candidates that touch as rows of memory.rows, in their order (see
+    :func:`collide_bodies`); returns how many."""
+    found = 0
+    for c in range(len(hit)):
+        if hit[c]:
+            _emit(found, pairs[c, 1], pairs[c, 3], pairs[c, 0], pairs[c, 2], patches[c],
+                  geometry.restitution, memory.rows)
+            found += 1
     if found <= memory.rows.key.shape[0]:
         _wake_struck(memory.rows, found, bodies, params)
     return found
@@ -237,8 +302,9 @@ def _lookahead(a, b, reach, dt) -> float:
 
 @helper
 def _emit(r, vi, vj, bi, bj, patch, restitution, rows) -> None:
-    """Write the contact :func:`_box_contact` left in patch as row r of rows (unless r is
-    past the capacity): bodies bi, bj, voxels vi, vj, the smaller restitution."""
+    """Write the contact that :func:`~blastvox.simulate.contact.boxes.box_contact` left in
+    patch as row r of rows (unless r is past the capacity): bodies bi, bj, voxels vi, vj,
+    the smaller restitution."""
     if r >= rows.key.shape[0]:
         return
     flip = 1.0 if patch[15] > 0.0 else -1.0  # the normal from a to b
@@ -256,161 +322,6 @@ def _emit(r, vi, vj, bi, bj, patch, restitution, rows) -> None:
     rows.voxel[r, 0], rows.voxel[r, 1] = vi, vj
     rows.key[r] = min(vi, vj) * restitution.shape[0] + max(vi, vj)
     rows.restitution[r] = min(restitution[vi], restitution[vj])
-
-
-@helper
-def _box_contact(rot, half, pair, centres, ahead, work) -> bool:
-    """Do the boxes of voxels pair[1] (of body pair[0], centre centres[0], m) and pair[3]
-    (body pair[2], centres[1]) touch, or come within ``ahead`` (m)? rot (B, 3, 3): the
-    bodies' rotations; half (N, 3): the boxes' half extents (m) along their rest axes.
-    If so the patch is in work[2] (:func:`_manifold`; [15] > 0: on box a's face). work:
-    scratch (3, 3), (3, 8, 3), (32,). Separating axes: the six face normals; the
-    edge-edge axes are left out (a pair they would separate gets a contact a little
-    early)."""
-    cross, poly, patch = work
-    ba, va, bb, vb = pair[0], pair[1], pair[2], pair[3]
-    dx, dy, dz = (centres[1, 0] - centres[0, 0], centres[1, 1] - centres[0, 1],
-                  centres[1, 2] - centres[0, 2])
-    for k in range(3):
-        for m in range(3):
-            cross[k, m] = (rot[ba, 0, k] * rot[bb, 0, m] + rot[ba, 1, k] * rot[bb, 1, m]
-                           + rot[ba, 2, k] * rot[bb, 2, m])
-    sa, ka, sb, kb = -np.inf, 0, -np.inf, 0
-    for k in range(3):
-        s = (abs(dx * rot[ba, 0, k] + dy * rot[ba, 1, k] + dz * rot[ba, 2, k]) - half[va, k]
-             - half[vb, 0] * abs(cross[k, 0]) - half[vb, 1] * abs(cross[k, 1])
-             - half[vb, 2] * abs(cross[k, 2]))
-        if s > sa:
-            sa, ka = s, k
-        s = (abs(dx * rot[bb, 0, k] + dy * rot[bb, 1, k] + dz * rot[bb, 2, k]) - half[vb, k]
-             - half[va, 0] * abs(cross[0, k]) - half[va, 1] * abs(cross[1, k])
-             - half[va, 2] * abs(cross[2, k]))
-        if s > sb:
-            sb, kb = s, k
-    slop = 1e-3 * min(half[va, 0], half[va, 1], half[va, 2], half[vb, 0], half[vb, 1],
-                      half[vb, 2])
-    ahead += slop
-    if max(sa, sb) > ahead:
-        return False
-    on_a = not sb > sa + slop  # a's face unless b's separates clearly more: stable
-    kept = _manifold(rot, half, pair, centres, 0 if on_a else 1, ka if on_a else kb, poly,
-                     ahead, patch, pair[4:])
-    patch[15] = 1.0 if on_a else -1.0
-    return kept > 0
-
-
-@helper
-def _manifold(rot, half, pair, centres, ref, k, poly, ahead, patch, picks) -> int:
-    """Clip the face of the other box (``ref`` 0: box a is the reference, 1: b; see
-    :func:`_box_contact`) that faces the reference box's face across its axis k to that
-    face; keep the points within ``ahead`` (m) of it, or a quarter of the face's smaller
-    half extent, four at most (the deepest, the
-    farthest from it, and the farthest on either side of the line through both). patch
-    (32,) receives: their centre (3, m), the reference normal towards the other box (3),
-    the reference face's axes t1 (3) and t2 (3), the smallest separation (m), the
-    lever of twisting friction (m, 0.54 times the points' mean distance from their
-    centre: 0.765 h, the mean lever of a square of half side h, from its corners),
-    how many points, [16:28] the points (m, midway between the faces), [28:32] their
-    separations (m). Returns how many points were kept (0: no contact)."""
-    br, vr, bi, vi = pair[2 * ref], pair[2 * ref + 1], pair[2 - 2 * ref], pair[3 - 2 * ref]
-    k1, k2 = (k + 1) % 3, (k + 2) % 3
-    t1x, t1y, t1z = rot[br, 0, k1], rot[br, 1, k1], rot[br, 2, k1]
-    t2x, t2y, t2z = rot[br, 0, k2], rot[br, 1, k2], rot[br, 2, k2]
-    nx, ny, nz = rot[br, 0, k], rot[br, 1, k], rot[br, 2, k]
-    dx, dy, dz = (centres[1 - ref, 0] - centres[ref, 0], centres[1 - ref, 1] - centres[ref, 1],
-                  centres[1 - ref, 2] - centres[ref, 2])
-    if dx * nx + dy * ny + dz * nz < 0.0:
-        nx, ny, nz = -nx, -ny, -nz
-    m, best = 0, -1.0
-    for c in range(3):
-        dot = abs(nx * rot[bi, 0, c] + ny * rot[bi, 1, c] + nz * rot[bi, 2, c])
-        if dot > best:
-            m, best = c, dot
-    m1, m2 = (m + 1) % 3, (m + 2) % 3
-    # the incident face's normal opposes the reference's
-    side = -half[vi, m] if nx * rot[bi, 0, m] + ny * rot[bi, 1, m] + nz * rot[bi, 2, m] > 0.0 \
-        else half[vi, m]
-    # incident face centre and half edges, in (t1, t2, n) coordinates of the reference face
-    fx = dx + side * rot[bi, 0, m] - half[vr, k] * nx
-    fy = dy + side * rot[bi, 1, m] - half[vr, k] * ny
-    fz = dz + side * rot[bi, 2, m] - half[vr, k] * nz
-    ex, ey, ez = half[vi, m1] * rot[bi, 0, m1], half[vi, m1] * rot[bi, 1, m1], \
-        half[vi, m1] * rot[bi, 2, m1]
-    gx, gy, gz = half[vi, m2] * rot[bi, 0, m2], half[vi, m2] * rot[bi, 1, m2], \
-        half[vi, m2] * rot[bi, 2, m2]
-    for a in range(3):
-        ux, uy, uz = (t1x, t1y, t1z) if a == 0 else ((t2x, t2y, t2z) if a == 1 else (nx, ny, nz))
-        base = fx * ux + fy * uy + fz * uz
-        e1 = ex * ux + ey * uy + ez * uz
-        e2 = gx * ux + gy * uy + gz * uz
-        poly[0, 0, a] = base + e1 + e2
-        poly[0, 1, a] = base - e1 + e2
-        poly[0, 2, a] = base - e1 - e2
-        poly[0, 3, a] = base + e1 - e2
-    h1, h2 = half[vr, k1], half[vr, k2]
-    n = 4
-    inside = True
-    for i in range(4):
-        inside &= abs(poly[0, i, 0]) <= h1 and abs(poly[0, i, 1]) <= h2
-    if not inside:
-        n = _clip(poly, 0, n, 0, 1.0, h1, 1)
-        n = _clip(poly, 1, n, 0, -1.0, h1, 0)
-        n = _clip(poly, 0, n, 1, 1.0, h2, 1)
-        n = _clip(poly, 1, n, 1, -1.0, h2, 0)
-    kept = 0
-    keep = max(ahead, 0.25 * min(h1, h2))  # near points too: a turn the solve starts
-    for i in range(n):                     # may swing them down within the step
-        if poly[0, i, 2] <= keep:
-            for a in range(3):
-                poly[2, kept, a] = poly[0, i, a]
-            kept += 1
-    if kept == 0:
-        return 0
-    used = pick_four(poly[2], kept, picks)
-    hk = half[vr, k]
-    c1 = c2 = cs = 0.0
-    gap = np.inf
-    for i in range(used):
-        p1, p2, s = poly[2, picks[i], 0], poly[2, picks[i], 1], poly[2, picks[i], 2]
-        c1, c2, cs, gap = c1 + p1 / used, c2 + p2 / used, cs + s / used, min(gap, s)
-        patch[16 + 3 * i] = centres[ref, 0] + (hk + 0.5 * s) * nx + p1 * t1x + p2 * t2x
-        patch[17 + 3 * i] = centres[ref, 1] + (hk + 0.5 * s) * ny + p1 * t1y + p2 * t2y
-        patch[18 + 3 * i] = centres[ref, 2] + (hk + 0.5 * s) * nz + p1 * t1z + p2 * t2z
-        patch[28 + i] = s
-    spread = 0.0
-    for i in range(used):
-        spread += math.sqrt((poly[2, picks[i], 0] - c1) ** 2
-                            + (poly[2, picks[i], 1] - c2) ** 2) / used
-    patch[0] = centres[ref, 0] + (hk + 0.5 * cs) * nx + c1 * t1x + c2 * t2x
-    patch[1] = centres[ref, 1] + (hk + 0.5 * cs) * ny + c1 * t1y + c2 * t2y
-    patch[2] = centres[ref, 2] + (hk + 0.5 * cs) * nz + c1 * t1z + c2 * t2z
-    patch[3], patch[4], patch[5] = nx, ny, nz
-    patch[6], patch[7], patch[8] = t1x, t1y, t1z
-    patch[9], patch[10], patch[11] = t2x, t2y, t2z
-    patch[12], patch[13], patch[14] = gap, 0.54 * spread, used
-    return used
-
-
-@helper
-def _clip(poly, src, n, axis, sign, limit, dst) -> int:
-    """Sutherland-Hodgman: the convex polygon poly[src, :n] (rows (t1, t2, depth)) cut to
-    sign * coordinate ``axis`` <= limit, into poly[dst]; returns its vertex count."""
-    out = 0
-    di = sign * poly[src, 0, axis] - limit
-    for i in range(n):
-        j = i + 1 if i + 1 < n else 0
-        dj = sign * poly[src, j, axis] - limit
-        if di <= 0.0:
-            poly[dst, out, 0], poly[dst, out, 1] = poly[src, i, 0], poly[src, i, 1]
-            poly[dst, out, 2] = poly[src, i, 2]
-            out += 1
-        if (di <= 0.0) != (dj <= 0.0):
-            t = di / (di - dj)
-            for a in range(3):
-                poly[dst, out, a] = poly[src, i, a] + t * (poly[src, j, a] - poly[src, i, a])
-            out += 1
-        di = dj
-    return out
 
 
 @helper
