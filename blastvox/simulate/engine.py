@@ -309,9 +309,20 @@ def step(run: Run, n: int, frame_next: int) -> None:
             state.caches.fragment_rows[1], run.ground):
         split(run, n, t1, frame_next)
     if (s.collisions or run.ground is not None) and s.gravity > 0.0:
-        settle(state.bodies, s.sleep_speed, run.still_steps)  # without gravity nothing rests
+        settle(state.bodies, s.sleep_speed, run.still_steps, _balanced(run))  # without
+        # gravity nothing rests
         ledger.book(state, "sleep")
     integrate_positions(dt, state.bodies)
+
+
+def _balanced(run: Run) -> np.ndarray:
+    """(B,) bool: the bodies that stood balanced on this step's contacts (the contact
+    phase's, :func:`~blastvox.simulate.contact.balance.balance`); with collisions off,
+    every body (the ground's own contact puts only balanced bodies to sleep)."""
+    state = run.state
+    if run.settings.collisions and state.caches.balanced is not None:
+        return state.caches.balanced
+    return np.ones(len(state.bodies.mass), dtype=bool)
 
 
 #: Contact solves at most in a step whose contacts punch chunks out of founded bodies:

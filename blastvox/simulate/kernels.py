@@ -123,10 +123,13 @@ def wake_on_impulse(impulse, angular, body_asleep, n_bodies) -> None:
 
 
 @kernel
-def settle(bodies, sleep_speed, still_steps) -> None:
+def settle(bodies, sleep_speed, still_steps, balanced) -> None:
     """Put to sleep bodies that have stayed slower than ``sleep_speed`` (m/s, at their
-    rim) for ``still_steps`` steps in a row: debris resting on other debris or leaning
-    on a structure (the ground contact clamps balanced bodies sooner)."""
+    rim) for ``still_steps`` steps in a row and stand balanced (balanced (B,) bool,
+    :func:`~blastvox.simulate.contact.balance.balance`): debris resting on other debris
+    or on a structure (the ground contact clamps balanced bodies sooner). A body held
+    up by friction alone, wedged or leaning, stays awake: it may still slide or tip
+    (issue 34)."""
     body_mass, body_inv_inertia, body_rot = bodies.mass, bodies.inv_inertia, bodies.rot
     body_lin, body_ang, body_radius = bodies.lin, bodies.ang, bodies.radius
     body_fixed = bodies.fixed
@@ -142,7 +145,7 @@ def settle(bodies, sleep_speed, still_steps) -> None:
         spin = math.sqrt(wx * wx + wy * wy + wz * wz) * body_radius[b]
         if speed < sleep_speed and spin < sleep_speed:
             body_still[b] += 1
-            if body_still[b] >= still_steps:
+            if body_still[b] >= still_steps and balanced[b]:
                 body_asleep[b] = True
                 body_still[b] = 0
                 for a in range(3):
@@ -214,3 +217,4 @@ def release_held(geometry, voxels, bodies, loads) -> None:
         for a in range(3):
             held_p[v, a] = 0.0
             held_l[v, a] = 0.0
+

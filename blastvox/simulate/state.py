@@ -195,7 +195,9 @@ class Caches:
     clearing: each body's clearing sizes for the current wave (see
     :func:`blastvox.simulate.clearing.clearing_of`); sight: the faces' lines of
     sight in the current wave (see :class:`Exposure`); holds: work of
-    :func:`blastvox.simulate.contact.fragments.mute_member_rows`; fragment_rows: how many of the
+    :func:`blastvox.simulate.contact.fragments.mute_member_rows`; balanced: (B,) bool, the
+    bodies that stood balanced on the step's contacts
+    (:func:`blastvox.simulate.contact.balance.balance`); fragment_rows: how many of the
     step's solved contact rows are between fragments, and how many in all (the
     ground's follow them). views: the waves' element views (see
     :func:`blastvox.simulate.fracture.fracture_wave`)."""
@@ -212,6 +214,7 @@ class Caches:
     sight: np.ndarray | None = None
     reach: np.ndarray | None = None
     holds: np.ndarray | None = None
+    balanced: np.ndarray | None = None
     fragment_rows: tuple = (0, 0)
     views: WaveViews | None = None
 

@@ -119,3 +119,4 @@ def _supported(model, state, stress: Stress, b: int, members: np.ndarray, under:
     stress.rested.pop(b, None)
     break_links(state, stress, b, broken)
     return True
+

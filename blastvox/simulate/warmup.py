@@ -84,7 +84,8 @@ def compile_late_phases(run) -> None:
     if run.ground is not None:
         ground.ground_phase(model, state, s, dt, run.ground)
     if s.collisions or run.ground is not None:
-        kernels.settle(state.bodies, s.sleep_speed, run.still_steps)
+        kernels.settle(state.bodies, s.sleep_speed, run.still_steps,
+                       np.ones(len(state.bodies.mass), dtype=bool))
     integrate.integrate_positions(dt, state.bodies)
     if run.fire is not None:
         fire.burn_phase(model, state, run.fire, s, dt, 0)

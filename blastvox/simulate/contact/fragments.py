@@ -29,6 +29,7 @@ import numpy as np
 
 from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.boundary import boundary_of
+from blastvox.simulate.contact.balance import balance
 from blastvox.simulate.contact.boxes import box_contact
 from blastvox.simulate.contact.ground import (
     SLOP,
@@ -555,6 +556,11 @@ def collide_phase(model, state, settings, dt: float) -> int:
         settle_on_ground(model, state, s, dt, count, end)
     state.counters.collisions += int(resolved)
     b = state.bodies
+    balanced = state.caches.balanced
+    if balanced is None or len(balanced) != len(b.mass):
+        balanced = state.caches.balanced = np.zeros(len(b.mass), dtype=bool)
+    balance(memory.rows, end, b, model.up_axis, balanced)
+    c.resting[:state.n_bodies] &= balanced[:state.n_bodies]  # wedged or leaning: not resting
     # without gravity nothing rests on anything: no pile to settle, momentum is conserved
     decay = math.exp(-s.rest_damping * dt) if s.gravity > 0.0 else 1.0
     damp_resting(state.contacts.resting, b.mass, b.inv_inertia, b.rot, b.lin, b.ang, b.radius,
