@@ -22,7 +22,7 @@ from blastvox.simulate.state import grow_bodies
 
 
 @helper
-def _root(parent, v) -> int:
+def root_of(parent, v) -> int:
     """Union-find root of v, halving the path on the way."""
     while parent[v] != v:
         parent[v] = parent[parent[v]]
@@ -60,8 +60,8 @@ def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.n
                 w = link_voxels[link, 1]
             if w < v:
                 continue  # each link once, from its lower voxel
-            ra = _root(parent, v)
-            rb = _root(parent, w)
+            ra = root_of(parent, v)
+            rb = root_of(parent, w)
             if ra < rb:
                 parent[rb] = ra
             elif rb < ra:
@@ -74,7 +74,7 @@ def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.n
             component[v] = count
             count += 1
         else:
-            component[v] = component[_root(parent, v)]
+            component[v] = component[root_of(parent, v)]
     start = np.zeros(count + 1, dtype=np.int64)
     for v in range(n):
         if component[v] >= 0:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from blastvox.jit import helper
+from blastvox.simulate.topology import root_of
 
 
 @helper
@@ -22,13 +23,13 @@ def islands(ends, n, order, threads):
     for r in range(count):
         ea, eb = ends[r, 0], ends[r, 1]
         if ea >= 0 and eb >= 0:
-            ra, rb = find_root(parent, ea), find_root(parent, eb)
+            ra, rb = root_of(parent, ea), root_of(parent, eb)
             if ra != rb:
                 parent[max(ra, rb)] = min(ra, rb)
     island = np.full(n, -1, dtype=np.int64)
     k = 0
     for e in range(n):
-        root = find_root(parent, e)
+        root = root_of(parent, e)
         if island[root] < 0:
             island[root] = k
             k += 1
@@ -44,11 +45,7 @@ def islands(ends, n, order, threads):
     for j in range(k):
         body_start[j + 1] += body_start[j]
         row_start[j + 1] += row_start[j]
-    members = np.empty(n, dtype=np.int64)
-    fill = body_start[:-1].copy()
-    for e in range(n):
-        members[fill[island[e]]] = e
-        fill[island[e]] += 1
+    members = _grouped(island[:n], body_start)
     island_rows = np.empty(row_start[k], dtype=np.int64)
     fill = row_start[:-1].copy()
     for q in range(count):
@@ -69,18 +66,17 @@ def islands(ends, n, order, threads):
         bin_start[deal[j] + 1] += 1
     for t in range(threads):
         bin_start[t + 1] += bin_start[t]
-    bin_islands = np.empty(k, dtype=np.int64)
-    fill = bin_start[:-1].copy()
-    for j in range(k):
-        bin_islands[fill[deal[j]]] = j
-        fill[deal[j]] += 1
+    bin_islands = _grouped(deal, bin_start)
     return row_start, island_rows, body_start, members, bin_start, bin_islands
 
 
 @helper
-def find_root(parent, e):
-    """Union-find's root of e, halving the path."""
-    while parent[e] != e:
-        parent[e] = parent[parent[e]]
-        e = parent[e]
-    return e
+def _grouped(keys, start):
+    """0 .. len(keys) - 1 grouped by key (keys (m,) int64, start: each key's first slot,
+    CSR), in order within a group."""
+    out = np.empty(len(keys), dtype=np.int64)
+    fill = start[:-1].copy()
+    for i in range(len(keys)):
+        out[fill[keys[i]]] = i
+        fill[keys[i]] += 1
+    return out
