@@ -184,22 +184,22 @@ def rotate_free(q, rot, inv, ang, dt, scratch) -> None:
 
 # Work arrays of a solve. bw (n, 30), by moving body: velocity (m/s), angular velocity
 # (rad/s), then both as they were before the solve, 1 / mass (1/kg), world inverse
-# inertia R I^-1 R^T (1/(kg m^2), row by row), a counter of changes (turn_by's, unread),
-# unused, then the step's change of velocity and angular velocity by its loads and
+# inertia R I^-1 R^T (1/(kg m^2), row by row), two unused columns, then the step's
+# change of velocity and angular velocity by its loads and
 # gravity (m/s, rad/s). rw (count, RW_WIDTH), by row: lever arms r_a, r_b of its centre
 # (m, from each centre of mass; 0 for a body that does not move); effective masses of
 # friction along t1, t2 (kg) and of twist about n (kg m^2), and their inverses; the
 # accumulated impulses of a sub-step (the corners' normals (N s, four), friction along
 # t1, t2 (N s), twist (N m s)); the corners' normal velocities before the solve (m/s,
 # < 0: approaching); r_a x n and r_b x n of each corner (m); the corners' coupling
-# matrix K (1/kg, its upper triangle by rows); two unused columns.
+# matrix K (1/kg, its upper triangle by rows).
 #: Sweeps at most of the projected Gauss-Seidel solve of one row's corners together, and
 #: the change of a corner's normal velocity (m/s) at which it stops.
 CORNER_SWEEPS = 16
 CORNER_TOLERANCE = 1e-10
 
-RW_EFF, RW_K, RW_ACC, RW_TARGET, RW_CA, RW_CB, RW_KN, RW_SEEN, RW_WIDTH = (
-    6, 9, 12, 19, 23, 35, 47, 57, 59)
+RW_EFF, RW_K, RW_ACC, RW_TARGET, RW_CA, RW_CB, RW_KN, RW_WIDTH = (
+    6, 9, 12, 19, 23, 35, 47, 57)
 
 
 @helper
@@ -274,4 +274,3 @@ def turn_by(e, mx, my, mz, bw) -> None:
     bw[e, 3] += wx
     bw[e, 4] += wy
     bw[e, 5] += wz
-    bw[e, 22] += 1.0

@@ -12,7 +12,7 @@ do not sink, without pushing positions around). They are rows of the contact sol
 (:func:`~blastvox.simulate.contact.solver.solve_contacts`), with the fragments' contacts when
 fragments collide (:func:`~blastvox.simulate.contact.fragments.collide_phase` solves both, so a
 stack's weight reaches the ground), alone otherwise: normal and tangential impulses
-solved together by projected Gauss-Seidel sweeps; the tangential part is Coulomb
+solved together by the soft step's sweeps; the tangential part is Coulomb
 friction, the "pseudo-friction" of the paper: it opposes the tangential velocity and
 grows with the body's mass and speed up to mu times the normal impulse.
 A body in resting contact loses a part of its momenta (damping); with three or more
@@ -58,7 +58,7 @@ class ContactMemory(NamedTuple):
     centred on its centroid
     (:func:`blastvox.simulate.contact.fragments.voxel_boxes`); radius (N,) m: the box's
     half diagonal; deepest (1,) m: the deepest penetration any step has seen; stats
-    (4,) int64: solves, velocity sweeps, solves that used every sweep, solves done again
+    (4,) int64: solves, sub-steps, unused, islands solved again
     without the warm start (see :data:`~blastvox.simulate.contact.solver.ENERGY_SLACK`);
     size: the
     model's typical voxel, m.
