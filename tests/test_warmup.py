@@ -56,7 +56,7 @@ def test_the_child_compiles_the_late_phases_and_a_cancel_stops_it(tmp_path):
     assert _cached(cache, "integrate.integrate_velocities")
     # the next: the contact solver (the longest, compiled first), stopped half-way
     assert not _cached(cache, "solver._solve_islands")
-    assert not _cached(cache, "fragments._candidates")
+    assert not _cached(cache, "broadphase._search")
     assert not _cached(cache, "forces.blast_impulses")  # an early phase: the parent's
 
 

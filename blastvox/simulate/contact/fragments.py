@@ -31,6 +31,7 @@ from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.contact.balance import balance
 from blastvox.simulate.contact.boxes import box_contact
+from blastvox.simulate.contact.broadphase import candidates
 from blastvox.simulate.contact.ground import (
     SLOP,
     ground_rows,
@@ -41,11 +42,6 @@ from blastvox.simulate.contact.ground import (
     solver_params,
 )
 from blastvox.simulate.contact.pairs import (
-    bucket,
-    cell_key,
-    cell_of,
-    hash_buckets,
-    near_voxels,
     rest_grid,
     static_hash,
 )
@@ -112,8 +108,9 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
     (:func:`~blastvox.simulate.contact.pairs.near_voxels`) go into a spatial hash
     each step; voxels of bodies at rest (fixed or asleep) come from ``static``,
     so a big standing structure costs nothing per step. Pairs whose bounding
-    spheres (memory.radius) may touch within the step (:func:`_lookahead`) are the
-    candidates (:func:`_candidates`, in hash order: deterministic); their box tests
+    spheres (memory.radius) may touch within the step are the candidates
+    (:func:`~blastvox.simulate.contact.broadphase.candidates`, in hash order, on every
+    core: the same for any thread count); their box tests
     (:func:`~blastvox.simulate.contact.boxes.box_contact`) run on every core
     (:func:`_box_tests`), and the contacts become rows in the candidates' order
     (:func:`_emit_rows`), so the rows are the same for any thread count. Returns the
@@ -121,8 +118,8 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
     again). When they fit, the sleeping
     bodies they strike wake (:func:`_wake_struck`).
     """
-    pairs, centres, ahead = _candidates(geometry, voxels, bodies, params, boundary, static,
-                                        rest, memory)
+    pairs, centres, ahead = candidates(geometry, voxels, bodies, params, boundary, static,
+                                       rest, memory)
     patches = np.empty((len(ahead), 32))
     hit = np.zeros(len(ahead), dtype=bool)
     if len(ahead):
@@ -130,123 +127,11 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
     return _emit_rows(geometry, bodies, params, memory, pairs, patches, hit)
 
 
-@kernel
-def _candidates(geometry, voxels, bodies, params, boundary, static, rest, memory):
-    """The pairs of voxel boxes of different bodies whose bounding spheres may touch
-    within the step (see :func:`collide_bodies`), in hash order: pairs (C, 4) int64
-    (body, voxel of a, then of b), centres (C, 2, 3) m, ahead (C,) m (the lookahead)."""
-    offsets, members = boundary
-    static_vox, static_pos, static_keys, static_start = static
-    voxel_alive, voxel_body = voxels.alive, voxels.body
-    radius, cell, reach = memory.radius, params.cell, params.reach
-    world = np.empty((members.shape[0], 3))  # world centres, by boundary slot
-    near = np.zeros(members.shape[0], dtype=np.bool_)
-    count = near_voxels(geometry.centroid, offsets, members, bodies, cell, rest, world, near)
-    pairs = np.empty((max(count, 16), 4), dtype=np.int64)
-    centres = np.empty((max(count, 16), 2, 3))
-    ahead_of = np.empty(max(count, 16))
-    if count == 0:
-        return pairs[:0], centres[:0], ahead_of[:0]
-    slot = np.empty(count, dtype=np.int64)
-    ijk = np.empty((count, 3), dtype=np.int64)
-    keys = np.empty(count, dtype=np.int64)
-    motion = np.empty((count, 4))  # body velocity (m/s), then spin x reach of the box (m/s)
-    n = 0
-    for k in range(members.shape[0]):
-        if near[k]:
-            slot[n] = k
-            for a in range(3):
-                ijk[n, a] = cell_of(world[k, a], cell)
-            keys[n] = cell_key(ijk[n, 0], ijk[n, 1], ijk[n, 2])
-            _motion(members[k], voxel_body[members[k]], world[k], bodies, radius, motion[n])
-            n += 1
-    start, entries = hash_buckets(keys)
-    still = np.zeros(4)
-    found = 0
-    for i in range(n):
-        vi = members[slot[i]]
-        bi = voxel_body[vi]
-        if not voxel_alive[vi]:
-            continue
-        for dx in range(-1, 2):
-            for dy in range(-1, 2):
-                for dz in range(-1, 2):
-                    key = cell_key(ijk[i, 0] + dx, ijk[i, 1] + dy, ijk[i, 2] + dz)
-                    # moving against moving, each pair once: from the cell of either,
-                    # the other in one of the 13 cells that follow it, or in the same
-                    # cell, the lower voxel first
-                    forward = (dx, dy, dz) > (0, 0, 0)
-                    lo, hi = bucket(key, start)
-                    for jj in range(lo if forward or (dx, dy, dz) == (0, 0, 0) else hi, hi):
-                        j = entries[jj]
-                        if keys[j] != key:
-                            continue
-                        vj = members[slot[j]]
-                        bj = voxel_body[vj]
-                        if (not forward and vj <= vi) or bj == bi or not voxel_alive[vj]:
-                            continue
-                        ahead = _lookahead(motion[i], motion[j], reach, params.dt)
-                        if not _touching(world[slot[i]], world[slot[j]],
-                                         radius[vi] + radius[vj] + ahead):
-                            continue
-                        if found == len(ahead_of):
-                            pairs, centres, ahead_of = _grown(pairs, centres, ahead_of)
-                        _candidate(found, bi, vi, bj, vj, world[slot[i]], world[slot[j]],
-                                   ahead, pairs, centres, ahead_of)
-                        found += 1
-                    # moving against resting
-                    if static_vox.shape[0] == 0:
-                        continue
-                    lo, hi = bucket(key, static_start)
-                    for jj in range(lo, hi):
-                        if static_keys[jj] != key:
-                            continue
-                        vj = static_vox[jj]
-                        bj = voxel_body[vj]
-                        if bj == bi or not voxel_alive[vj]:
-                            continue
-                        ahead = _lookahead(motion[i], still, reach, params.dt)
-                        if not _touching(world[slot[i]], static_pos[jj],
-                                         radius[vi] + radius[vj] + ahead):
-                            continue
-                        if found == len(ahead_of):
-                            pairs, centres, ahead_of = _grown(pairs, centres, ahead_of)
-                        _candidate(found, bi, vi, bj, vj, world[slot[i]], static_pos[jj],
-                                   ahead, pairs, centres, ahead_of)
-                        found += 1
-    return pairs[:found], centres[:found], ahead_of[:found]
-
-
-@helper
-def _candidate(c, bi, vi, bj, vj, ci, cj, ahead, pairs, centres, ahead_of) -> None:
-    """Write candidate c: bodies and voxels, centres ci, cj (3,) m, lookahead (m)."""
-    pairs[c, 0], pairs[c, 1], pairs[c, 2], pairs[c, 3] = bi, vi, bj, vj
-    for a in range(3):
-        centres[c, 0, a] = ci[a]
-        centres[c, 1, a] = cj[a]
-    ahead_of[c] = ahead
-
-
-@helper
-def _grown(pairs, centres, ahead_of):
-    """The candidates' arrays at twice their length, the first rows kept."""
-    m = 2 * len(ahead_of)
-    bigger = (np.empty((m, 4), dtype=np.int64), np.empty((m, 2, 3)), np.empty(m))
-    for c in range(len(ahead_of)):  # loops, not slice copies (their messages compile slowly)
-        for a in range(4):
-            bigger[0][c, a] = pairs[c, a]
-        for a in range(3):
-            bigger[1][c, 0, a] = centres[c, 0, a]
-            bigger[1][c, 1, a] = centres[c, 1, a]
-        bigger[2][c] = ahead_of[c]
-    return bigger
-
-
 @parallel_kernel
 def _box_tests(rot, half, pairs, centres, ahead, patches, hit) -> None:
     """The box test (:func:`~blastvox.simulate.contact.boxes.box_contact`) of every
-    candidate (see :func:`_candidates`), each on its own: hit (C,) whether it touches,
-    patches (C, 32) its patch."""
+    candidate (:func:`~blastvox.simulate.contact.broadphase.candidates`), each on its
+    own: hit (C,) whether it touches, patches (C, 32) its patch."""
     for c in nb.prange(len(ahead)):
         work = (np.empty((3, 3)), np.empty((3, 8, 3)), np.empty(32))
         pair = np.empty(8, dtype=np.int64)  # bodies and voxels, then the manifold's picks
@@ -271,34 +156,6 @@ def _emit_rows(geometry, bodies, params, memory, pairs, patches, hit) -> int:
     if found <= memory.rows.key.shape[0]:
         _wake_struck(memory.rows, found, bodies, params)
     return found
-
-
-@helper
-def _touching(ci, cj, reach) -> bool:
-    """Are ci and cj (3,) closer than ``reach`` (m)?"""
-    d2 = (cj[0] - ci[0]) ** 2 + (cj[1] - ci[1]) ** 2 + (cj[2] - ci[2]) ** 2
-    return d2 < reach * reach
-
-
-@helper
-def _motion(v, b, centre, bodies, radius, out) -> None:
-    """out (4,): the velocity (m/s) of moving body b, and its spin (rad/s) times the
-    reach of voxel v's box (centre (3,) m, half diagonal radius[v]) from b's centre."""
-    m = bodies.mass[b]
-    for a in range(3):
-        out[a] = bodies.lin[b, a] / m
-    w = angular_velocity(bodies.rot[b], bodies.inv_inertia[b], bodies.ang[b])
-    arm = math.sqrt((centre[0] - bodies.pos[b, 0]) ** 2 + (centre[1] - bodies.pos[b, 1]) ** 2
-                    + (centre[2] - bodies.pos[b, 2]) ** 2) + radius[v]
-    out[3] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * arm
-
-
-@helper
-def _lookahead(a, b, reach, dt) -> float:
-    """How close (m) two boxes whose :func:`_motion` are a and b (4,) may come within a
-    step of dt s: their relative speed bound times dt, at most ``reach`` (m)."""
-    speed = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
-    return min(reach, (speed + a[3] + b[3]) * dt)
 
 
 @helper
