@@ -66,17 +66,21 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
     if not slow.any():
         return False
     count = np.bincount(voxels.body[voxels.alive], minlength=len(bodies.live))
+    # what each rests on: its live voxels, its distinct contact voxels and whether it
+    # is on the ground; a body is judged again only when that changes
+    span = len(voxels.alive) + 1  # support -1 (none) is a distinct value too
+    distinct = np.bincount(np.unique(owner * span + (support + 1)) // span,
+                           minlength=len(bodies.live))
+    grounded = np.zeros(len(bodies.live), dtype=bool)
+    grounded[owner[on_ground]] = True
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], np.append(candidates, np.iinfo(np.int64).max))
     for i in np.flatnonzero(slow).tolist():
         b = int(candidates[i])
-        rows_of = order[bounds[i]:bounds[i + 1]]
-        # what it rests on: its live voxels, its contact voxels and whether it is on the
-        # ground; judged again only when that changes
-        key = (int(count[b]), int(np.unique(support[rows_of]).size),
-               bool(on_ground[rows_of].any()))
+        key = (int(count[b]), int(distinct[b]), bool(grounded[b]))
         if key[0] < 2 or stress.rested.get(b) == key:
             continue
+        rows_of = order[bounds[i]:bounds[i + 1]]
         stress.rested[b] = key
         members = np.flatnonzero(voxels.alive & (voxels.body == b))
         placed = ~on_ground[rows_of] & (support[rows_of] >= 0)
