@@ -143,6 +143,8 @@ def exposure_of(model, state, charge_pos: np.ndarray, active: np.ndarray,
         from blastvox.simulate.confinement import wave_reach
 
         caches.reach = wave_reach(state.shielding, charge_pos)
+        if caches.leaky is not None:  # rooms fill through their openings, not by the wave
+            caches.reach[:, caches.leaky] = False
     return Exposure(state.shielding, clearing_of(model, state, charge_pos, active),
                     np.zeros((n_charges, 2)) if gas is None else gas, caches.sight,
                     caches.reach)

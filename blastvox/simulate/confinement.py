@@ -191,7 +191,7 @@ def find_rooms(grid, charges, centroid: np.ndarray,
                  volume=volume, start=start,
                  tau=np.array([vent_time(v) for v in volume]),
                  vented=np.full(n_rooms, np.inf), of_charge=of_charge,
-                 wall=_walls(grid, label, centroid, half_extent()) if n_rooms else np.full(
+                 wall=room_walls(grid, label, centroid, half_extent()) if n_rooms else np.full(
                      len(centroid), -1, dtype=np.int32))
 
 
@@ -222,7 +222,7 @@ def _cell_of(grid, point: np.ndarray) -> int:
     return int((idx[0] * grid.dims[1] + idx[1]) * grid.dims[2] + idx[2])
 
 
-def _walls(grid, label: np.ndarray, centroid: np.ndarray, half: np.ndarray) -> np.ndarray:
+def room_walls(grid, label: np.ndarray, centroid: np.ndarray, half: np.ndarray) -> np.ndarray:
     """(N,) the room next to each voxel across one of its six faces, or -1."""
     out = np.full(len(centroid), -1, dtype=np.int32)
     for axis in range(3):

@@ -67,6 +67,7 @@ from blastvox.simulate.kernels import (
     settle,
     wake_on_impulse,
 )
+from blastvox.simulate.leakage import LeakyRooms, find_leaky_rooms, leak_phase
 from blastvox.simulate.ledger import Ledger
 from blastvox.simulate.limits import LimitMonitor
 from blastvox.simulate.model import SimModel, build_model
@@ -189,6 +190,7 @@ class Run:
     fire: Fire | None
     rooms: Rooms | None = None
     gas: np.ndarray | None = None
+    leaky: LeakyRooms | None = None
     stress: Stress | None = None
     punch: Punch | None = None
     ledger: Ledger = field(default_factory=Ledger)
@@ -219,7 +221,7 @@ class Run:
             # founded bodies' contact loads need the links' strengths, and something to hit
             punch=(Punch.of(stress.chunk, sm.n_voxels)
                    if stress is not None and settings.collisions else None),
-            **_rooms(sm, state, charges))
+            **_rooms(sm, state, charges, sm.ground_height if settings.ground else None))
 
     def effects_on(self) -> dict[str, bool]:
         """Which effects this run models (stored in the SimCache meta)."""
@@ -231,16 +233,23 @@ class Run:
                 "camera_shake": s.camera_shake and s.camera is not None}
 
 
-def _rooms(sm: SimModel, state: State, charges: Charges) -> dict:
-    """Run.start's rooms and gas: the closed rooms of confined charges, if any."""
+def _rooms(sm: SimModel, state: State, charges: Charges, ground: float | None) -> dict:
+    """Run.start's rooms and gas: the closed rooms of confined charges, if any, and the
+    rooms the waves enter through openings (:mod:`blastvox.simulate.leakage`)."""
     def half() -> np.ndarray:
         lo, hi = corner_boxes(sm.voxels.vertices, sm.voxels.corners)
         return 0.5 * (hi - lo)
 
+    out: dict = {}
+    leaky = find_leaky_rooms(state.shielding, charges, sm.voxels.centroid, half(), sm.up,
+                             ground)
+    if leaky is not None:
+        out["leaky"] = leaky
+        state.caches.leaky = leaky.cells
     rooms = find_rooms(state.shielding, charges, sm.voxels.centroid, half)
-    if not rooms.any:
-        return {}
-    return {"rooms": rooms, "gas": rooms.gas()}
+    if rooms.any:
+        out.update(rooms=rooms, gas=rooms.gas())
+    return out
 
 
 def step(run: Run, n: int, frame_next: int) -> None:
@@ -281,6 +290,8 @@ def step(run: Run, n: int, frame_next: int) -> None:
     bodies = state.bodies  # a split may have grown the body arrays
     if run.rooms is not None:
         gas_phase(model, state, run.rooms, t0, t1)
+        wake_on_impulse(state.loads.impulse, state.loads.angular, bodies.asleep, n_bodies)
+    if run.leaky is not None and leak_phase(model, state, run.leaky, charges, t0, t1):
         wake_on_impulse(state.loads.impulse, state.loads.angular, bodies.asleep, n_bodies)
     if state.holding:
         ledger.founded += ledger.founded_held(state) - (0.0 if held is None else held)
@@ -571,6 +582,7 @@ def _cache(run: Run, model: VoxelModel, frames: int, per_frame: int,
             "particle_systems": particle_meta(),
             "camera": settings.to_dict()["camera"],
             "confinement": [] if run.rooms is None else run.rooms.meta(),
+            "leaky_rooms": [] if run.leaky is None else run.leaky.meta(),
             "momentum": run.ledger.meta(),
             "stress": None if run.stress is None else {
                 "solves": run.stress.solves, "links_broken": run.stress.broken}}

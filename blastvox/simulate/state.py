@@ -200,7 +200,9 @@ class Caches:
     (:func:`blastvox.simulate.contact.balance.balance`); fragment_rows: how many of the
     step's solved contact rows are between fragments, and how many in all (the
     ground's follow them). views: the waves' element views (see
-    :func:`blastvox.simulate.fracture.fracture_wave`)."""
+    :func:`blastvox.simulate.fracture.fracture_wave`). leaky: (X*Y*Z,) bool, the
+    shielding grid's cells in rooms the waves enter only through openings
+    (:mod:`blastvox.simulate.leakage`), which no wave reaches directly."""
 
     boundary: tuple | None = None
     version: int = 0
@@ -217,6 +219,7 @@ class Caches:
     balanced: np.ndarray | None = None
     fragment_rows: tuple = (0, 0)
     views: WaveViews | None = None
+    leaky: np.ndarray | None = None
 
 
 @dataclass
