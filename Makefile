@@ -53,7 +53,7 @@ test-fast: $(STAMP)
 
 ## goldens: refresh examples/golden/ from the current code (say why in the commit)
 goldens: $(STAMP)
-	for s in house building logo; do $(BIN)/blastvox run examples/$$s/scene.toml -q || exit 1; \
+	for s in house building logo; do $(BIN)/blastvox run examples/$$s/scene.toml -B -q || exit 1; \
 	  cp out/$$s/sim.npz examples/golden/$$s.sim.npz; done
 	cp out/house/shot.glb examples/golden/house.glb
 

@@ -59,9 +59,9 @@ def candidates(geometry, voxels, bodies, params, boundary, static, rest,
         centres = np.empty((chunks * slots, 2, 3))
         ahead = np.empty(chunks * slots)
         found = np.zeros(chunks, dtype=np.int64)
-        _search(boundary[1], voxels.body, voxels.alive, memory.radius, world, slot, ijk, keys,
-                motion, start, entries, static[0], static[1], static[2], static[3],
-                params.reach, params.dt, slots, pairs, centres, ahead, found)
+        _search((boundary[1], voxels.body, voxels.alive, memory.radius),
+                (world, slot, ijk, keys, motion, start, entries), static,
+                (params.reach, params.dt, slots), (pairs, centres, ahead), found)
         most = int(found.max())
         if most <= slots:
             break
@@ -98,13 +98,21 @@ def _hashed(voxel_centroid, voxel_body, boundary, bodies, cell, rest, radius):
 
 
 @parallel_kernel
-def _search(members, voxel_body, voxel_alive, radius, world, slot, ijk, keys, motion, start,
-            entries, static_vox, static_pos, static_keys, static_start, reach, dt, slots,
-            pairs, centres, ahead, found) -> None:
-    """Each chunk of :data:`CHUNK` moving voxels (see :func:`_hashed`) writes its
-    candidates to its own ``slots`` rows of pairs, centres and ahead (as
+def _search(voxel_fields, moving, static, scalars, out, found) -> None:
+    """Each chunk of :data:`CHUNK` moving voxels (``moving``: :func:`_hashed`'s) writes
+    its candidates to its own ``slots`` rows of pairs, centres and ahead (as
     :func:`candidates` returns them) and how many it found to found (chunks,) (those
-    past its slots counted, not written)."""
+    past its slots counted, not written). voxel_fields: (boundary members, voxel body,
+    voxel alive, box half diagonals); static: the static hash; scalars: (reach m, dt s,
+    slots); out: (pairs, centres, ahead). (found is an argument of its own: numba 0.68
+    silently dropped a parallel loop's ``found[k] = count`` when found came unpacked
+    from a tuple argument, while the same loop's writes to the tuple's other arrays
+    stayed.)"""
+    members, voxel_body, voxel_alive, radius = voxel_fields
+    world, slot, ijk, keys, motion, start, entries = moving
+    static_vox, static_pos, static_keys, static_start = static
+    reach, dt, slots = scalars
+    pairs, centres, ahead = out
     n = slot.shape[0]
     for k in nb.prange(found.shape[0]):
         still = np.zeros(4)
