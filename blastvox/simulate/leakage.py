@@ -14,7 +14,9 @@ solid of the shielding grid is closed (dilated, then eroded) by a box that
 spans :data:`OPENING`, which shuts doors and windows (any opening whose
 narrower side is at most OPENING); the air that the outside no longer reaches
 is a room (a room must itself be wider and taller than OPENING, or the closing
-fills it: a narrower space is open air here), and its openings are the faces between it and the
+fills it: a narrower space is open air here; and a grid that with the closing's
+margin of OPENING all round holds more than the shielding grid's MAX_CELLS is
+not searched: its rooms are open air, as before), and its openings are the faces between it and the
 air those openings held. A room whose openings are shut already is sealed
 (:mod:`blastvox.simulate.confinement`); a room that holds a charge is that
 charge's own air; an opening wider than :data:`OPENING` is not one, the room
@@ -51,6 +53,7 @@ from blastvox.blast.face_load import face_params_at
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.confinement import flood_outside, gas_impulses, room_walls
+from blastvox.simulate.shielding import MAX_CELLS
 
 #: m: the widest opening (a door, a window) that leaves a room a room.
 OPENING = 2.0
@@ -229,6 +232,8 @@ def find_leaky_rooms(grid, charges, centroid: np.ndarray, half: np.ndarray,
     if not solid.any():
         return None
     k = max(1, math.ceil(OPENING / cell / 2.0 - 1e-6))  # cells: the box's half-width
+    if min(dims) < 2 * k + 3 or math.prod(d + 2 * k + 2 for d in dims) > MAX_CELLS:
+        return None  # no room wider than OPENING fits, or the closing's grid is too big
     axis = int(np.argmax(np.abs(up)))
     floor_low = up[axis] > 0
     on_ground = ground is not None
