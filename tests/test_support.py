@@ -75,3 +75,4 @@ def test_a_short_beam_stays_whole_on_its_support(tmp_path):
     model, beam, cache = _run(tmp_path, 3.0)
     assert cache.meta["broken_links"] == 0
     assert len(np.unique(cache.voxel_piece[beam])) == 1
+
