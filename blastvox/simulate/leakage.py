@@ -87,6 +87,7 @@ class LeakyRooms:
     breached: np.ndarray
     cell: float
     at_rest: np.ndarray | None = None  # (F,) bool: the openings found at rest
+    walls: np.ndarray | None = None  # the voxels that wall a room (ids), once asked for
 
     @property
     def cells(self) -> np.ndarray:
@@ -97,7 +98,9 @@ class LeakyRooms:
         """Open as vents the wall voxels that turned to dust or whose piece moved more
         than half a cell from rest (centroid (N, 3) m at rest, area (N,) m^2 each one's
         face towards its room)."""
-        candidates = np.flatnonzero((self.wall >= 0) & ~self.breached)
+        if self.walls is None:
+            self.walls = np.flatnonzero(self.wall >= 0)
+        candidates = self.walls[~self.breached[self.walls]]
         if not candidates.size:
             return
         voxels, bodies = state.voxels, state.bodies
@@ -166,14 +169,17 @@ def _fill(pressure, vent_room, vent_area, vent_wave, volume, t0, t1, out) -> Non
     pressure's integral, Pa s. A sub-step never carries a room past the pressures
     that drive it (the flow's square root is stiff where they meet)."""
     n_rooms = volume.shape[0]
-    first = np.inf
+    first, last = np.inf, 0.0  # s: the waves reach the first opening, leave the last
+    area = np.zeros(n_rooms)
     for f in range(vent_room.shape[0]):
+        area[vent_room[f]] += vent_area[f]
         for c in range(vent_wave.shape[1]):
             first = min(first, vent_wave[f, c, 1])
+            last = max(last, vent_wave[f, c, 1] + vent_wave[f, c, 2] + vent_wave[f, c, 5])
     quiet = True
     for r in range(n_rooms):
         quiet = quiet and pressure[r] == 0.0
-    if quiet and t1 <= first:
+    if quiet and (t1 <= first or t0 >= last):
         return
     steps = max(1, int(math.ceil((t1 - t0) / FILL_STEP)))
     h = (t1 - t0) / steps
@@ -186,16 +192,22 @@ def _fill(pressure, vent_room, vent_area, vent_wave, volume, t0, t1, out) -> Non
             flow[r] = 0.0
             lo[r] = pressure[r]
             hi[r] = pressure[r]
-        for f in range(vent_room.shape[0]):
-            r = vent_room[f]
-            outside = 0.0
-            for c in range(vent_wave.shape[1]):
-                outside += _overpressure(vent_wave[f, c], t)
-            drive = outside - pressure[r]
-            flow[r] += vent_area[f] * math.copysign(
-                math.sqrt(2.0 * AIR_DENSITY * abs(drive)), drive)
-            lo[r] = min(lo[r], outside)
-            hi[r] = max(hi[r], outside)
+        if t > last:  # the waves have passed every opening: the rooms breathe out to ambient
+            for r in range(n_rooms):
+                flow[r] = -area[r] * math.copysign(
+                    math.sqrt(2.0 * AIR_DENSITY * abs(pressure[r])), pressure[r])
+                lo[r], hi[r] = min(lo[r], 0.0), max(hi[r], 0.0)
+        else:
+            for f in range(vent_room.shape[0]):
+                r = vent_room[f]
+                outside = 0.0
+                for c in range(vent_wave.shape[1]):
+                    outside += _overpressure(vent_wave[f, c], t)
+                drive = outside - pressure[r]
+                flow[r] += vent_area[f] * math.copysign(
+                    math.sqrt(2.0 * AIR_DENSITY * abs(drive)), drive)
+                lo[r] = min(lo[r], outside)
+                hi[r] = max(hi[r], outside)
         for r in range(n_rooms):
             new = pressure[r] + h * DISCHARGE * SOUND_SPEED ** 2 / volume[r] * flow[r]
             new = min(max(new, lo[r]), hi[r])
