@@ -122,6 +122,14 @@ class LeakyRooms:
         self.vent_wave = np.concatenate([self.vent_wave, incident_waves(charges,
                                                                         centroid[opened])])
 
+    def settled(self, t: float) -> bool:
+        """Are the rooms at ambient pressure at t (s), after the waves have left every
+        opening? Then nothing changes them any more: no breach needs looking for."""
+        if self.pressure.any() or not len(self.vent_wave):
+            return not self.pressure.any()
+        waves = self.vent_wave
+        return t >= float((waves[..., 1] + waves[..., 2] + waves[..., 5]).max())
+
     def step_pressure_integrals(self, t0: float, t1: float) -> np.ndarray:
         """(R,) each room's pressure integrated over [t0, t1], Pa s; advances the
         pressure to t1."""
@@ -411,6 +419,8 @@ def leak_phase(model, state, rooms: LeakyRooms, charges, t0: float, t1: float) -
     """Phase: the leaky rooms' air over [t0, t1] on the faces of free pieces that wall
     them (after the blast phase), their breaches opened first. Adds to loads.impulse and
     loads.angular; returns whether it added anything."""
+    if rooms.settled(t0):
+        return False
     voxels = model.voxels
     rooms.breach(charges, state, voxels.centroid, (2.0 * voxels.contact_radius) ** 2)
     integral = rooms.step_pressure_integrals(t0, t1)
