@@ -27,7 +27,7 @@ import numpy as np
 from blastvox.blast.confinement import gas_pressure, vent_time
 from blastvox.geometry.transforms_nb import rotate_into, to_world_into
 from blastvox.geometry.voxel_faces import FACE_CORNERS
-from blastvox.jit import kernel
+from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.forces import face_area_into
 from blastvox.simulate.model import CONFORM_FACES
@@ -65,29 +65,36 @@ def flood_from(count, dims, start):
 
 @kernel
 def _spread(count, dims, wet, stack, top):
-    ny, nz = dims[1], dims[2]
     while top > 0:
         top -= 1
         q = stack[top]
-        i, rest = q // (ny * nz), q % (ny * nz)
-        j, k = rest // nz, rest % nz
-        for axis in range(3):
-            for step in (-1, 1):
-                a, b, c = i, j, k
-                if axis == 0:
-                    a += step
-                elif axis == 1:
-                    b += step
-                else:
-                    c += step
-                if a < 0 or b < 0 or c < 0 or a >= dims[0] or b >= ny or c >= nz:
-                    continue
-                n = (a * ny + b) * nz + c
-                if count[n] == 0 and not wet[n]:
-                    wet[n] = True
-                    stack[top] = n
-                    top += 1
+        for side in range(6):
+            n = cell_neighbour(q, side, dims)
+            if n >= 0 and count[n] == 0 and not wet[n]:
+                wet[n] = True
+                stack[top] = n
+                top += 1
     return wet
+
+
+@helper
+def cell_neighbour(q, side, dims) -> int:
+    """The flat index of cell q's neighbour across its face ``side`` (0..5: -x, +x, -y,
+    +y, -z, +z) in a grid of ``dims`` (3,) cells, or -1 past the grid's edge."""
+    ny, nz = dims[1], dims[2]
+    i, rest = q // (ny * nz), q % (ny * nz)
+    j, k = rest // nz, rest % nz
+    step = 1 if side % 2 else -1
+    axis = side // 2
+    if axis == 0:
+        i += step
+    elif axis == 1:
+        j += step
+    else:
+        k += step
+    if i < 0 or j < 0 or k < 0 or i >= dims[0] or j >= ny or k >= nz:
+        return -1
+    return (i * ny + j) * nz + k
 
 
 @dataclass

@@ -52,7 +52,12 @@ import numpy as np
 from blastvox.blast.face_load import face_params_at
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
-from blastvox.simulate.confinement import flood_outside, gas_impulses, room_walls
+from blastvox.simulate.confinement import (
+    cell_neighbour,
+    flood_outside,
+    gas_impulses,
+    room_walls,
+)
 from blastvox.simulate.shielding import MAX_CELLS
 
 #: m: the widest opening (a door, a window) that leaves a room a room.
@@ -353,7 +358,6 @@ def _label(rooms_air: np.ndarray, charges, grid) -> tuple[np.ndarray, list[float
 def _components(mask, dims):
     """(X*Y*Z,) int32 the 6-connected components of ``mask`` (-1 outside it), numbered
     in cell order, and how many."""
-    ny, nz = dims[1], dims[2]
     label = np.full(mask.shape[0], -1, dtype=np.int32)
     stack = np.empty(mask.shape[0], dtype=np.int64)
     n = 0
@@ -366,24 +370,12 @@ def _components(mask, dims):
         while top > 0:
             top -= 1
             q = stack[top]
-            i, rest = q // (ny * nz), q % (ny * nz)
-            j, k = rest // nz, rest % nz
-            for axis in range(3):
-                for step in (-1, 1):
-                    a, b, c = i, j, k
-                    if axis == 0:
-                        a += step
-                    elif axis == 1:
-                        b += step
-                    else:
-                        c += step
-                    if a < 0 or b < 0 or c < 0 or a >= dims[0] or b >= ny or c >= nz:
-                        continue
-                    m = (a * ny + b) * nz + c
-                    if mask[m] and label[m] < 0:
-                        label[m] = n
-                        stack[top] = m
-                        top += 1
+            for side in range(6):
+                m = cell_neighbour(q, side, dims)
+                if m >= 0 and mask[m] and label[m] < 0:
+                    label[m] = n
+                    stack[top] = m
+                    top += 1
         n += 1
     return label, n
 
