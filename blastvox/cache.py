@@ -173,6 +173,10 @@ class SimCache:
             "destroyed_voxel_count": int((a["voxel_destroyed_frame"] >= 0).sum()),
             "charge_count": int(len(a["charge_tnt_kg"])),
             "fracture": self.meta.get("fracture"), "seed": self.meta.get("seed"),
+            "closed_room_count": len(self.meta.get("confinement") or []),
+            "leaky_room_count": len(self.meta.get("leaky_rooms") or []),
+            "leaky_room_volume_m3": round(sum(r["free_volume_m3"] for r in
+                                              self.meta.get("leaky_rooms") or []), 3),
             **{f"momentum_{term}_n_s": [round(x, 3) for x in value]
                for term, value in self.meta.get("momentum", {}).items()},
         }

@@ -127,3 +127,14 @@ def test_the_side_walls_of_a_house_are_pushed_in(tmp_path, monkeypatch):
     squeezed = _inward_momentum(_shot(model, settings), model)
     assert leaky > 0.0
     assert leaky > 3.0 * abs(squeezed), (leaky, squeezed)
+
+
+def test_the_cache_lists_the_room_and_info_counts_it(tmp_path):
+    from blastvox.simulate.engine import simulate
+
+    cache = simulate(_house(tmp_path), _settings(duration=0.02))
+    (room,) = cache.meta["leaky_rooms"]
+    assert room["openings_m2"] == pytest.approx(DOOR[0] * DOOR[1])
+    summary = cache.summary()
+    assert summary["leaky_room_count"] == 1 and summary["closed_room_count"] == 0
+    assert summary["leaky_room_volume_m3"] == pytest.approx(room["free_volume_m3"], abs=1e-3)

@@ -23,7 +23,9 @@ def info(
     SimCache: frames, step, pieces, broken links, voxels turned to dust and
     charges; with --json the object has "kind": "SimCache" and at least
     frame_count, fps, dt_s, duration_s, piece_count, moving_piece_count,
-    voxel_count, broken_link_count, destroyed_voxel_count, charge_count, and the
+    voxel_count, broken_link_count, destroyed_voxel_count, charge_count, the rooms
+    (closed_room_count: confined charges' rooms; leaky_room_count and
+    leaky_room_volume_m3: rooms the waves enter through openings), and the
     momentum ledger (momentum_<term>_n_s, [x, y, z] N s: the pieces' momentum at the
     end and where it came from: blast, released, gravity_drag, ground, foundations,
     damping, sleep, initial; docs/file-formats.md).
