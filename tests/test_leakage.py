@@ -17,6 +17,7 @@ from blastvox.simulate.leakage import (
     SOUND_SPEED,
     _fill,
     incident_waves,
+    wave_span,
 )
 from blastvox.simulate.settings import ChargeSpec, SimSettings
 from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
@@ -81,8 +82,8 @@ def test_a_room_fills_through_its_opening_as_the_orifice_equation_integrates():
     pressure, integral = np.zeros(1), np.zeros(1)
     times = np.linspace(0.0, 1.5 * full, 31)
     for t0, t1 in zip(times[:-1], times[1:], strict=True):
-        _fill(pressure, np.zeros(1, dtype=np.int64), np.array([area]), wave,
-              np.array([volume]), t0, t1, integral)
+        _fill(pressure, (np.zeros(1, dtype=np.int64), np.array([area]), wave),
+              wave_span(wave), np.array([volume]), t0, t1, integral)
         exact = pressure_out - max(math.sqrt(pressure_out) - k * t1 / 2.0, 0.0) ** 2
         assert pressure[0] == pytest.approx(exact, rel=2e-3, abs=20.0)
     # its integral: P t - the integral of (sqrt(P) - k t / 2)^2 up to the full time

@@ -241,7 +241,7 @@ def _rooms(sm: SimModel, state: State, charges: Charges, ground: float | None) -
         return 0.5 * (hi - lo)
 
     out: dict = {}
-    leaky = find_leaky_rooms(state.shielding, charges, sm.voxels.centroid, half(), sm.up,
+    leaky = find_leaky_rooms(state.shielding, charges, sm.voxels.centroid, half, sm.up,
                              ground)
     if leaky is not None:
         out["leaky"] = leaky

@@ -45,6 +45,7 @@ wave does not reach those faces (their cells are left out of its reach,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,8 +80,9 @@ class LeakyRooms:
     (R,) m^3; pressure (R,) Pa (gauge, now); vents: the openings' faces, vent_room
     (F,) int64, vent_area (F,) m^2, vent_wave (F, C, 6) the waves' incident
     terms at each (:func:`incident_waves`); wall (N,)
-    int32: the room each voxel walls (-1: none); breached (N,) bool: wall voxels
-    opened already; cell: the grid's edge, m."""
+    int32: the room each voxel walls (-1: none), walls (W,) those voxels' ids;
+    breached (N,) bool: wall voxels opened already; cell: the grid's edge, m;
+    openings_m2 (R,): each room's openings at rest."""
 
     label: np.ndarray
     volume: np.ndarray
@@ -89,10 +91,10 @@ class LeakyRooms:
     vent_area: np.ndarray
     vent_wave: np.ndarray
     wall: np.ndarray
+    walls: np.ndarray
     breached: np.ndarray
     cell: float
-    at_rest: np.ndarray | None = None  # (F,) bool: the openings found at rest
-    walls: np.ndarray | None = None  # the voxels that wall a room (ids), once asked for
+    openings_m2: np.ndarray
 
     @property
     def cells(self) -> np.ndarray:
@@ -103,8 +105,6 @@ class LeakyRooms:
         """Open as vents the wall voxels that turned to dust or whose piece moved more
         than half a cell from rest (centroid (N, 3) m at rest, area (N,) m^2 each one's
         face towards its room)."""
-        if self.walls is None:
-            self.walls = np.flatnonzero(self.wall >= 0)
         candidates = self.walls[~self.breached[self.walls]]
         if not candidates.size:
             return
@@ -130,26 +130,30 @@ class LeakyRooms:
     def settled(self, t: float) -> bool:
         """Are the rooms at ambient pressure at t (s), after the waves have left every
         opening? Then nothing changes them any more: no breach needs looking for."""
-        if self.pressure.any() or not len(self.vent_wave):
-            return not self.pressure.any()
-        waves = self.vent_wave
-        return t >= float((waves[..., 1] + waves[..., 2] + waves[..., 5]).max())
+        return not self.pressure.any() and t >= wave_span(self.vent_wave)[1]
 
     def step_pressure_integrals(self, t0: float, t1: float) -> np.ndarray:
         """(R,) each room's pressure integrated over [t0, t1], Pa s; advances the
         pressure to t1."""
         out = np.zeros(len(self.volume))
         if len(self.vent_room):
-            _fill(self.pressure, self.vent_room, self.vent_area, self.vent_wave, self.volume,
-                  t0, t1, out)
+            _fill(self.pressure, (self.vent_room, self.vent_area, self.vent_wave),
+                  wave_span(self.vent_wave), self.volume, t0, t1, out)
         return out
 
     def meta(self) -> list[dict]:
         """What the SimCache records: each room's volume and its openings' area at rest."""
         return [{"free_volume_m3": float(self.volume[r]),
-                 "openings_m2": float(self.vent_area[:len(self.at_rest)][
-                     self.vent_room[:len(self.at_rest)] == r].sum())}
-                for r in range(len(self.volume))]
+                 "openings_m2": float(self.openings_m2[r])} for r in range(len(self.volume))]
+
+
+def wave_span(vent_wave: np.ndarray) -> np.ndarray:
+    """(2,) s: when the waves (:func:`incident_waves`, (F, C, 6)) reach the first
+    opening and leave the last (inf, 0 without openings)."""
+    if not vent_wave.size:
+        return np.array([np.inf, 0.0])
+    return np.array([float(vent_wave[..., 1].min()),
+                     float((vent_wave[..., 1] + vent_wave[..., 2] + vent_wave[..., 5]).max())])
 
 
 def incident_waves(charges, points: np.ndarray) -> np.ndarray:
@@ -176,19 +180,18 @@ def _waves_at(table, burst, scale, time, position, points, out) -> None:
 
 
 @kernel
-def _fill(pressure, vent_room, vent_area, vent_wave, volume, t0, t1, out) -> None:
+def _fill(pressure, vents, span, volume, t0, t1, out) -> None:
     """Advance the rooms' pressure (R,) Pa over [t0, t1] by the orifice flow through
-    the vents (see the module), in sub-steps of at most FILL_STEP; out (R,) += the
-    pressure's integral, Pa s. A sub-step never carries a room past the pressures
-    that drive it (the flow's square root is stiff where they meet)."""
+    the vents ((room, area, wave) of each, see :class:`LeakyRooms`; span: their
+    :func:`wave_span`), in sub-steps of at most FILL_STEP; out (R,) += the pressure's
+    integral, Pa s. A sub-step never carries a room past the pressures that drive it
+    (the flow's square root is stiff where they meet)."""
+    vent_room, vent_area, vent_wave = vents
+    first, last = span[0], span[1]
     n_rooms = volume.shape[0]
-    first, last = np.inf, 0.0  # s: the waves reach the first opening, leave the last
     area = np.zeros(n_rooms)
     for f in range(vent_room.shape[0]):
         area[vent_room[f]] += vent_area[f]
-        for c in range(vent_wave.shape[1]):
-            first = min(first, vent_wave[f, c, 1])
-            last = max(last, vent_wave[f, c, 1] + vent_wave[f, c, 2] + vent_wave[f, c, 5])
     quiet = True
     for r in range(n_rooms):
         quiet = quiet and pressure[r] == 0.0
@@ -244,11 +247,13 @@ def _overpressure(wave, t):
     return -wave[4] * 6.75 * s * (1.0 - s) * (1.0 - s)
 
 
-def find_leaky_rooms(grid, charges, centroid: np.ndarray, half: np.ndarray,
-                     up: np.ndarray, ground: float | None) -> LeakyRooms | None:
+def find_leaky_rooms(grid, charges, centroid: np.ndarray,
+                     half_extent: Callable[[], np.ndarray], up: np.ndarray,
+                     ground: float | None) -> LeakyRooms | None:
     """The leaky rooms of the shielding grid at rest (see the module), or None.
 
-    centroid, half (N, 3) m: the voxels' rest centres and half boxes; up (3,) unit
+    centroid (N, 3) m: the voxels' rest centres; half_extent() (N, 3) m: their half
+    boxes, to find the voxels that wall a room (asked for only if there is one); up (3,) unit
     (an axis); ground: the ground's height along up (m), or None: the grid's floor
     is open air."""
     dims = tuple(int(d) for d in grid.dims)
@@ -262,10 +267,10 @@ def find_leaky_rooms(grid, charges, centroid: np.ndarray, half: np.ndarray,
     axis = int(np.argmax(np.abs(up)))
     floor_low = up[axis] > 0
     on_ground = ground is not None
-    padded, air_open = _closed(solid, k, axis, floor_low, on_ground)
-    outside_closed, outside_open = _outside(padded), _outside(air_open)
+    closed, padded = _closed(solid, k, axis, floor_low, on_ground)
+    outside_closed, outside_open = _outside(closed), _outside(padded)
     crop = tuple(slice(k + 1, k + 1 + d) for d in dims)
-    closed = padded[crop]
+    closed = closed[crop]
     rooms_air = ~closed & ~outside_closed[crop] & outside_open[crop]
     if not rooms_air.any():
         return None
@@ -281,29 +286,28 @@ def find_leaky_rooms(grid, charges, centroid: np.ndarray, half: np.ndarray,
     renumber[keep] = np.arange(len(keep))
     label = np.where(label >= 0, renumber[np.maximum(label, 0)], -1).astype(np.int32)
     vent_room = renumber[vent_room]
-    wall = room_walls(grid, label, centroid, half)
-    rooms = LeakyRooms(label=label, volume=np.asarray(volumes)[keep], pressure=np.zeros(len(keep)),
-                       vent_room=vent_room, vent_area=vent_area,
-                       vent_wave=incident_waves(charges, vent_point), wall=wall,
-                       breached=np.zeros(len(centroid), dtype=bool), cell=cell)
-    rooms.at_rest = np.ones(len(vent_room), dtype=bool)
-    return rooms
+    wall = room_walls(grid, label, centroid, half_extent())
+    return LeakyRooms(label=label, volume=np.asarray(volumes)[keep],
+                      pressure=np.zeros(len(keep)), vent_room=vent_room, vent_area=vent_area,
+                      vent_wave=incident_waves(charges, vent_point), wall=wall,
+                      walls=np.flatnonzero(wall >= 0),
+                      breached=np.zeros(len(centroid), dtype=bool), cell=cell,
+                      openings_m2=np.bincount(vent_room, vent_area, minlength=len(keep)))
 
 
 def _closed(solid: np.ndarray, k: int, axis: int, floor_low: bool, on_ground: bool):
-    """(the solid closed by a box of half-width k cells, the open air), both padded by
-    k + 1 cells: air all round, solid below the floor when the model stands on the
-    ground."""
+    """(the solid closed by a box of half-width k cells, the solid as it is), both
+    padded by k + 1 cells: air all round, solid below the floor when the model stands
+    on the ground."""
     padded = np.pad(solid, k + 1)
     if on_ground:
         _fill_floor(padded, k + 1, axis, floor_low)
-    air_open = padded.copy()
-    grown = padded.copy()
+    grown = padded
     for a in range(3):
         grown = _sweep(grown, k, a, np.logical_or)
     for a in range(3):
         grown = _sweep(grown, k, a, np.logical_and)
-    return grown | padded, air_open
+    return grown | padded, padded
 
 
 def _fill_floor(grid: np.ndarray, pad: int, axis: int, floor_low: bool) -> None:
