@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from blastvox.jit import helper
+from blastvox.simulate.contact.partition import SPLIT_ROWS
 from blastvox.simulate.topology import root_of
 
 
@@ -14,7 +15,9 @@ from blastvox.simulate.topology import root_of
 def islands(ends, n, order, threads):
     """The solve's islands: bodies joined by rows between two moving bodies (union-find),
     each island's rows in ``order`` and its bodies, and the islands dealt to ``threads``
-    bins, largest first to the emptiest (which bin solves an island changes no byte).
+    bins, largest first to the emptiest (which bin solves an island changes no byte),
+    but those of at least SPLIT_ROWS rows to one more bin, the last: each of those is
+    cut in parts that every thread sweeps (:mod:`~blastvox.simulate.contact.partition`).
     Returns (row_start, rows, body_start, bodies, bin_start, bin_islands): CSR arrays,
     island k's rows rows[row_start[k]:row_start[k + 1]] and so on; rows of no moving
     body are in none."""
@@ -58,13 +61,17 @@ def islands(ends, n, order, threads):
     deal = np.empty(k, dtype=np.int64)
     by_size = np.argsort(-(row_start[1:] - row_start[:-1]), kind="mergesort")
     for j in by_size:
+        size = row_start[j + 1] - row_start[j]
+        if size >= SPLIT_ROWS:  # cut in parts, solved on every thread after the bins
+            deal[j] = threads
+            continue
         target = np.argmin(load)
         deal[j] = target
-        load[target] += row_start[j + 1] - row_start[j] + 1
-    bin_start = np.zeros(threads + 1, dtype=np.int64)
+        load[target] += size + 1
+    bin_start = np.zeros(threads + 2, dtype=np.int64)
     for j in range(k):
         bin_start[deal[j] + 1] += 1
-    for t in range(threads):
+    for t in range(threads + 1):
         bin_start[t + 1] += bin_start[t]
     bin_islands = _grouped(deal, bin_start)
     return row_start, island_rows, body_start, members, bin_start, bin_islands
