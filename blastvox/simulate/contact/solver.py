@@ -206,11 +206,8 @@ def _solve_islands(row_fields, work, groups, masses, coef, scalars, restarts, sp
     ends, bw, rw, moved, total, bounce = work
     row_start, island_rows, body_start, members, bin_start, bin_islands = groups
     rest_speed = scalars[2]
-    (body, voxel, key, frame, corners, corner_gap, used, gap, point, arm, bounciness,
-     approach, impulse, friction, grip) = row_fields
     for t in nb.prange(len(bin_start) - 2):
-        rows = ContactRows(body, voxel, key, frame, corners, corner_gap, used, gap, point,
-                           arm, bounciness, approach, impulse, friction, grip)
+        rows = ContactRows(*row_fields)
         scratch = np.zeros(12)
         for j in range(bin_start[t], bin_start[t + 1]):
             k = bin_islands[j]
@@ -224,8 +221,7 @@ def _solve_islands(row_fields, work, groups, masses, coef, scalars, restarts, sp
                 island_substeps(rows, ends, bw, rw, moved, total, rs, es, coef, scratch)
                 restarts[t] += 1
             restitution(rows, ends, bw, rw, total, rs, rest_speed, bounce)
-    rows = ContactRows(body, voxel, key, frame, corners, corner_gap, used, gap, point, arm,
-                       bounciness, approach, impulse, friction, grip)
+    rows = ContactRows(*row_fields)
     scratch = np.zeros((PARTS + 1, 12))
     for j in range(bin_start[-2], bin_start[-1]):
         k = bin_islands[j]
@@ -244,29 +240,36 @@ def _solve_islands(row_fields, work, groups, masses, coef, scalars, restarts, sp
                 soft_sweep(rows, ends, bw, rw, moved, total, seam, coef, True,
                            scratch[PARTS])
                 for p in nb.prange(PARTS):
-                    own = ContactRows(body, voxel, key, frame, corners, corner_gap, used, gap,
-                                      point, arm, bounciness, approach, impulse, friction,
-                                      grip)
-                    prs = part_rows[part_start[p]:part_start[p + 1]]
-                    apply_carried(own, ends, bw, rw, total, prs)
-                    soft_sweep(own, ends, bw, rw, moved, total, prs, coef, True, scratch[p])
+                    part_sweep(row_fields, ends, bw, rw, moved, total,
+                               part_rows[part_start[p]:part_start[p + 1]], coef, True,
+                               scratch[p])
                 soft_sweep(rows, ends, bw, rw, moved, total, seam, coef, True,
                            scratch[PARTS])
                 move_bodies(bw, moved, es, coef)
                 soft_sweep(rows, ends, bw, rw, moved, total, seam, coef, False,
                            scratch[PARTS])
                 for p in nb.prange(PARTS):
-                    own = ContactRows(body, voxel, key, frame, corners, corner_gap, used, gap,
-                                      point, arm, bounciness, approach, impulse, friction,
-                                      grip)
-                    prs = part_rows[part_start[p]:part_start[p + 1]]
-                    soft_sweep(own, ends, bw, rw, moved, total, prs, coef, False, scratch[p])
+                    part_sweep(row_fields, ends, bw, rw, moved, total,
+                               part_rows[part_start[p]:part_start[p + 1]], coef, False,
+                               scratch[p])
             if attempt == 1 or not gained_energy(rows, ends, bw, rs, es, masses, coef,
                                                  before):
                 break
             undo_solve(bw, rw, moved, total, rs, es)  # as for the bins' islands
             restarts[-1] += 1
         restitution(rows, ends, bw, rw, total, rs, rest_speed, bounce)
+
+
+@helper
+def part_sweep(row_fields, ends, bw, rw, moved, total, rs, coef, push, scratch) -> None:
+    """One part's sweep of a cut island, on its own thread (see :func:`_solve_islands`):
+    the push-out sweep after the part's carried impulses (push), or the relax sweep.
+    row_fields: the ContactRows as a tuple (a parallel loop is handed arrays, not the
+    named tuple)."""
+    rows = ContactRows(*row_fields)
+    if push:
+        apply_carried(rows, ends, bw, rw, total, rs)
+    soft_sweep(rows, ends, bw, rw, moved, total, rs, coef, push, scratch)
 
 
 @helper
