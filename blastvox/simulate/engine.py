@@ -135,7 +135,7 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
                   yield_pa=a["link_yield"].astype(np.float64).copy())
     bodies = empty_bodies(capacity)
     bodies.count[0] = n_objects
-    order = np.argsort(objects, kind="stable")
+    order = np.argsort(objects, kind="stable").astype(np.int32)  # as split_bodies' members
     bounds = np.searchsorted(objects[order], np.arange(n_objects + 1))
     for b in range(n_objects):
         members = order[bounds[b]:bounds[b + 1]]
@@ -161,7 +161,7 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
                           supported=np.zeros(capacity, dtype=bool),
                           supported_next=np.zeros(capacity, dtype=bool),
                           hits=np.zeros((4096, 4)), points=np.zeros((64, 3)),
-                          vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int64)),
+                          vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int32)),
         scratch=Scratch.for_model(sm),
         shielding=sm.rest_grid._replace(count=sm.rest_grid.count.copy(),
                                         member=sm.rest_grid.member.copy()))

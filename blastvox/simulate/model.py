@@ -33,14 +33,14 @@ CONFORM_FACES = SURFACE_TAG + 6
 class VoxelGeometry(NamedTuple):
     """Rest geometry and mass properties of the N voxels (read-only).
 
-    vertices (V, 3) m and corners (N, 8) int64: voxel corners at rest (rows of
+    vertices (V, 3) m and corners (N, 8) int32: voxel corners at rest (rows of
     ``vertices``). mass (N,) kg, centroid (N, 3) m, inertia (N, 3, 3) kg m^2
     about the voxel centroid. restitution (N,) from the material. radius (N,):
     farthest corner from the centroid, m; contact_radius (N,): collision sphere,
     (volume)^(1/3) / 2, m; density (N,) kg/m^3 (mass over the contact cube).
-    conform_slot (N,): row in the conform tables or -1; conform_area (C, 7, 3)
+    conform_slot (N,) int32: row in the conform tables or -1; conform_area (C, 7, 3)
     vector areas (m^2, outward) and conform_centroid (C, 7, 3) m of each face.
-    link_offsets (N+1,), link_ids (2L,): the links of each voxel (CSR).
+    link_offsets (N+1,) int64, link_ids (2L,) int32: the links of each voxel (CSR).
     """
 
     vertices: np.ndarray
@@ -62,7 +62,7 @@ class VoxelGeometry(NamedTuple):
 class LinkGeometry(NamedTuple):
     """The L links between face-adjacent voxels (read-only).
 
-    voxels (L, 2) int64; face (L,) int64: the face of voxels[:, 0] the link
+    voxels (L, 2) int32; face (L,) uint8: the face of voxels[:, 0] the link
     crosses (voxels[:, 1] sees face - 1); midpoint (L, 3) m; direction (L, 3)
     unit vector from the first voxel to the second, at rest.
     """
@@ -87,7 +87,7 @@ class Strength(NamedTuple):
     which scales its impulse asymptote as its yield; inner (L,) bool: the link holds
     together a chunk (both voxels in one chunk of ``voxel_chunk``) of a material that
     crushes (crush_pa > 0): neither the blast nor an impact breaks it; interface (L,)
-    int64: the interface between two chunks a link crosses, numbered from 0 in order
+    int32: the interface between two chunks a link crosses, numbered from 0 in order
     of the pair of chunk ids (-1: an inner link, or a model without chunks)."""
 
     link_impulse: np.ndarray
@@ -123,7 +123,7 @@ class SimModel:
 
     voxels, links, strength: see :class:`VoxelGeometry`, :class:`LinkGeometry` and
     :class:`Strength`.
-    material (N,), object (N,): indices from the VoxelModel. up (3,): unit up
+    material (N,), object (N,) int32: indices from the VoxelModel. up (3,): unit up
     vector (axis index up_axis); ground_height: m along up, or None for no
     ground. voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of
     the voxel centroids at rest, cells of grid_cell m (about
@@ -167,24 +167,24 @@ def build_model(model: VoxelModel) -> SimModel:
     """Derive the static simulation arrays from a VoxelModel."""
     a = model.arrays
     n = model.voxel_count
-    links = np.ascontiguousarray(a["link_voxels"], dtype=np.int64)
+    # index arrays stay the model's int32 (shared, not copied: 150 MB at a million voxels)
+    links = np.ascontiguousarray(a["link_voxels"], dtype=np.int32)
     offsets, link_ids = link_csr(links, n)
-    slot = np.full(n, -1, dtype=np.int64)
-    conform = a["conform_voxels"].astype(np.int64)
-    slot[conform] = np.arange(len(conform))
+    slot = np.full(n, -1, dtype=np.int32)
+    slot[a["conform_voxels"]] = np.arange(len(a["conform_voxels"]), dtype=np.int32)
     area, centroid = _conform_faces(a["conform_triangles"], a["conform_tag"],
                                     a["conform_offsets"])
     up = np.zeros(3)
     up[model.up_index] = 1.0
     vertices = np.ascontiguousarray(a["vertices"], dtype=np.float64)
-    corners = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int64)
+    corners = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int32)
     voxel_centroid = np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64)
     ground = model.meta.get("ground_height")
     contact_radius = 0.5 * cbrt(np.maximum(a["voxel_volume"], 0.0))
     grid_cell = 8.0 * float(np.median(contact_radius)) if n else 1.0
     grid_cell = grid_cell if grid_cell > 0.0 else 1.0
     link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)
-    mass = a["voxel_mass"].astype(np.float64)
+    mass = np.ascontiguousarray(a["voxel_mass"], dtype=np.float64)
     voxels = VoxelGeometry(
         vertices=vertices, corners=corners, mass=mass, centroid=voxel_centroid,
         inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
@@ -195,7 +195,8 @@ def build_model(model: VoxelModel) -> SimModel:
         conform_slot=slot, conform_area=area, conform_centroid=centroid,
         link_offsets=offsets, link_ids=link_ids)
     link_geometry = LinkGeometry(
-        voxels=links, face=a["link_face"].astype(np.int64), midpoint=link_midpoint,
+        voxels=links, face=np.ascontiguousarray(a["link_face"], dtype=np.uint8),
+        midpoint=link_midpoint,
         direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
     rest_grid = build_occupancy(
         *solid_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
@@ -204,8 +205,8 @@ def build_model(model: VoxelModel) -> SimModel:
     thickness, normal = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
     return SimModel(
         voxels=voxels, links=link_geometry, strength=_strength(a, normal),
-        material=a["voxel_material"].astype(np.int64),
-        object=a["voxel_object"].astype(np.int64),
+        material=np.ascontiguousarray(a["voxel_material"], dtype=np.int32),
+        object=np.ascontiguousarray(a["voxel_object"], dtype=np.int32),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
         grid_cell=grid_cell,
         voxel_grid=dense_grid(voxel_centroid, grid_cell), rest_grid=rest_grid,
@@ -245,7 +246,7 @@ def _strength(arrays: dict, normal: np.ndarray | None = None) -> Strength:
     shatter = crush.copy()
     ends = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
     inner = np.zeros(len(ends), dtype=bool)
-    interface = np.full(len(ends), -1, dtype=np.int64)
+    interface = np.full(len(ends), -1, dtype=np.int32)
     if "voxel_chunk" not in arrays:
         crush[:] = 0.0
     else:
@@ -304,7 +305,7 @@ def link_csr(link_voxels, n_voxels):
     for v in range(n_voxels):
         offsets[v + 1] += offsets[v]
     fill = offsets[:-1].copy()
-    ids = np.empty(2 * link_voxels.shape[0], dtype=np.int64)
+    ids = np.empty(2 * link_voxels.shape[0], dtype=np.int32)
     for side in range(2):
         for link in range(link_voxels.shape[0]):
             v = link_voxels[link, side]

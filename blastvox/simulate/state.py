@@ -120,7 +120,7 @@ class Contacts(NamedTuple):
     rest, last step and this one; hits (H, 4): this step's contact points (m)
     and approach speeds (m/s), for dust; points (K, 3): ground contact points
     of one body (grows with the largest body); vertex_stamp (V,): body that
-    last listed a corner (-1 none); memory: the contact solver's rows and what they
+    last listed a corner (-1 none), int32; memory: the contact solver's rows and what they
     carry from step to step (:class:`~blastvox.simulate.contact.ground.ContactMemory`),
     made by the first contact phase."""
 
@@ -234,8 +234,8 @@ class Counters:
 
 @dataclass
 class Scratch:
-    """Work arrays of the phases, allocated once. component, order (N,) int64: for
-    splits; voxel_owner (N,): the voxel each fracture candidate moves with;
+    """Work arrays of the phases, allocated once. component, order (N,) int32: for
+    splits; voxel_owner (N,) int32: the voxel each fracture candidate moves with;
     voxel_candidate (N,): fracture candidates."""
 
     component: np.ndarray
@@ -246,8 +246,8 @@ class Scratch:
     @classmethod
     def for_model(cls, model) -> Scratch:
         n = model.n_voxels
-        return cls(component=np.zeros(n, dtype=np.int64), order=np.zeros(n, dtype=np.int64),
-                   voxel_owner=np.arange(n, dtype=np.int64),
+        return cls(component=np.zeros(n, dtype=np.int32), order=np.zeros(n, dtype=np.int32),
+                   voxel_owner=np.arange(n, dtype=np.int32),
                    voxel_candidate=np.zeros(n, dtype=bool))
 
 

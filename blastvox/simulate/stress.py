@@ -535,8 +535,9 @@ def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
     if not has_limits(springs):
         return None
     chunk = arrays.get("voxel_chunk")
-    return Stress(springs=springs, cell=np.asarray(arrays["voxel_ijk"], dtype=np.int64),
-                  chunk=None if chunk is None else np.asarray(chunk, dtype=np.int64),
+    # the model's int32 arrays, shared (node_key widens what it keys on)
+    return Stress(springs=springs, cell=np.asarray(arrays["voxel_ijk"], dtype=np.int32),
+                  chunk=None if chunk is None else np.asarray(chunk, dtype=np.int32),
                   solved=np.zeros(capacity, dtype=bool))
 
 
