@@ -217,7 +217,7 @@ class Run:
             fire=Fire.start(state) if settings.fire and combustible else None,
             # model only what the scene needs: no founded body, no load paths
             stress=(stress := start_stress(model.arrays, len(state.bodies.mass),
-                                           settings.stress)),
+                                           settings.stress, sm.strength.link_factor)),
             # founded bodies' contact loads need the links' strengths, and something to hit
             punch=(Punch.of(stress.chunk, sm.n_voxels)
                    if stress is not None and settings.collisions else None),

@@ -52,7 +52,8 @@ from typing import NamedTuple
 import numpy as np
 
 from blastvox.jit import kernel
-from blastvox.simulate.model import link_strength_factor
+from blastvox.simulate.springs import LinkSprings, SpringTable, has_limits
+from blastvox.simulate.springs import link_springs as link_springs
 
 #: Poisson's ratio of the shear springs (concrete 0.2; the solve is not sensitive to it).
 POISSON = 0.2
@@ -64,70 +65,6 @@ EVENT_BAND = 0.8
 #: Most nodes of one solve: the grid cell k (voxels) grows until the solve has at most
 #: this many (the cost of the sparse solve grows faster than linearly with it).
 TARGET_NODES = 300
-
-
-class LinkSprings(NamedTuple):
-    """What the stress solver needs of the model's L links (read-only).
-
-    midpoint (L, 3) m; direction (L, 3) unit, first voxel to second; area (L,) m^2;
-    modulus (L,) Pa: Young's modulus of the link (its two halves in series);
-    tensile, compressive, shear (L,) Pa: the limits (inf: never).
-    """
-
-    midpoint: np.ndarray
-    direction: np.ndarray
-    area: np.ndarray
-    modulus: np.ndarray
-    tensile: np.ndarray
-    compressive: np.ndarray
-    shear: np.ndarray
-
-
-def _column(arrays: dict, name: str, default: float, count: int) -> np.ndarray:
-    values = arrays.get(f"material_{name}")
-    if values is None:
-        return np.full(count, default)
-    return np.asarray(values, dtype=np.float64)
-
-
-def link_springs(arrays: dict) -> LinkSprings:
-    """The links' moduli and strength limits from VoxelModel ``arrays``.
-
-    A link takes the limits of its weaker material (as the voxelizer chose it for
-    the link yield: the lower link_yield_mean), scaled by the link's yield over
-    that material's mean yield, so the random spread, the scene's strength_scale
-    and chunk bonds scale the stress limits as they scale the blast yield.
-    """
-    lv = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
-    mat = np.asarray(arrays["voxel_material"], dtype=np.int64)
-    centroid = np.asarray(arrays["voxel_centroid"], dtype=np.float64)
-    midpoint = np.asarray(arrays["link_midpoint"], dtype=np.float64).reshape(-1, 3)
-    direction = np.asarray(arrays["link_direction"], dtype=np.float64).reshape(-1, 3)
-    area = np.maximum(np.asarray(arrays["link_area"], dtype=np.float64), 1e-12)
-    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
-    mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
-    factor, weaker = link_strength_factor(arrays)
-    count = len(mean)
-    modulus = _column(arrays, "youngs_modulus", 30e9, count)
-    half_a = np.abs(np.einsum("ij,ij->i", midpoint - centroid[lv[:, 0]], direction))
-    half_b = np.abs(np.einsum("ij,ij->i", centroid[lv[:, 1]] - midpoint, direction))
-    length = np.maximum(half_a + half_b, 1e-12)
-    series = length / (np.maximum(half_a, 0.0) / modulus[la] + np.maximum(half_b, 0.0)
-                       / modulus[lb] + 1e-300)
-
-    def limit(name: str) -> np.ndarray:
-        return np.ascontiguousarray(_column(arrays, name, math.inf, count)[weaker] * factor)
-
-    return LinkSprings(
-        midpoint=np.ascontiguousarray(midpoint), direction=np.ascontiguousarray(direction),
-        area=area, modulus=series, tensile=limit("tensile_strength"),
-        compressive=limit("compressive_strength"), shear=limit("shear_strength"))
-
-
-def has_limits(springs: LinkSprings) -> bool:
-    """Can any link break under stress (a finite limit)?"""
-    return bool(np.isfinite(springs.tensile).any() or np.isfinite(springs.compressive).any()
-                or np.isfinite(springs.shear).any())
 
 
 class Graph(NamedTuple):
@@ -394,6 +331,7 @@ def link_stresses(springs, graph, dof, q, out) -> None:
     """Fill ``out`` (J, 4) with each interface link's largest tensile, compressive and
     shear stress (Pa) and its utilization, the largest of the three over its limit.
 
+    springs: the :class:`LinkSprings` of the J links ``graph.links``, row by row;
     graph: the solve's :class:`Graph`; q (6 M',): the solved displacements (m) and
     rotations (rad) of the free nodes (dof, as for :func:`assemble`)."""
     jac = np.empty((3, 12))
@@ -403,7 +341,7 @@ def link_stresses(springs, graph, dof, q, out) -> None:
     force = np.zeros(3)
     y = np.zeros(3)
     for j in range(graph.links.shape[0]):
-        link, k = graph.links[j], graph.link_interface[j]
+        k = graph.link_interface[j]
         _jacobian(graph.centroid, graph.node_com, graph.pair, k, jac)
         da, db = dof[graph.pair[k, 0]], dof[graph.pair[k, 1]]
         for p in range(6):
@@ -427,14 +365,14 @@ def link_stresses(springs, graph, dof, q, out) -> None:
         for r in range(3):
             sliding += (force[r] - axial * d[r]) ** 2
             bend += (phi[r] - phi_n * d[r]) ** 2
-            y[r] = springs.midpoint[link, r] - graph.centroid[k, r]
+            y[r] = springs.midpoint[j, r] - graph.centroid[k, r]
         along = y[0] * d[0] + y[1] * d[1] + y[2] * d[2]
         for r in range(3):
             y[r] -= along * d[r]
         turn = ((phi[1] * y[2] - phi[2] * y[1]) * d[0] + (phi[2] * y[0] - phi[0] * y[2]) * d[1]
                 + (phi[0] * y[1] - phi[1] * y[0]) * d[2])  # (phi x y) . d
-        e = springs.modulus[link]
-        side = math.sqrt(springs.area[link])
+        e = springs.modulus[j]
+        side = math.sqrt(springs.area[j])
         span = graph.length[k]
         # the member's axial stress on a face turned by facing c: c^2 of it is normal
         c = graph.link_facing[j]
@@ -446,8 +384,8 @@ def link_stresses(springs, graph, dof, q, out) -> None:
         tension = normal + own
         compression = -normal + own
         out[j, 0], out[j, 1], out[j, 2] = tension, compression, tau
-        out[j, 3] = max(tension / springs.tensile[link],
-                        compression / springs.compressive[link], tau / springs.shear[link])
+        out[j, 3] = max(tension / springs.tensile[j],
+                        compression / springs.compressive[j], tau / springs.shear[j])
 
 
 class Solution(NamedTuple):
@@ -487,7 +425,7 @@ def solve(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
     if found is None:
         return Solution(g.links, stress, len(held))
     dof, q = found
-    link_stresses(springs, g, dof, q, stress)
+    link_stresses(springs.rows(g.links), g, dof, q, stress)
     return Solution(g.links, stress, len(held))
 
 
@@ -503,7 +441,8 @@ def overloaded(solution: Solution) -> np.ndarray:
 
 @dataclass
 class Stress:
-    """The stress solver's memory over a run: springs (the model's links), cell (N, 3)
+    """The stress solver's memory over a run: springs (the model's links', worked out on
+    demand: :class:`~blastvox.simulate.springs.SpringTable`), cell (N, 3)
     each voxel's lattice index, chunk (N,) its chunk or None, solved (B,) bodies whose
     current solution is known (a body's voxels or links changed: it is solved again),
     and run totals (solves, seconds of wall time, links broken, the worst utilization
@@ -513,7 +452,7 @@ class Stress:
     rested, by body: (live voxels, contact voxels, on the ground) of the support it was
     last judged on (:mod:`blastvox.simulate.support`)."""
 
-    springs: LinkSprings
+    springs: SpringTable
     cell: np.ndarray
     chunk: np.ndarray | None
     solved: np.ndarray
@@ -526,12 +465,14 @@ class Stress:
     rested: dict = field(default_factory=dict)
 
 
-def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
+def start(arrays: dict, capacity: int, enabled: bool,
+          factor: np.ndarray | None = None) -> Stress | None:
     """The run's stress solver, or None where the scene needs none (off, or no link
-    with a finite strength)."""
+    with a finite strength). factor (L,): the links' strength factors, if known
+    (:attr:`blastvox.simulate.model.Strength.link_factor`)."""
     if not enabled:
         return None
-    springs = link_springs(arrays)
+    springs = SpringTable(arrays, factor)
     if not has_limits(springs):
         return None
     chunk = arrays.get("voxel_chunk")
@@ -590,7 +531,7 @@ def solve_body(model, state, stress: Stress, members: np.ndarray, links: np.ndar
     voxel_in = np.ones(members.size, dtype=bool)
     chunk = None if stress.chunk is None else stress.chunk[members]
     key = node_key(stress.cell[members], chunk, state.voxels.body[members], fixed, voxel_in)
-    springs = LinkSprings(*(column[links] for column in stress.springs))
+    springs = stress.springs.rows(links)
     stress.solves += 1
     return solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
                  model.voxels.mass[members], model.voxels.centroid[members], gravity,
