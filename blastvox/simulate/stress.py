@@ -51,7 +51,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from blastvox.jit import kernel
+from blastvox.jit import helper, kernel
 from blastvox.simulate.springs import LinkSprings, SpringTable, has_limits
 from blastvox.simulate.springs import link_springs as link_springs
 
@@ -106,20 +106,17 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
                  fixed: np.ndarray, link_alive: np.ndarray, voxel_key: np.ndarray,
                  mass: np.ndarray, centroid: np.ndarray) -> Graph:
     """Group the voxels flagged in voxel_in (N,) into nodes by ``voxel_key`` (N, 6)
-    int64 (body, foundation flag, chunk, cell i, j, k) and connectivity, and the alive links
-    between nodes into interfaces. mass (N,) kg and centroid (N, 3) m of the voxels."""
+    (body, foundation flag, chunk, cell i, j, k; int32, :func:`node_key`) and
+    connectivity, and the alive links between nodes into interfaces. mass (N,) kg and
+    centroid (N, 3) m of the voxels."""
     n = len(voxel_in)
     inside = np.flatnonzero(voxel_in)
-    local = np.full(n, -1, dtype=np.int64)
-    local[inside] = np.arange(len(inside))
-    ends_in = voxel_in[link_voxels[:, 0]] & voxel_in[link_voxels[:, 1]]
-    alive = np.flatnonzero(link_alive & ends_in)
-    a, b = link_voxels[alive, 0], link_voxels[alive, 1]
-    same = np.ones(len(alive), dtype=bool)
-    for column in voxel_key.T:  # column by column: the (L, 6) gathers of both ends took
-        same &= column[a] == column[b]  # 300 MB at a million voxels
-    count, labels = components(len(inside), local[a[same]], local[b[same]])
     node = np.full(n, -1, dtype=np.int64)
+    node[inside] = np.arange(len(inside))  # each voxel's place among them, for now
+    labels = np.empty(len(inside), dtype=np.int32)
+    count, across = node_labels(np.ascontiguousarray(link_voxels, dtype=np.int32), link_alive,
+                                voxel_in, np.ascontiguousarray(voxel_key, dtype=np.int32),
+                                node, labels)  # int32 as the model's: one kernel
     node[inside] = labels
     node_mass = np.bincount(labels, weights=mass[inside], minlength=count)
     node_com = np.stack([np.bincount(labels, weights=mass[inside] * centroid[inside, i],
@@ -127,7 +124,6 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
     node_com /= np.maximum(node_mass, 1e-300)[:, None]
     node_fixed = np.bincount(labels, weights=fixed[inside].astype(np.float64),
                              minlength=count) > 0
-    across = alive[~same]
     na, nb = node[link_voxels[across, 0]], node[link_voxels[across, 1]]
     sign = np.where(na < nb, 1.0, -1.0)
     first, second = np.minimum(na, nb), np.maximum(na, nb)
@@ -169,28 +165,28 @@ def components(m: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
     return len(roots), labels.astype(np.int32)
 
 
-@kernel
-def union_find_labels(m, a, b, labels) -> int:
-    """Connected components of m nodes joined by edges (a[i], b[i]) (int64): writes each
-    node's label to labels (m,) int32, numbered in the order of each component's
-    smallest node (SciPy's numbering), and returns their count. Union-find with the
-    smaller root kept and path halving: linear memory (SciPy's connected_components
-    built a symmetric sparse matrix, 117 MB at a million voxels)."""
-    parent = np.arange(m)
-    for e in range(a.shape[0]):
-        x, y = a[e], b[e]
-        while parent[x] != x:  # path halving
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        while parent[y] != y:
-            parent[y] = parent[parent[y]]
-            y = parent[y]
-        if x < y:
-            parent[y] = x
-        elif y < x:
-            parent[x] = y
+@helper
+def _union(parent, x, y) -> None:
+    """Join the sets of x and y, the smaller root kept, halving paths on the way."""
+    while parent[x] != x:  # path halving
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    while parent[y] != y:
+        parent[y] = parent[parent[y]]
+        y = parent[y]
+    if x < y:
+        parent[y] = x
+    elif y < x:
+        parent[x] = y
+
+
+@helper
+def _number(parent, labels) -> int:
+    """Write each node's component label to labels (m,), numbered in the order of each
+    component's smallest node (SciPy's numbering; every root is its set's smallest
+    node), and return their count."""
     count = 0
-    for i in range(m):  # a root is its component's smallest node: numbered in node order
+    for i in range(parent.shape[0]):
         r = parent[i]
         while parent[r] != r:
             r = parent[r]
@@ -201,6 +197,57 @@ def union_find_labels(m, a, b, labels) -> int:
         else:
             labels[i] = labels[r]
     return count
+
+
+@kernel
+def union_find_labels(m, a, b, labels) -> int:
+    """Connected components of m nodes joined by edges (a[i], b[i]) (int64): writes each
+    node's label to labels (m,) int32, numbered in the order of each component's
+    smallest node (SciPy's numbering), and returns their count. Union-find with the
+    smaller root kept and path halving: linear memory (SciPy's connected_components
+    built a symmetric sparse matrix, 117 MB at a million voxels)."""
+    parent = np.arange(m)
+    for e in range(a.shape[0]):
+        _union(parent, a[e], b[e])
+    return _number(parent, labels)
+
+
+@kernel
+def node_labels(link_voxels, link_alive, voxel_in, key, place, labels):
+    """The nodes of :func:`coarse_graph`: the voxels flagged in voxel_in (N,) joined by
+    their alive links (link_alive (L,), link_voxels (L, 2)) whose two ends have the
+    same key (N, K), in components (:func:`components`' labels, into labels (M,) int32,
+    by each voxel's place (N,) among the M flagged). Returns their count and the alive
+    links between two keys (J,), ascending: the interfaces' links. One pass over the
+    links, nothing per link kept but those (the gathers of both ends' keys and the edge
+    lists took 200 MB at a million voxels)."""
+    parent = np.arange(labels.shape[0])
+    between = 0
+    for link in range(link_voxels.shape[0]):
+        a, b = link_voxels[link, 0], link_voxels[link, 1]
+        if not (link_alive[link] and voxel_in[a] and voxel_in[b]):
+            continue
+        if _same_key(key, a, b):
+            _union(parent, place[a], place[b])
+        else:
+            between += 1
+    across = np.empty(between, dtype=np.int64)
+    j = 0
+    for link in range(link_voxels.shape[0]):
+        a, b = link_voxels[link, 0], link_voxels[link, 1]
+        if link_alive[link] and voxel_in[a] and voxel_in[b] and not _same_key(key, a, b):
+            across[j] = link
+            j += 1
+    return _number(parent, labels), across
+
+
+@helper
+def _same_key(key, a, b) -> bool:
+    """Do voxels a and b have the same key (a row of key (N, K))?"""
+    for c in range(key.shape[1]):
+        if key[a, c] != key[b, c]:
+            return False
+    return True
 
 
 def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
@@ -484,7 +531,7 @@ def start(arrays: dict, capacity: int, enabled: bool,
 
 def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
              fixed: np.ndarray, voxel_in: np.ndarray) -> np.ndarray:
-    """Each voxel's node key (N, 6) for :func:`coarse_graph`: body, foundation flag,
+    """Each voxel's node key (N, 6) int32 for :func:`coarse_graph`: body, foundation flag,
     chunk (0 where the model has none, or the solve more than :data:`TARGET_NODES` of
     them) and the grid cell (N, 3) of :func:`cell_size`.
 
@@ -494,11 +541,15 @@ def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
     rigid node put its boundary, not the member's section, where the stress is read:
     a cantilever's root read 0.6-0.7 x beam theory)."""
     count = int(np.count_nonzero(voxel_in))
-    head = [voxel_body[:, None], fixed[:, None].astype(np.int64)]
-    chunks = np.zeros((len(voxel_body), 1), dtype=np.int64)
+    key = np.zeros((len(voxel_body), 6), dtype=np.int32)  # int32: 24 MB at a million
+    key[:, 0] = voxel_body
+    key[:, 1] = fixed
     if chunk is not None and np.unique(chunk[voxel_in]).size <= TARGET_NODES:
-        chunks = chunk[:, None].astype(np.int64)
-    return np.concatenate(head + [chunks, cell // cell_size(count)], axis=1)
+        key[:, 2] = chunk
+    k = cell_size(count)
+    for axis in range(3):
+        key[:, 3 + axis] = cell[:, axis] // k
+    return key
 
 
 def voxel_links(model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
