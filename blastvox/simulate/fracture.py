@@ -34,7 +34,7 @@ from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import release_held
-from blastvox.simulate.members import edge_on, effective_thickness
+from blastvox.simulate.members import MEMBER_NORMALS, edge_on, effective_thickness
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.shielding import Occupancy, remove_voxel, sight_line
 from blastvox.simulate.state import Exposure, Front, WaveViews
@@ -165,7 +165,8 @@ def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.n
     core: the line of sight through the shielding grid is most of a wave's cost, and
     each voxel's is its own. :func:`fracture_wave` takes them, as it would work them
     out, until a voxel turns to dust and leaves the grid this step. members: the
-    model's (thickness (N,) m, wave_speed (N,) m/s, normal (N, 3)); bodies: the
+    model's (thickness (N,) m, wave_speed (N,) m/s, MEMBER_NORMALS (D, 3), member_axis
+    (N,)); bodies: the
     state's Bodies (pos, rot, com read)."""
     # numba's parallel loops take arrays, not structs of arrays: the structs go in
     # as their fields and are built again inside
@@ -180,15 +181,15 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, 
     """:func:`views_ahead`'s loop, each voxel of ``order`` on its own (see there); the
     structs come as tuples of their fields, unpacked before the loop."""
     position, time, scale, table, burst, inner, outer = front_fields
-    origin, cell, dims, count, member, lo, hi = grid_fields
+    origin, cell, dims, count, member, vertices, corners, slot, box_lo, box_hi = grid_fields
     clearing, gas, sight, reach = exposure_fields
-    thickness, speed, member_normal = members
+    thickness, speed, normals, member_axis = members
     body_pos, body_rot, body_com = poses
     known, peak, impulse, depth, blocked, thick, squeezed = ahead_fields
     for i in nb.prange(len(order)):
         front = Front(position, time, scale, table, burst, inner, outer)
-        exposure = Exposure(Occupancy(origin, cell, dims, count, member, lo, hi), clearing,
-                            gas, sight, reach)
+        exposure = Exposure(Occupancy(origin, cell, dims, count, member, vertices, corners,
+                                      slot, box_lo, box_hi), clearing, gas, sight, reach)
         v = order[i]
         b = voxel_body[v]
         centre = np.empty(3)
@@ -200,9 +201,9 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, 
             if r < 0.0:
                 continue
             for a in range(3):  # the member's normal, turned with its body
-                normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
-                             + body_rot[b, a, 1] * member_normal[v, 1]
-                             + body_rot[b, a, 2] * member_normal[v, 2])
+                normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
+                             + body_rot[b, a, 1] * normals[member_axis[v], 1]
+                             + body_rot[b, a, 2] * normals[member_axis[v], 2])
             (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
              squeezed[i, c]) = element_view(front, c, r, centre, exposure, b, thickness[v],
                                             speed[v], normal)
@@ -230,7 +231,8 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
     second of its two ends is, on the geometric mean of their views (peak and impulse:
     the value at the midpoint of a power-law decay) and
     the thinner of their members (members: the model's (thickness (N,) m,
-    wave_speed (N,) m/s, normal (N, 3))); a link with an end squeezed between the
+    wave_speed (N,) m/s, MEMBER_NORMALS (D, 3), member_axis (N,): each voxel's row of
+    it, the unit normal of its member)); a link with an end squeezed between the
     faces of a member the wave sweeps along (:func:`element_view`) is not bent by
     it, only worn. With params.judge_links False (the damage model) only
     voxels are judged. The cost is one line of sight per voxel and wave and O(1) per
@@ -256,7 +258,7 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
     (for dust cues), marks.broken (L,) the links broken, marks.dirty (B,) their
     bodies.
     """
-    geometry, link_geometry, strength, (thickness, speed, member_normal) = parts
+    geometry, link_geometry, strength, (thickness, speed, normals, member_axis) = parts
     links, voxels, bodies, marks, loads = run_state
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out, weakening = front.inner, front.outer, params.weakening
@@ -285,9 +287,9 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
             if params.pressure_impulse:
                 if gap:  # dust opened the grid this step: the view ahead is stale
                     for a in range(3):  # the member's normal, turned with its body
-                        normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
-                                     + body_rot[b, a, 1] * member_normal[v, 1]
-                                     + body_rot[b, a, 2] * member_normal[v, 2])
+                        normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
+                                     + body_rot[b, a, 1] * normals[member_axis[v], 1]
+                                     + body_rot[b, a, 2] * normals[member_axis[v], 2])
                     peak, imp, depth, blocked, thick, squeezed = element_view(
                         front, c, r, centre, exposure, b, thickness[v], speed[v], normal)
                 else:
@@ -584,7 +586,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                             state.scratch.voxel_candidate, front)
     order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
-    members = (model.thickness, model.wave_speed, model.normal)
+    members = (model.thickness, model.wave_speed, MEMBER_NORMALS, model.member_axis)
     ahead = no_views_ahead(len(front.position))
     if params.pressure_impulse and len(order):
         k, c = len(order), len(front.position)

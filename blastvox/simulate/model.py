@@ -19,9 +19,9 @@ from blastvox.blast._numeric import cbrt
 from blastvox.geometry.voxel_faces import SURFACE_TAG
 from blastvox.jit import kernel
 from blastvox.model import VoxelModel
-from blastvox.simulate.members import thickness_at_rest, wave_speeds
+from blastvox.simulate.members import MEMBER_NORMALS, thickness_at_rest, wave_speeds
 from blastvox.simulate.shell import dense_grid
-from blastvox.simulate.shielding import Occupancy, build_occupancy, solid_boxes, typical_edge
+from blastvox.simulate.shielding import Occupancy, build_occupancy, conform_boxes, typical_edge
 
 #: A conform voxel's loaded faces: its cell faces 0..5, then its part of the original
 #: surface split by the direction its triangles face most (-x, +x, -y, +y, -z, +z):
@@ -130,8 +130,9 @@ class SimModel:
     four voxels). rest_grid: the shielding
     :class:`~blastvox.simulate.shielding.Occupancy` of every voxel at rest (a run
     shields with a copy); thickness (N,) m: each voxel's member thickness
-    (:mod:`blastvox.simulate.members`) and normal (N, 3) the unit direction, at rest,
-    it is measured along; wave_speed (N,) m/s: its material's
+    (:mod:`blastvox.simulate.members`) and member_axis (N,) uint8 the unit direction,
+    at rest, it is measured along (a row of
+    :data:`~blastvox.simulate.members.MEMBER_NORMALS`); wave_speed (N,) m/s: its material's
     longitudinal (bar) wave speed sqrt(E / rho).
     """
 
@@ -147,7 +148,7 @@ class SimModel:
     voxel_grid: tuple
     rest_grid: Occupancy
     thickness: np.ndarray
-    normal: np.ndarray
+    member_axis: np.ndarray
     wave_speed: np.ndarray
 
     @property
@@ -198,19 +199,20 @@ def build_model(model: VoxelModel) -> SimModel:
         voxels=links, face=np.ascontiguousarray(a["link_face"], dtype=np.uint8),
         midpoint=link_midpoint,
         direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
+    boxes = conform_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
+                          a["conform_triangles"])
     rest_grid = build_occupancy(
-        *solid_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
-                     a["conform_triangles"]),
-        voxel_centroid, typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
-    thickness, normal = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
+        vertices, corners, (slot, a["conform_voxels"], *boxes), voxel_centroid,
+        typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
+    thickness, member_axis = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
     return SimModel(
-        voxels=voxels, links=link_geometry, strength=_strength(a, normal),
+        voxels=voxels, links=link_geometry, strength=_strength(a, MEMBER_NORMALS[member_axis]),
         material=np.ascontiguousarray(a["voxel_material"], dtype=np.int32),
         object=np.ascontiguousarray(a["voxel_object"], dtype=np.int32),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
         grid_cell=grid_cell,
         voxel_grid=dense_grid(voxel_centroid, grid_cell), rest_grid=rest_grid,
-        thickness=thickness, normal=normal, wave_speed=wave_speeds(a))
+        thickness=thickness, member_axis=member_axis, wave_speed=wave_speeds(a))
 
 
 def _solid_volume(arrays: dict) -> np.ndarray:
