@@ -129,7 +129,8 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
         body=objects.copy(), alive=np.ones(n, dtype=bool), link_mask=np.zeros(n, dtype=np.uint8),
         yield_pa=a["voxel_yield"].astype(np.float64).copy(), foundation=foundation,
         foundation_pa=a["voxel_foundation_yield"].astype(np.float64).copy(),
-        damage=np.zeros(n), combust=a["voxel_combustibility"].astype(np.float64).copy(),
+        # the model's own combustibility until a fire burns it (_start_fire copies it)
+        damage=np.zeros(n), combust=np.asarray(a["voxel_combustibility"], dtype=np.float64),
         burning=np.zeros(n, dtype=bool))
     links = Links(alive=np.ones(n_links, dtype=bool),
                   yield_pa=a["link_yield"].astype(np.float64).copy())
@@ -214,7 +215,7 @@ class Run:
                               state.voxels.yield_pa.copy()),
             effects=Effects(settings.budgets, settings.seed, len(charges.tnt_kg)),
             # model only what the scene needs: no combustible material, no fire
-            fire=Fire.start(state) if settings.fire and combustible else None,
+            fire=_start_fire(state) if settings.fire and combustible else None,
             # model only what the scene needs: no founded body, no load paths
             stress=(stress := start_stress(model.arrays, len(state.bodies.mass),
                                            settings.stress, sm.strength.link_factor)),
@@ -231,6 +232,13 @@ class Run:
                 "stress": self.stress is not None,
                 "shock_sphere": s.shock_sphere,
                 "camera_shake": s.camera_shake and s.camera is not None}
+
+
+def _start_fire(state: State) -> Fire:
+    """The run's fire; the voxels' combustibility, the model's array until now, becomes
+    the run's own copy, which the fire burns away."""
+    state.voxels = state.voxels._replace(combust=state.voxels.combust.copy())
+    return Fire.start(state)
 
 
 def _rooms(sm: SimModel, state: State, charges: Charges, ground: float | None) -> dict:

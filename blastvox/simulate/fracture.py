@@ -165,8 +165,8 @@ def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.n
     core: the line of sight through the shielding grid is most of a wave's cost, and
     each voxel's is its own. :func:`fracture_wave` takes them, as it would work them
     out, until a voxel turns to dust and leaves the grid this step. members: the
-    model's (thickness (N,) m, wave_speed (N,) m/s, MEMBER_NORMALS (D, 3), member_axis
-    (N,)); bodies: the
+    model's (thickness (N,) m, wave_speed (M,) m/s, material (N,), MEMBER_NORMALS (D, 3),
+    member_axis (N,)); bodies: the
     state's Bodies (pos, rot, com read)."""
     # numba's parallel loops take arrays, not structs of arrays: the structs go in
     # as their fields and are built again inside
@@ -183,7 +183,7 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, 
     position, time, scale, table, burst, inner, outer = front_fields
     origin, cell, dims, count, member, vertices, corners, slot, box_lo, box_hi = grid_fields
     clearing, gas, sight, reach = exposure_fields
-    thickness, speed, normals, member_axis = members
+    thickness, speed, material, normals, member_axis = members
     body_pos, body_rot, body_com = poses
     known, peak, impulse, depth, blocked, thick, squeezed = ahead_fields
     for i in nb.prange(len(order)):
@@ -206,7 +206,7 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, 
                              + body_rot[b, a, 2] * normals[member_axis[v], 2])
             (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
              squeezed[i, c]) = element_view(front, c, r, centre, exposure, b, thickness[v],
-                                            speed[v], normal)
+                                            speed[material[v]], normal)
 
 
 def no_views_ahead(n_charges: int) -> AheadViews:
@@ -231,13 +231,13 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
     second of its two ends is, on the geometric mean of their views (peak and impulse:
     the value at the midpoint of a power-law decay) and
     the thinner of their members (members: the model's (thickness (N,) m,
-    wave_speed (N,) m/s, MEMBER_NORMALS (D, 3), member_axis (N,): each voxel's row of
-    it, the unit normal of its member)); a link with an end squeezed between the
-    faces of a member the wave sweeps along (:func:`element_view`) is not bent by
-    it, only worn. With params.judge_links False (the damage model) only
-    voxels are judged. The cost is one line of sight per voxel and wave and O(1) per
-    link (there were two per link and step, one of them through all the solid
-    behind the link). The lines of sight are worked out ahead, on every core
+    wave_speed (M,) m/s of each material, material (N,), MEMBER_NORMALS (D, 3),
+    member_axis (N,): each voxel's row of it, the unit normal of its member)); a link
+    with an end squeezed between the faces of a member the wave sweeps along
+    (:func:`element_view`) is not bent by it, only worn. With params.judge_links False
+    (the damage model) only voxels are judged. The cost is one line of sight per voxel
+    and wave and O(1) per link (there were two per link and step, one of them through
+    all the solid behind the link). The lines of sight are worked out ahead, on every core
     (:func:`views_ahead`, ``ahead``); once a voxel turns to dust this step, the views
     after it are worked out here again, as it changed the grid.
 
@@ -258,7 +258,8 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
     (for dust cues), marks.broken (L,) the links broken, marks.dirty (B,) their
     bodies.
     """
-    geometry, link_geometry, strength, (thickness, speed, normals, member_axis) = parts
+    geometry, link_geometry, strength, (thickness, speed, material, normals,
+                                        member_axis) = parts
     links, voxels, bodies, marks, loads = run_state
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out, weakening = front.inner, front.outer, params.weakening
@@ -291,16 +292,17 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                                      + body_rot[b, a, 1] * normals[member_axis[v], 1]
                                      + body_rot[b, a, 2] * normals[member_axis[v], 2])
                     peak, imp, depth, blocked, thick, squeezed = element_view(
-                        front, c, r, centre, exposure, b, thickness[v], speed[v], normal)
+                        front, c, r, centre, exposure, b, thickness[v], speed[material[v]],
+                        normal)
                 else:
                     peak, imp, depth = ahead.peak[i, c], ahead.impulse[i, c], ahead.depth[i, c]
                     blocked, thick = ahead.blocked[i, c], ahead.thickness[i, c]
                     squeezed = ahead.squeezed[i, c]
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
-                i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
+                i0 = strength.voxel_impulse[strength.material[v]] * thick / REFERENCE_THICKNESS
                 breaks = depth <= 2.0 * geometry.contact_radius[v] and pi_exceeded(
-                    peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
+                    peak, imp, voxel_yield[v], i0, strength.pi_shape[strength.material[v]])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
                 imp, blocked, thick, i0, squeezed = 0.0, False, thickness[v], 0.0, False
@@ -311,7 +313,8 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
             views.squeezed[v, c] = squeezed
             crossed[v] = True
             if breaks and params.pressure_impulse and strength.shatter_pa[v] > 0.0 and not (
-                    pi_exceeded(peak, imp, strength.shatter_pa[v], i0, strength.pi_shape[v])):
+                    pi_exceeded(peak, imp, strength.shatter_pa[v], i0,
+                                strength.pi_shape[strength.material[v]])):
                 # failed, not crushed: a voxel as large as the material's rubble comes off
                 # whole (the split frees it with the impulse its body held for it)
                 broken += _shatter(v, geometry, links, marks, b)
@@ -373,12 +376,13 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                         peak = max(peak, gas)
                         imp += gas * exposure.gas[c, 1]
                     owner = link_voxels[link, 0]
-                    i0 = (strength.link_impulse[owner] * strength.link_factor[link]
+                    i0 = (strength.link_impulse[strength.material[owner]]
+                          * strength.link_factor[link]
                           * min(views.thickness[v, c], views.thickness[w, c])
                           / REFERENCE_THICKNESS)
                     # a chunk of a material that crushes comes apart only as dust
                     breaks = not strength.inner[link] and pi_exceeded(
-                        peak, imp, limit, i0, strength.pi_shape[owner])
+                        peak, imp, limit, i0, strength.pi_shape[strength.material[owner]])
                 else:
                     peak = peak_overpressure(table[front.burst[c]], rm, charge_scale[c])
                     breaks = peak > limit
@@ -586,7 +590,8 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                             state.scratch.voxel_candidate, front)
     order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
-    members = (model.thickness, model.wave_speed, MEMBER_NORMALS, model.member_axis)
+    members = (model.thickness, model.wave_speed, model.material, MEMBER_NORMALS,
+               model.member_axis)
     ahead = no_views_ahead(len(front.position))
     if params.pressure_impulse and len(order):
         k, c = len(order), len(front.position)

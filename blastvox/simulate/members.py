@@ -157,15 +157,14 @@ def edge_on(normal, axis, depth, thickness) -> bool:
 
 
 def wave_speeds(arrays: dict) -> np.ndarray:
-    """(N,) m/s: each voxel's longitudinal (bar) wave speed sqrt(E / rho), from its
-    material's youngs_modulus (30 GPa for a model that predates the column) and
-    density."""
-    material = np.asarray(arrays["voxel_material"], dtype=np.int64)
+    """(M,) m/s: each material's longitudinal (bar) wave speed sqrt(E / rho), from its
+    youngs_modulus (30 GPa for a model that predates the column) and density (a
+    voxel's: that of its voxel_material)."""
     density = np.asarray(arrays["material_density"], dtype=np.float64)
     modulus = arrays.get("material_youngs_modulus")
     modulus = (np.full(len(density), 30e9) if modulus is None
                else np.asarray(modulus, dtype=np.float64))
-    return np.ascontiguousarray(np.sqrt(modulus / density)[material])
+    return np.ascontiguousarray(np.sqrt(modulus / density))
 
 
 @helper

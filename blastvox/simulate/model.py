@@ -74,9 +74,10 @@ class LinkGeometry(NamedTuple):
 
 
 class Strength(NamedTuple):
-    """Pressure-impulse strength of each voxel's material (N,): link_impulse and
-    voxel_impulse, Pa s, the impulse asymptotes for a 0.25 m element; pi_shape,
-    K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`); crush_pa, Pa,
+    """Pressure-impulse strength. Of each material (M,), indexed by material (N,) int32,
+    each voxel's (the model's): link_impulse and voxel_impulse, Pa s, the impulse
+    asymptotes for a 0.25 m element; pi_shape, K / (P0 I0) (see
+    :func:`blastvox.simulate.fracture.pi_exceeded`). Of each voxel (N,): crush_pa, Pa,
     the pressure below which the voxel never turns to dust: its material's
     crush_pressure if the voxel is part of a chunk of several voxels, else 0;
     shatter_pa, Pa: for a voxel that is a chunk of its own (or of a model without
@@ -90,6 +91,7 @@ class Strength(NamedTuple):
     int32: the interface between two chunks a link crosses, numbered from 0 in order
     of the pair of chunk ids (-1: an inner link, or a model without chunks)."""
 
+    material: np.ndarray
     link_impulse: np.ndarray
     voxel_impulse: np.ndarray
     pi_shape: np.ndarray
@@ -100,21 +102,36 @@ class Strength(NamedTuple):
     interface: np.ndarray
 
 
+#: Links per block of the start-up's per-link passes (link_strength_factor,
+#: member_chunks): their temporaries stay a few MB whatever the model's size.
+LINK_BLOCK = 1 << 18
+
+
+def link_blocks(count: int):
+    """Slices of ``count`` links, LINK_BLOCK at a time."""
+    return (slice(start, min(start + LINK_BLOCK, count)) for start in range(0, count, LINK_BLOCK))
+
+
 def link_strength_factor(arrays: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Each link's (L,) strength relative to its material, and that material (L,).
+    """Each link's (L,) strength relative to its material, and that material (L,) int32.
 
     The material is the weaker of the link's two voxels (the lower link_yield_mean,
     as the voxelizer chose it); the factor is the link's yield over that material's
     mean: its random spread, the scene's strength_scale and a chunk bond's scale
-    (1 where the mean is 0 or infinite)."""
-    lv = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
-    mat = np.asarray(arrays["voxel_material"], dtype=np.int64)
-    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
+    (1 where the mean is 0 or infinite). Block by block: the same values, elementwise."""
+    lv = np.asarray(arrays["link_voxels"]).reshape(-1, 2)
+    mat = np.asarray(arrays["voxel_material"])
     mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
-    weaker = np.where(mean[la] <= mean[lb], la, lb)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        factor = np.asarray(arrays["link_yield"], dtype=np.float64) / mean[weaker]
-    return np.where(np.isfinite(factor) & (factor > 0.0), factor, 1.0), weaker
+    link_yield = np.asarray(arrays["link_yield"], dtype=np.float64)
+    factor = np.empty(len(lv))
+    weaker = np.empty(len(lv), dtype=np.int32)
+    for block in link_blocks(len(lv)):
+        la, lb = mat[lv[block, 0]], mat[lv[block, 1]]
+        weaker[block] = np.where(mean[la] <= mean[lb], la, lb)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = link_yield[block] / mean[weaker[block]]
+        factor[block] = np.where(np.isfinite(f) & (f > 0.0), f, 1.0)
+    return factor, weaker
 
 
 @dataclass(frozen=True)
@@ -132,8 +149,9 @@ class SimModel:
     shields with a copy); thickness (N,) m: each voxel's member thickness
     (:mod:`blastvox.simulate.members`) and member_axis (N,) uint8 the unit direction,
     at rest, it is measured along (a row of
-    :data:`~blastvox.simulate.members.MEMBER_NORMALS`); wave_speed (N,) m/s: its material's
-    longitudinal (bar) wave speed sqrt(E / rho).
+    :data:`~blastvox.simulate.members.MEMBER_NORMALS`); wave_speed (M,) m/s: each
+    material's longitudinal (bar) wave speed sqrt(E / rho) (a voxel's:
+    ``wave_speed[material[v]]``).
     """
 
     voxels: VoxelGeometry
@@ -206,7 +224,7 @@ def build_model(model: VoxelModel) -> SimModel:
         typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
     thickness, member_axis = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
     return SimModel(
-        voxels=voxels, links=link_geometry, strength=_strength(a, MEMBER_NORMALS[member_axis]),
+        voxels=voxels, links=link_geometry, strength=_strength(a, member_axis),
         material=np.ascontiguousarray(a["voxel_material"], dtype=np.int32),
         object=np.ascontiguousarray(a["voxel_object"], dtype=np.int32),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
@@ -230,23 +248,27 @@ def _solid_volume(arrays: dict) -> np.ndarray:
     return np.where(np.isfinite(solid) & (solid > 0.0), solid, volume)
 
 
-def _strength(arrays: dict, normal: np.ndarray | None = None) -> Strength:
-    """Per-voxel P-I strength from the material table (0 where a model predates it).
+def _strength(arrays: dict, member_axis: np.ndarray | None = None) -> Strength:
+    """P-I strength from the material table (0 where a model predates it).
 
-    normal (N, 3): each voxel's member normal at rest (:mod:`blastvox.simulate.members`);
-    a chunk is cut where two members meet (:func:`member_chunks`)."""
+    member_axis (N,): each voxel's member normal at rest, a row of MEMBER_NORMALS
+    (:mod:`blastvox.simulate.members`); a chunk is cut where two members meet
+    (:func:`member_chunks`)."""
     material = arrays["voxel_material"]
 
-    def column(name: str) -> np.ndarray:
+    def table(name: str) -> np.ndarray:  # of each material (M,)
         values = arrays.get(f"material_{name}")
         if values is None:
-            return np.zeros(len(material))
-        return np.ascontiguousarray(np.asarray(values, dtype=np.float64)[material])
+            return np.zeros(len(arrays["material_density"]))
+        return np.ascontiguousarray(values, dtype=np.float64)
+
+    def column(name: str) -> np.ndarray:  # of each voxel (N,)
+        return np.ascontiguousarray(table(name)[material])
 
     factor, _ = link_strength_factor(arrays)
     crush = column("crush_pressure")
     shatter = crush.copy()
-    ends = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
+    ends = np.asarray(arrays["link_voxels"]).reshape(-1, 2)
     inner = np.zeros(len(ends), dtype=bool)
     interface = np.full(len(ends), -1, dtype=np.int32)
     if "voxel_chunk" not in arrays:
@@ -255,18 +277,20 @@ def _strength(arrays: dict, normal: np.ndarray | None = None) -> Strength:
         # a voxel that is a whole chunk is the material's fragment size or larger: when
         # it fails it comes off as rubble, and only a crushing load pulverizes it
         voxel_chunk = member_chunks(np.asarray(arrays["voxel_chunk"], dtype=np.int64), ends,
-                                    normal)
+                                    member_axis)
         whole = np.bincount(voxel_chunk)[voxel_chunk] < 2
         crush[whole] = 0.0
         shatter[~whole] = 0.0
-        chunk = voxel_chunk[ends]
-        within = chunk[:, 0] == chunk[:, 1]
-        pair = np.sort(chunk[~within], axis=1)
+        first, second = voxel_chunk[ends[:, 0]], voxel_chunk[ends[:, 1]]
+        within = first == second
         inner = within & (crush[ends[:, 0]] > 0.0)
-        interface[~within] = np.unique(pair[:, 0] * (int(chunk.max(initial=0)) + 1) + pair[:, 1],
-                                      return_inverse=True)[1]
-    return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"),
-                    crush, shatter, np.ascontiguousarray(factor), inner, interface)
+        lo, hi = first[~within], second[~within]  # each pair sorted
+        pair = np.minimum(lo, hi) * (max(int(first.max(initial=0)), int(second.max(initial=0)))
+                                     + 1) + np.maximum(lo, hi)
+        interface[~within] = np.unique(pair, return_inverse=True)[1]
+    return Strength(np.ascontiguousarray(material, dtype=np.int32), table("link_impulse"),
+                    table("voxel_impulse"), table("pi_shape"), crush, shatter,
+                    np.ascontiguousarray(factor), inner, interface)
 
 
 #: Two voxels are of one member when their member normals are within 45 degrees.
@@ -274,22 +298,25 @@ SAME_MEMBER = math.sqrt(0.5)
 
 
 def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
-                  normal: np.ndarray | None) -> np.ndarray:
+                  member_axis: np.ndarray | None) -> np.ndarray:
     """(N,) chunk ids with every chunk cut where two members meet: a chunk that holds
     voxels of a wall and of the wall or slab it joins (member normals more than 45
-    degrees apart, ``normal`` (N, 3)) becomes one chunk per member. Chunks are the
-    material's fragment size, but a junction is where a wall breaks off from the
-    walls that hold it (it carries the bending of both): a chunk across it made the
-    front wall of a house leave with pieces of its side walls and slabs, which jam in
-    line with the rest of them. ends (L, 2): the links' voxels."""
-    if normal is None or not len(ends):
+    degrees apart; member_axis (N,): each voxel's row of MEMBER_NORMALS) becomes one
+    chunk per member. Chunks are the material's fragment size, but a junction is where
+    a wall breaks off from the walls that hold it (it carries the bending of both): a
+    chunk across it made the front wall of a house leave with pieces of its side walls
+    and slabs, which jam in line with the rest of them. ends (L, 2): the links' voxels."""
+    if member_axis is None or not len(ends):
         return voxel_chunk
     from blastvox.simulate.stress import components
 
-    a, b = ends[:, 0], ends[:, 1]
-    together = (voxel_chunk[a] == voxel_chunk[b]) & (
-        np.abs(np.einsum("ij,ij->i", normal[a], normal[b])) >= SAME_MEMBER)
-    _, labels = components(len(voxel_chunk), a[together], b[together])
+    together = np.empty(len(ends), dtype=bool)
+    for block in link_blocks(len(ends)):  # the (L, 3) normals of both ends took 140 MB
+        a, b = ends[block, 0], ends[block, 1]
+        normal_a, normal_b = MEMBER_NORMALS[member_axis[a]], MEMBER_NORMALS[member_axis[b]]
+        together[block] = (voxel_chunk[a] == voxel_chunk[b]) & (
+            np.abs(np.einsum("ij,ij->i", normal_a, normal_b)) >= SAME_MEMBER)
+    _, labels = components(len(voxel_chunk), ends[together, 0], ends[together, 1])
     return labels.astype(np.int64)
 
 

@@ -63,7 +63,7 @@ class Voxels(NamedTuple):
     leaves across face f; yield_pa: current voxel yield, Pa; foundation and
     foundation_pa: foundation flag and its remaining yield, Pa; damage:
     Davison-Stevens damage (links' worth, 0..6); combust: combustibility left
-    (inf = cannot burn); burning.
+    (inf = cannot burn; the model's array, read only, in a run without fire); burning.
     """
 
     body: np.ndarray

@@ -287,10 +287,13 @@ def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
     offset -= np.einsum("ij,ij->i", offset, d)[:, None] * d
     lever = np.cross(offset, d)
     eye = np.eye(3)
-    plane = eye[None] - d[:, :, None] * d[:, None, :]
     shear_modulus = e / (2.0 * (1.0 + POISSON))
-    bend = total(e[:, None, None] * (a[:, None, None] * lever[:, :, None] * lever[:, None, :]
-                                     + (a * a_full / 12.0)[:, None, None] * plane))
+    bend = np.empty((count, 3, 3))
+    for p in range(3):  # entry by entry: the links' (J, 3, 3) tensors took 65 MB at a
+        for q in range(3):  # million voxels
+            plane = eye[p, q] - d[:, p] * d[:, q]
+            bend[:, p, q] = total(e * (a * lever[:, p] * lever[:, q]
+                                       + (a * a_full / 12.0) * plane))
     twist = total(shear_modulus * (a * np.einsum("ij,ij->i", offset, offset)
                                    + TORSION_J * a * a_full))
     k_normal = total(e * a) / length
