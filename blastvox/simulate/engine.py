@@ -218,7 +218,7 @@ class Run:
             fire=_start_fire(state) if settings.fire and combustible else None,
             # model only what the scene needs: no founded body, no load paths
             stress=(stress := start_stress(model.arrays, len(state.bodies.mass),
-                                           settings.stress, sm.strength.link_factor)),
+                                           settings.stress)),
             # founded bodies' contact loads need the links' strengths, and something to hit
             punch=(Punch.of(stress.chunk, sm.n_voxels)
                    if stress is not None and settings.collisions else None),

@@ -35,6 +35,7 @@ from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.kernels import release_held
 from blastvox.simulate.members import MEMBER_NORMALS, edge_on, effective_thickness
+from blastvox.simulate.model import link_factor
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.shielding import Occupancy, remove_voxel, sight_line
 from blastvox.simulate.state import Exposure, Front, WaveViews
@@ -377,7 +378,7 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                         imp += gas * exposure.gas[c, 1]
                     owner = link_voxels[link, 0]
                     i0 = (strength.link_impulse[strength.material[owner]]
-                          * strength.link_factor[link]
+                          * link_factor(strength, link_voxels, link)
                           * min(views.thickness[v, c], views.thickness[w, c])
                           / REFERENCE_THICKNESS)
                     # a chunk of a material that crushes comes apart only as dust

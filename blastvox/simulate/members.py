@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 from blastvox.jit import helper, kernel
-from blastvox.simulate.shielding import Occupancy, box_cells
+from blastvox.simulate.shielding import Occupancy, cells_of
 
 #: The 13 directions of the grid, one of each opposite pair: (13, 3) cell steps.
 DIRECTIONS = np.array([(1, 0, 0), (0, 1, 0), (0, 0, 1),
@@ -48,16 +48,18 @@ MEMBER_NORMALS = DIRECTIONS / np.linalg.norm(DIRECTIONS, axis=1)[:, None]
 
 
 @kernel
-def solid_fractions(grid, volume, centroid):
+def solid_fractions(grid, lo, hi, volume, centroid):
     """(X*Y*Z,) the solid fraction (0..1) of each cell of ``grid`` (an
     :class:`~blastvox.simulate.shielding.Occupancy` at rest): each voxel's volume
     (N,) m^3 spread evenly over the cells it covers (the cells whose centres lie in
-    its solid box, or its centroid's (N, 3) m cell: :func:`box_cells`), clamped to 1."""
+    its solid box (lo, hi (N, 3) m), or its centroid's (N, 3) m cell:
+    :func:`~blastvox.simulate.shielding.cells_of`), clamped to 1."""
     cell, dims = grid.cell[0], grid.dims
     fraction = np.zeros(dims[0] * dims[1] * dims[2])
     cell_volume = cell * cell * cell
     for v in range(volume.shape[0]):
-        i0, i1, j0, j1, k0, k1 = box_cells(grid, centroid, v)
+        i0, i1, j0, j1, k0, k1 = cells_of(grid, centroid, v, lo[v, 0], hi[v, 0], lo[v, 1],
+                                          hi[v, 1], lo[v, 2], hi[v, 2])
         share = max(volume[v], 0.0) / (cell_volume * (i1 - i0 + 1) * (j1 - j0 + 1)
                                        * (k1 - k0 + 1))
         for i in range(i0, i1 + 1):
@@ -134,15 +136,17 @@ def member_thickness(grid, fraction, centroid, directions):
     return out, along
 
 
-def thickness_at_rest(grid: Occupancy, volume: np.ndarray,
+def thickness_at_rest(grid: Occupancy, boxes: tuple, volume: np.ndarray,
                       centroid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(thickness (N,) m, axis (N,) uint8): :func:`member_thickness` of the voxels
-    (volume (N,) m^3, centroid (N, 3) m) on the shielding grid at rest, and the
+    (solid boxes (lo, hi) (N, 3) m, volume (N,) m^3, centroid (N, 3) m) on the
+    shielding grid at rest, and the
     direction it is measured along, the member's normal in the rest frame: a row of
     :data:`MEMBER_NORMALS`."""
     if not len(volume):
         return np.zeros(0), np.zeros(0, dtype=np.uint8)
-    fraction = solid_fractions(grid, np.ascontiguousarray(volume, dtype=np.float64), centroid)
+    fraction = solid_fractions(grid, *boxes, np.ascontiguousarray(volume, dtype=np.float64),
+                               centroid)
     return member_thickness(grid, fraction, centroid, DIRECTIONS)
 
 

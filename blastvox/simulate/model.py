@@ -17,11 +17,17 @@ import numpy as np
 
 from blastvox.blast._numeric import cbrt
 from blastvox.geometry.voxel_faces import SURFACE_TAG
-from blastvox.jit import kernel
+from blastvox.jit import helper, kernel
 from blastvox.model import VoxelModel
 from blastvox.simulate.members import MEMBER_NORMALS, thickness_at_rest, wave_speeds
 from blastvox.simulate.shell import dense_grid
-from blastvox.simulate.shielding import Occupancy, build_occupancy, conform_boxes, typical_edge
+from blastvox.simulate.shielding import (
+    Occupancy,
+    build_occupancy,
+    conform_boxes,
+    solid_boxes,
+    typical_edge,
+)
 
 #: A conform voxel's loaded faces: its cell faces 0..5, then its part of the original
 #: surface split by the direction its triangles face most (-x, +x, -y, +y, -z, +z):
@@ -83,11 +89,12 @@ class Strength(NamedTuple):
     shatter_pa, Pa: for a voxel that is a chunk of its own (or of a model without
     chunks: each voxel is the smallest rubble), its material's crush_pressure (0
     for none): failing below it, the voxel comes off as rubble (its links break),
-    above it as dust; link_factor
-    (L,): each link's strength relative to its material (:func:`link_strength_factor`),
-    which scales its impulse asymptote as its yield; inner (L,) bool: the link holds
-    together a chunk (both voxels in one chunk of ``voxel_chunk``) of a material that
-    crushes (crush_pa > 0): neither the blast nor an impact breaks it; interface (L,)
+    above it as dust; link_yield (L,) Pa, the model's, and yield_mean (M,) Pa, each
+    material's link_yield_mean: each link's strength relative to its material
+    (:func:`link_factor`), which scales its impulse asymptote as its yield; inner
+    (L,) bool: the link holds together a chunk (both voxels in one chunk of
+    ``voxel_chunk``) of a material that crushes (crush_pa > 0): neither the blast nor
+    an impact breaks it; interface (L,)
     int32: the interface between two chunks a link crosses, numbered from 0 in order
     of the pair of chunk ids (-1: an inner link, or a model without chunks)."""
 
@@ -97,7 +104,8 @@ class Strength(NamedTuple):
     pi_shape: np.ndarray
     crush_pa: np.ndarray
     shatter_pa: np.ndarray
-    link_factor: np.ndarray
+    link_yield: np.ndarray
+    yield_mean: np.ndarray
     inner: np.ndarray
     interface: np.ndarray
 
@@ -112,17 +120,19 @@ def link_blocks(count: int):
     return (slice(start, min(start + LINK_BLOCK, count)) for start in range(0, count, LINK_BLOCK))
 
 
-def link_strength_factor(arrays: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Each link's (L,) strength relative to its material, and that material (L,) int32.
+def link_strength_factor(arrays: dict, links=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """The strength relative to its material of each link of ``links`` (ids, or a
+    slice: all by default), and that material, int32.
 
     The material is the weaker of the link's two voxels (the lower link_yield_mean,
     as the voxelizer chose it); the factor is the link's yield over that material's
     mean: its random spread, the scene's strength_scale and a chunk bond's scale
-    (1 where the mean is 0 or infinite). Block by block: the same values, elementwise."""
-    lv = np.asarray(arrays["link_voxels"]).reshape(-1, 2)
+    (1 where the mean is 0 or infinite). Block by block: the same values, elementwise
+    (:func:`link_factor` works out one link's in a kernel)."""
+    lv = np.asarray(arrays["link_voxels"]).reshape(-1, 2)[links]
     mat = np.asarray(arrays["voxel_material"])
     mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
-    link_yield = np.asarray(arrays["link_yield"], dtype=np.float64)
+    link_yield = np.asarray(arrays["link_yield"], dtype=np.float64)[links]
     factor = np.empty(len(lv))
     weaker = np.empty(len(lv), dtype=np.int32)
     for block in link_blocks(len(lv)):
@@ -132,6 +142,21 @@ def link_strength_factor(arrays: dict) -> tuple[np.ndarray, np.ndarray]:
             f = link_yield[block] / mean[weaker[block]]
         factor[block] = np.where(np.isfinite(f) & (f > 0.0), f, 1.0)
     return factor, weaker
+
+
+@helper
+def link_factor(strength, link_voxels, link) -> float:
+    """Link ``link``'s strength relative to its material (``strength``: the model's
+    :class:`Strength`; link_voxels (L, 2)): :func:`link_strength_factor`'s, to the bit
+    (one IEEE division), without keeping a float per link."""
+    la, lb = strength.material[link_voxels[link, 0]], strength.material[link_voxels[link, 1]]
+    mean = strength.yield_mean[la]
+    if not mean <= strength.yield_mean[lb]:
+        mean = strength.yield_mean[lb]
+    if mean == 0.0:  # the yield over it is infinite or undefined
+        return 1.0
+    f = strength.link_yield[link] / mean
+    return f if math.isfinite(f) and f > 0.0 else 1.0
 
 
 @dataclass(frozen=True)
@@ -217,12 +242,15 @@ def build_model(model: VoxelModel) -> SimModel:
         voxels=links, face=np.ascontiguousarray(a["link_face"], dtype=np.uint8),
         midpoint=link_midpoint,
         direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
-    boxes = conform_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
-                          a["conform_triangles"])
+    conform = conform_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
+                            a["conform_triangles"])
+    boxes = solid_boxes(vertices, corners, a["conform_voxels"], *conform)  # start-up only
     rest_grid = build_occupancy(
-        vertices, corners, (slot, a["conform_voxels"], *boxes), voxel_centroid,
+        vertices, corners, (slot, *conform), boxes, voxel_centroid,
         typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
-    thickness, member_axis = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
+    thickness, member_axis = thickness_at_rest(rest_grid, boxes, _solid_volume(a),
+                                               voxel_centroid)
+    del boxes
     return SimModel(
         voxels=voxels, links=link_geometry, strength=_strength(a, member_axis),
         material=np.ascontiguousarray(a["voxel_material"], dtype=np.int32),
@@ -265,7 +293,6 @@ def _strength(arrays: dict, member_axis: np.ndarray | None = None) -> Strength:
     def column(name: str) -> np.ndarray:  # of each voxel (N,)
         return np.ascontiguousarray(table(name)[material])
 
-    factor, _ = link_strength_factor(arrays)
     crush = column("crush_pressure")
     shatter = crush.copy()
     ends = np.asarray(arrays["link_voxels"]).reshape(-1, 2)
@@ -290,7 +317,8 @@ def _strength(arrays: dict, member_axis: np.ndarray | None = None) -> Strength:
         interface[~within] = np.unique(pair, return_inverse=True)[1]
     return Strength(np.ascontiguousarray(material, dtype=np.int32), table("link_impulse"),
                     table("voxel_impulse"), table("pi_shape"), crush, shatter,
-                    np.ascontiguousarray(factor), inner, interface)
+                    np.ascontiguousarray(arrays["link_yield"], dtype=np.float64),
+                    table("link_yield_mean"), inner, interface)
 
 
 #: Two voxels are of one member when their member normals are within 45 degrees.

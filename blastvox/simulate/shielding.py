@@ -129,18 +129,19 @@ def corner_boxes(vertices, corners):
 
 
 def build_occupancy(vertices: np.ndarray, corners: np.ndarray, conform: tuple,
-                    centroid: np.ndarray, cell: float) -> Occupancy:
+                    boxes: tuple, centroid: np.ndarray, cell: float) -> Occupancy:
     """The grid of every voxel at rest. vertices (V, 3) m, corners (N, 8); conform:
-    the conform voxels' (slot (N,), their rows or -1; conform_voxels (C,); box_lo,
-    box_hi (C, 3) m: :func:`conform_boxes`); centroid (N, 3) m; cell: the wanted edge,
-    m (coarsened to MAX_CELLS)."""
+    the conform voxels' (slot (N,), their rows or -1; box_lo, box_hi (C, 3) m:
+    :func:`conform_boxes`); boxes: (lo, hi) (N, 3) m, every voxel's solid box
+    (:func:`solid_boxes`, for the fill; the grid keeps none); centroid (N, 3) m; cell:
+    the wanted edge, m (coarsened to MAX_CELLS)."""
     n = len(corners)
-    slot, conform_voxels, box_lo, box_hi = conform
+    slot, box_lo, box_hi = conform
     if n == 0:
         return Occupancy(np.zeros(3), np.ones(1), np.ones(3, dtype=np.int64),
                          np.zeros(1, dtype=np.int16), np.zeros(0, dtype=bool),
                          vertices, corners, slot, box_lo, box_hi)
-    lo, hi = solid_boxes(vertices, corners, conform_voxels, box_lo, box_hi)
+    lo, hi = boxes
     low, high = lo.min(axis=0), hi.max(axis=0)
     extent = np.maximum(high - low, 0.0)
     cell = float(cell) if cell > 0.0 and math.isfinite(cell) else float(extent.max() or 1.0)
@@ -150,7 +151,7 @@ def build_occupancy(vertices: np.ndarray, corners: np.ndarray, conform: tuple,
     grid = Occupancy(low.astype(np.float64), np.array([cell]), dims,
                      np.zeros(int(np.prod(dims)), dtype=np.int16), np.ones(n, dtype=bool),
                      vertices, corners, slot, box_lo, box_hi)
-    _fill(grid, centroid)
+    _fill(grid, lo, hi, centroid)
     return grid
 
 
@@ -185,17 +186,15 @@ def cell_range(lo, hi, origin, cell, dims, a):
 
 
 @helper
-def box_cells(grid, centroid, v):
+def cells_of(grid, centroid, v, lo0, hi0, lo1, hi1, lo2, hi2):
     """(i0, i1, j0, j1, k0, k1): the cells voxel v covers along each axis, the cells
-    whose centres lie in its solid box (:func:`solid_box`), or its centroid's
-    (centroid (N, 3) m) if none does (see the module docstring)."""
+    whose centres lie in its solid box (lo0..hi0, lo1..hi1, lo2..hi2 m:
+    :func:`solid_box`), or its centroid's (centroid (N, 3) m) if none does (see the
+    module docstring)."""
     origin, cell, dims = grid.origin, grid.cell[0], grid.dims
-    lo, hi = solid_box(grid, v, 0)
-    i0, i1 = cell_range(lo, hi, origin, cell, dims, 0)
-    lo, hi = solid_box(grid, v, 1)
-    j0, j1 = cell_range(lo, hi, origin, cell, dims, 1)
-    lo, hi = solid_box(grid, v, 2)
-    k0, k1 = cell_range(lo, hi, origin, cell, dims, 2)
+    i0, i1 = cell_range(lo0, hi0, origin, cell, dims, 0)
+    j0, j1 = cell_range(lo1, hi1, origin, cell, dims, 1)
+    k0, k1 = cell_range(lo2, hi2, origin, cell, dims, 2)
     if i0 > i1 or j0 > j1 or k0 > k1:  # smaller than a cell: the centroid's cell
         i0 = i1 = min(max(int((centroid[v, 0] - origin[0]) / cell), 0), dims[0] - 1)
         j0 = j1 = min(max(int((centroid[v, 1] - origin[1]) / cell), 0), dims[1] - 1)
@@ -204,10 +203,19 @@ def box_cells(grid, centroid, v):
 
 
 @helper
-def _cover(grid, centroid, v, delta):
-    """Add delta to the count of every cell voxel v covers (:func:`box_cells`)."""
+def box_cells(grid, centroid, v):
+    """:func:`cells_of` voxel v, its solid box worked out (:func:`solid_box`)."""
+    lo0, hi0 = solid_box(grid, v, 0)
+    lo1, hi1 = solid_box(grid, v, 1)
+    lo2, hi2 = solid_box(grid, v, 2)
+    return cells_of(grid, centroid, v, lo0, hi0, lo1, hi1, lo2, hi2)
+
+
+@helper
+def _count(grid, cells, delta):
+    """Add delta to the count of the cells (i0, i1, j0, j1, k0, k1) (:func:`cells_of`)."""
     dims, count = grid.dims, grid.count
-    i0, i1, j0, j1, k0, k1 = box_cells(grid, centroid, v)
+    i0, i1, j0, j1, k0, k1 = cells
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             for k in range(k0, k1 + 1):
@@ -215,9 +223,11 @@ def _cover(grid, centroid, v, delta):
 
 
 @kernel
-def _fill(grid, centroid):
-    for v in range(grid.member.shape[0]):
-        _cover(grid, centroid, v, 1)
+def _fill(grid, lo, hi, centroid):
+    """Count every voxel in the grid, their solid boxes lo, hi (N, 3) m given."""
+    for v in range(lo.shape[0]):
+        _count(grid, cells_of(grid, centroid, v, lo[v, 0], hi[v, 0], lo[v, 1], hi[v, 1],
+                              lo[v, 2], hi[v, 2]), 1)
 
 
 @kernel
@@ -243,7 +253,7 @@ def remove_voxel(grid, geometry, v) -> None:
     """Take voxel v out of the grid (if it is in)."""
     if not grid.member[v]:
         return
-    _cover(grid, geometry.centroid, v, -1)
+    _count(grid, box_cells(grid, geometry.centroid, v), -1)
     grid.member[v] = False
 
 

@@ -70,11 +70,10 @@ class SpringTable:
     """The springs of a VoxelModel's L links (``arrays``), worked out on demand:
     ``midpoint`` and ``direction`` are the model's arrays, ``area``, ``modulus``,
     ``tensile``, ``compressive`` and ``shear`` :class:`Column` s, and ``rows(links)``
-    the :class:`LinkSprings` of ``links``. factor (L,): each link's strength over its
-    material's (:func:`~blastvox.simulate.model.link_strength_factor`; the run's
-    SimModel holds it already)."""
+    the :class:`LinkSprings` of ``links``."""
 
-    def __init__(self, arrays: dict, factor: np.ndarray | None = None) -> None:
+    def __init__(self, arrays: dict) -> None:
+        self.arrays = arrays
         self.link_voxels = np.asarray(arrays["link_voxels"]).reshape(-1, 2)
         self.material = np.asarray(arrays["voxel_material"])
         self.centroid = np.asarray(arrays["voxel_centroid"], dtype=np.float64)
@@ -84,7 +83,6 @@ class SpringTable:
             arrays["link_direction"], dtype=np.float64).reshape(-1, 3))
         self.link_area = np.asarray(arrays["link_area"], dtype=np.float64)
         self.mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
-        self.factor = link_strength_factor(arrays)[0] if factor is None else factor
         count = len(self.mean)
         self.youngs = _column(arrays, "youngs_modulus", 30e9, count)
         self.limits = {name: _column(arrays, f"{name}_strength", math.inf, count)
@@ -107,10 +105,10 @@ class SpringTable:
         return ends, self.material[ends[:, 0]], self.material[ends[:, 1]]
 
     def _limit(self, name: str, links) -> np.ndarray:
-        """The links' limit ``name``: the weaker material's, times the link's factor."""
-        _, la, lb = self._materials(links)
-        weaker = np.where(self.mean[la] <= self.mean[lb], la, lb)
-        return self.limits[name][weaker] * self.factor[links]
+        """The links' limit ``name``: the weaker material's, times the link's factor
+        (:func:`~blastvox.simulate.model.link_strength_factor`)."""
+        factor, weaker = link_strength_factor(self.arrays, links)
+        return self.limits[name][weaker] * factor
 
     def _modulus(self, links) -> np.ndarray:
         """The links' modulus: their two halves, centroid to shared face, in series."""

@@ -515,14 +515,12 @@ class Stress:
     rested: dict = field(default_factory=dict)
 
 
-def start(arrays: dict, capacity: int, enabled: bool,
-          factor: np.ndarray | None = None) -> Stress | None:
+def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
     """The run's stress solver, or None where the scene needs none (off, or no link
-    with a finite strength). factor (L,): the links' strength factors, if known
-    (:attr:`blastvox.simulate.model.Strength.link_factor`)."""
+    with a finite strength)."""
     if not enabled:
         return None
-    springs = SpringTable(arrays, factor)
+    springs = SpringTable(arrays)
     if not has_limits(springs):
         return None
     chunk = arrays.get("voxel_chunk")
