@@ -33,12 +33,12 @@ from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.clearing import exposure_of
-from blastvox.simulate.kernels import release_held
+from blastvox.simulate.kernels import hold, release_held
 from blastvox.simulate.members import MEMBER_NORMALS, edge_on, effective_thickness
 from blastvox.simulate.model import link_factor
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.shielding import Occupancy, remove_voxel, sight_line
-from blastvox.simulate.state import Exposure, Front, WaveViews
+from blastvox.simulate.state import Exposure, Front, WaveViews, hold_room
 from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
@@ -329,10 +329,11 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                     gap = True
                     i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
                     area = (2.0 * geometry.contact_radius[v]) ** 2
+                    row = hold(loads, v)
                     for a in range(3):  # a voxel centred on the charge: pushed evenly
-                        loads.held_p[v, a] = (imp - i_neg) * area * (
+                        loads.held_p[row, a] = (imp - i_neg) * area * (
                             centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
-                        loads.held_l[v, a] = 0.0
+                        loads.held_l[row, a] = 0.0
                     _dust_once(v, geometry, link_geometry, voxels.alive, loads, body_rot[b],
                                cx - charge_pos[c, 0], cy - charge_pos[c, 1],
                                cz - charge_pos[c, 2])
@@ -415,14 +416,15 @@ def _shatter(v, geometry, links, marks, b) -> int:
 
 @helper
 def _dust_once(v, geometry, links, voxel_alive, loads, rot, rx, ry, rz) -> None:
-    """Voxel v just turned to dust, its wave's impulse in loads.held_p[v]; rot (3, 3):
-    its body's rotation; (rx, ry, rz): from the charge to v, m, world. Marks the face
-    each neighbour shared with v in loads.shadow; if a face of v towards the charge is
-    shadowed (dust of the current waves in front of v), v takes no impulse of its own
-    but a share, by mass, of what that dust still holds (see :func:`fracture_voxels`)."""
+    """Voxel v just turned to dust, its wave's impulse in its row of loads.held_p; rot
+    (3, 3): its body's rotation; (rx, ry, rz): from the charge to v, m, world. Marks
+    the face each neighbour shared with v in loads.shadow; if a face of v towards the
+    charge is shadowed (dust of the current waves in front of v), v takes no impulse
+    of its own but a share, by mass, of what that dust still holds (see
+    :func:`fracture_voxels`)."""
     offsets, ids, link_voxels, link_face = (geometry.link_offsets, geometry.link_ids,
                                             links.voxels, links.face)
-    shadow, held = loads.shadow, loads.held_p
+    shadow, held, slot = loads.shadow, loads.held_p, loads.held_slot
     front = -1
     for k in range(offsets[v], offsets[v + 1]):
         link = ids[k]
@@ -445,15 +447,17 @@ def _dust_once(v, geometry, links, voxel_alive, loads, rot, rx, ry, rz) -> None:
             front = w
     if front < 0:
         return
+    own = slot[v]  # v holds a row: its dusting gave it one
     for a in range(3):
-        held[v, a] = 0.0
-    if voxel_alive[front] or (held[front, 0] == 0.0 and held[front, 1] == 0.0
-                              and held[front, 2] == 0.0):
+        held[own, a] = 0.0
+    there = slot[front]
+    if voxel_alive[front] or there < 0 or (held[there, 0] == 0.0 and held[there, 1] == 0.0
+                                           and held[there, 2] == 0.0):
         return  # that dust has left with it
     mv, mf = geometry.mass[v], geometry.mass[front]
     for a in range(3):
-        held[v, a] = held[front, a] * mv / (mv + mf)
-        held[front, a] -= held[v, a]
+        held[own, a] = held[there, a] * mv / (mv + mf)
+        held[there, a] -= held[own, a]
 
 
 def arrival_order(front, voxel_centroid, voxels, bodies, candidate, active) -> np.ndarray:
@@ -601,6 +605,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                            np.zeros((k, c), dtype=bool))
         views_ahead(front, model.voxels, members, state.bodies, state.voxels.body, exposure,
                     order, ahead)
+    hold_room(state, len(order))  # each voxel it dusts holds its impulse
     released, n = fracture_wave(
         front, params, (model.voxels, model.links, model.strength, members),
         (state.links, state.voxels, state.bodies, marks, state.loads), order, exposure,
