@@ -303,17 +303,17 @@ def _strength(arrays: dict, member_axis: np.ndarray | None = None) -> Strength:
     else:
         # a voxel that is a whole chunk is the material's fragment size or larger: when
         # it fails it comes off as rubble, and only a crushing load pulverizes it
-        voxel_chunk = member_chunks(np.asarray(arrays["voxel_chunk"], dtype=np.int64), ends,
+        voxel_chunk = member_chunks(np.asarray(arrays["voxel_chunk"], dtype=np.int32), ends,
                                     member_axis)
         whole = np.bincount(voxel_chunk)[voxel_chunk] < 2
         crush[whole] = 0.0
         shatter[~whole] = 0.0
         first, second = voxel_chunk[ends[:, 0]], voxel_chunk[ends[:, 1]]
         within = first == second
-        inner = within & (crush[ends[:, 0]] > 0.0)
-        lo, hi = first[~within], second[~within]  # each pair sorted
+        inner = within & (crush > 0.0)[ends[:, 0]]
+        lo, hi = first[~within].astype(np.int64), second[~within].astype(np.int64)
         pair = np.minimum(lo, hi) * (max(int(first.max(initial=0)), int(second.max(initial=0)))
-                                     + 1) + np.maximum(lo, hi)
+                                     + 1) + np.maximum(lo, hi)  # each pair sorted
         interface[~within] = np.unique(pair, return_inverse=True)[1]
     return Strength(np.ascontiguousarray(material, dtype=np.int32), table("link_impulse"),
                     table("voxel_impulse"), table("pi_shape"), crush, shatter,
@@ -327,7 +327,7 @@ SAME_MEMBER = math.sqrt(0.5)
 
 def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
                   member_axis: np.ndarray | None) -> np.ndarray:
-    """(N,) chunk ids with every chunk cut where two members meet: a chunk that holds
+    """(N,) int32 chunk ids with every chunk cut where two members meet: a chunk that holds
     voxels of a wall and of the wall or slab it joins (member normals more than 45
     degrees apart; member_axis (N,): each voxel's row of MEMBER_NORMALS) becomes one
     chunk per member. Chunks are the material's fragment size, but a junction is where
@@ -336,7 +336,7 @@ def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
     and slabs, which jam in line with the rest of them. ends (L, 2): the links' voxels."""
     if member_axis is None or not len(ends):
         return voxel_chunk
-    from blastvox.simulate.stress import components
+    from blastvox.simulate.stress import node_labels
 
     together = np.empty(len(ends), dtype=bool)
     for block in link_blocks(len(ends)):  # the (L, 3) normals of both ends took 140 MB
@@ -344,8 +344,11 @@ def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
         normal_a, normal_b = MEMBER_NORMALS[member_axis[a]], MEMBER_NORMALS[member_axis[b]]
         together[block] = (voxel_chunk[a] == voxel_chunk[b]) & (
             np.abs(np.einsum("ij,ij->i", normal_a, normal_b)) >= SAME_MEMBER)
-    _, labels = components(len(voxel_chunk), ends[together, 0], ends[together, 1])
-    return labels.astype(np.int64)
+    n = len(voxel_chunk)  # the components of the links kept, numbered as components does
+    labels = np.empty(n, dtype=np.int32)
+    node_labels(np.ascontiguousarray(ends, dtype=np.int32), together, np.ones(n, dtype=bool),
+                np.zeros((n, 0), dtype=np.int32), labels)
+    return labels
 
 
 @kernel

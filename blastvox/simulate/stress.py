@@ -110,13 +110,13 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
     connectivity, and the alive links between nodes into interfaces. mass (N,) kg and
     centroid (N, 3) m of the voxels."""
     n = len(voxel_in)
-    inside = np.flatnonzero(voxel_in)
-    node = np.full(n, -1, dtype=np.int64)
-    node[inside] = np.arange(len(inside))  # each voxel's place among them, for now
-    labels = np.empty(len(inside), dtype=np.int32)
+    m = int(np.count_nonzero(voxel_in))  # every voxel, or the flagged ones (no copies)
+    inside = slice(None) if m == n else np.flatnonzero(voxel_in)
+    labels = np.empty(m, dtype=np.int32)
     count, across = node_labels(np.ascontiguousarray(link_voxels, dtype=np.int32), link_alive,
                                 voxel_in, np.ascontiguousarray(voxel_key, dtype=np.int32),
-                                node, labels)  # int32 as the model's: one kernel
+                                labels)  # int32 as the model's: one kernel
+    node = np.full(n, -1, dtype=np.int64)
     node[inside] = labels
     node_mass = np.bincount(labels, weights=mass[inside], minlength=count)
     node_com = np.stack([np.bincount(labels, weights=mass[inside] * centroid[inside, i],
@@ -213,14 +213,20 @@ def union_find_labels(m, a, b, labels) -> int:
 
 
 @kernel
-def node_labels(link_voxels, link_alive, voxel_in, key, place, labels):
+def node_labels(link_voxels, link_alive, voxel_in, key, labels):
     """The nodes of :func:`coarse_graph`: the voxels flagged in voxel_in (N,) joined by
     their alive links (link_alive (L,), link_voxels (L, 2)) whose two ends have the
     same key (N, K), in components (:func:`components`' labels, into labels (M,) int32,
-    by each voxel's place (N,) among the M flagged). Returns their count and the alive
-    links between two keys (J,), ascending: the interfaces' links. One pass over the
-    links, nothing per link kept but those (the gathers of both ends' keys and the edge
-    lists took 200 MB at a million voxels)."""
+    the M flagged voxels in order). Returns their count and the alive links between two
+    keys (J,), ascending: the interfaces' links. One pass over the links, nothing per
+    link kept but those (the gathers of both ends' keys and the edge lists took 200 MB
+    at a million voxels)."""
+    place = np.empty(voxel_in.shape[0], dtype=np.int64)  # each flagged voxel's among them
+    m = 0
+    for v in range(voxel_in.shape[0]):
+        place[v] = m
+        if voxel_in[v]:
+            m += 1
     parent = np.arange(labels.shape[0])
     between = 0
     for link in range(link_voxels.shape[0]):
