@@ -70,7 +70,7 @@ from blastvox.simulate.kernels import (
 from blastvox.simulate.leakage import LeakyRooms, find_leaky_rooms, leak_phase
 from blastvox.simulate.ledger import Ledger
 from blastvox.simulate.limits import LimitMonitor
-from blastvox.simulate.model import SimModel, build_model
+from blastvox.simulate.model import SimModel, build_model, crush_pressures
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import (
     SimSettings,
@@ -199,7 +199,9 @@ class Run:
         sm = build_model(model)
         state = initial_state(model, sm, ground=settings.ground)
         if settings.fracture == "pressure-impulse":  # only a crushing pressure pulverizes
-            np.maximum(state.voxels.yield_pa, sm.strength.crush_pa, out=state.voxels.yield_pa)
+            np.maximum(state.voxels.yield_pa,
+                       crush_pressures(sm.strength, "voxel_chunk" in model.arrays),
+                       out=state.voxels.yield_pa)
         charges = build_charges(settings.charges, sm.up,
                                 sm.ground_height if settings.ground else None)
         dt = settings.step_seconds()

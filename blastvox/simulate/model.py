@@ -83,26 +83,26 @@ class Strength(NamedTuple):
     """Pressure-impulse strength. Of each material (M,), indexed by material (N,) int32,
     each voxel's (the model's): link_impulse and voxel_impulse, Pa s, the impulse
     asymptotes for a 0.25 m element; pi_shape, K / (P0 I0) (see
-    :func:`blastvox.simulate.fracture.pi_exceeded`). Of each voxel (N,): crush_pa, Pa,
-    the pressure below which the voxel never turns to dust: its material's
-    crush_pressure if the voxel is part of a chunk of several voxels, else 0;
-    shatter_pa, Pa: for a voxel that is a chunk of its own (or of a model without
-    chunks: each voxel is the smallest rubble), its material's crush_pressure (0
-    for none): failing below it, the voxel comes off as rubble (its links break),
-    above it as dust; link_yield (L,) Pa, the model's, and yield_mean (M,) Pa, each
-    material's link_yield_mean: each link's strength relative to its material
+    :func:`blastvox.simulate.fracture.pi_exceeded`); crush, Pa, the material's
+    crush_pressure (0 for none; a voxel's crush pressure, below which it never turns
+    to dust: :func:`crush_pressures`). Of each voxel (N,): shatter_pa, Pa: for a voxel
+    that is a chunk of its own (or of a model without chunks: each voxel is the
+    smallest rubble), its material's crush_pressure (0 for none): failing below it,
+    the voxel comes off as rubble (its links break), above it as dust. Of each link
+    (L,): link_yield Pa, the model's, with yield_mean (M,) Pa, each material's
+    link_yield_mean: each link's strength relative to its material
     (:func:`link_factor`), which scales its impulse asymptote as its yield; inner
-    (L,) bool: the link holds together a chunk (both voxels in one chunk of
-    ``voxel_chunk``) of a material that crushes (crush_pa > 0): neither the blast nor
-    an impact breaks it; interface (L,)
-    int32: the interface between two chunks a link crosses, numbered from 0 in order
-    of the pair of chunk ids (-1: an inner link, or a model without chunks)."""
+    bool: the link holds together a chunk (both voxels in one chunk of
+    ``voxel_chunk``) of a material that crushes (crush pressure > 0): neither the
+    blast nor an impact breaks it; interface int32: the interface between two chunks
+    a link crosses, numbered from 0 in order of the pair of chunk ids (-1: an inner
+    link, or a model without chunks)."""
 
     material: np.ndarray
     link_impulse: np.ndarray
     voxel_impulse: np.ndarray
     pi_shape: np.ndarray
-    crush_pa: np.ndarray
+    crush: np.ndarray
     shatter_pa: np.ndarray
     link_yield: np.ndarray
     yield_mean: np.ndarray
@@ -316,9 +316,20 @@ def _strength(arrays: dict, member_axis: np.ndarray | None = None) -> Strength:
                                      + 1) + np.maximum(lo, hi)  # each pair sorted
         interface[~within] = np.unique(pair, return_inverse=True)[1]
     return Strength(np.ascontiguousarray(material, dtype=np.int32), table("link_impulse"),
-                    table("voxel_impulse"), table("pi_shape"), crush, shatter,
+                    table("voxel_impulse"), table("pi_shape"), table("crush_pressure"), shatter,
                     np.ascontiguousarray(arrays["link_yield"], dtype=np.float64),
                     table("link_yield_mean"), inner, interface)
+
+
+def crush_pressures(strength: Strength, chunked: bool) -> np.ndarray:
+    """(N,) Pa: each voxel's crush pressure, below which it never turns to dust: its
+    material's crush_pressure if it is part of a chunk of several voxels (of a model
+    with chunks, ``chunked``), else 0. A voxel of a chunk of its own shatters at that
+    pressure instead (strength.shatter_pa, 0 for the others): the same values as the
+    start-up worked out (see :func:`_strength`), not kept for the run."""
+    if not chunked:
+        return np.zeros(len(strength.material))
+    return np.where(strength.shatter_pa > 0.0, 0.0, strength.crush[strength.material])
 
 
 #: Two voxels are of one member when their member normals are within 45 degrees.

@@ -539,8 +539,8 @@ def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
 def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
              fixed: np.ndarray, voxel_in: np.ndarray) -> np.ndarray:
     """Each voxel's node key (N, 6) int32 for :func:`coarse_graph`: body, foundation flag,
-    chunk (0 where the model has none, or the solve more than :data:`TARGET_NODES` of
-    them) and the grid cell (N, 3) of :func:`cell_size`.
+    chunk and the grid cell (N, 3) of :func:`cell_size`; (N, 5) without the chunk where
+    the model has none, or the solve more than :data:`TARGET_NODES` of them.
 
     A node is the part of a chunk within a cell: every chunk boundary is a node
     boundary (a crack runs along it), and a chunk larger than a cell is cut by the
@@ -548,14 +548,15 @@ def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
     rigid node put its boundary, not the member's section, where the stress is read:
     a cantilever's root read 0.6-0.7 x beam theory)."""
     count = int(np.count_nonzero(voxel_in))
-    key = np.zeros((len(voxel_body), 6), dtype=np.int32)  # int32: 24 MB at a million
+    chunked = chunk is not None and np.unique(chunk[voxel_in]).size <= TARGET_NODES
+    key = np.empty((len(voxel_body), 5 + chunked), dtype=np.int32)  # 24 MB at a million
     key[:, 0] = voxel_body
     key[:, 1] = fixed
-    if chunk is not None and np.unique(chunk[voxel_in]).size <= TARGET_NODES:
+    if chunked:
         key[:, 2] = chunk
     k = cell_size(count)
     for axis in range(3):
-        key[:, 3 + axis] = cell[:, axis] // k
+        key[:, 2 + chunked + axis] = cell[:, axis] // k
     return key
 
 
