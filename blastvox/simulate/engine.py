@@ -70,7 +70,7 @@ from blastvox.simulate.kernels import (
 from blastvox.simulate.leakage import LeakyRooms, find_leaky_rooms, leak_phase
 from blastvox.simulate.ledger import Ledger
 from blastvox.simulate.limits import LimitMonitor
-from blastvox.simulate.model import SimModel, build_model
+from blastvox.simulate.model import SimModel, build_model, crush_pressures
 from blastvox.simulate.recorder import Recorder
 from blastvox.simulate.settings import (
     SimSettings,
@@ -85,12 +85,12 @@ from blastvox.simulate.state import (
     Contacts,
     Front,
     Links,
-    Loads,
     Marks,
     Scratch,
     State,
     Voxels,
     empty_bodies,
+    held_loads,
     padded,
 )
 from blastvox.simulate.stress import Stress, invalidate, stress_phase
@@ -129,13 +129,14 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
         body=objects.copy(), alive=np.ones(n, dtype=bool), link_mask=np.zeros(n, dtype=np.uint8),
         yield_pa=a["voxel_yield"].astype(np.float64).copy(), foundation=foundation,
         foundation_pa=a["voxel_foundation_yield"].astype(np.float64).copy(),
-        damage=np.zeros(n), combust=a["voxel_combustibility"].astype(np.float64).copy(),
+        # the model's own combustibility until a fire burns it (_start_fire copies it)
+        damage=np.zeros(n), combust=np.asarray(a["voxel_combustibility"], dtype=np.float64),
         burning=np.zeros(n, dtype=bool))
     links = Links(alive=np.ones(n_links, dtype=bool),
                   yield_pa=a["link_yield"].astype(np.float64).copy())
     bodies = empty_bodies(capacity)
     bodies.count[0] = n_objects
-    order = np.argsort(objects, kind="stable")
+    order = np.argsort(objects, kind="stable").astype(np.int32)  # as split_bodies' members
     bounds = np.searchsorted(objects[order], np.arange(n_objects + 1))
     for b in range(n_objects):
         members = order[bounds[b]:bounds[b + 1]]
@@ -154,14 +155,12 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
         marks=Marks(broken=np.zeros(n_links, dtype=bool), destroyed=np.zeros(n, dtype=bool),
                     crossed=np.zeros(n, dtype=bool), dirty=np.zeros(capacity, dtype=bool),
                     active=np.zeros(capacity, dtype=bool)),
-        loads=Loads(impulse=np.zeros((capacity, 3)), angular=np.zeros((capacity, 3)),
-                    held_p=np.zeros((n, 3)), held_l=np.zeros((n, 3)),
-                    shadow=np.zeros(n, dtype=np.uint8)),
+        loads=held_loads(n, capacity),
         contacts=Contacts(resting=np.zeros(capacity, dtype=bool),
                           supported=np.zeros(capacity, dtype=bool),
                           supported_next=np.zeros(capacity, dtype=bool),
                           hits=np.zeros((4096, 4)), points=np.zeros((64, 3)),
-                          vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int64)),
+                          vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int32)),
         scratch=Scratch.for_model(sm),
         shielding=sm.rest_grid._replace(count=sm.rest_grid.count.copy(),
                                         member=sm.rest_grid.member.copy()))
@@ -200,7 +199,9 @@ class Run:
         sm = build_model(model)
         state = initial_state(model, sm, ground=settings.ground)
         if settings.fracture == "pressure-impulse":  # only a crushing pressure pulverizes
-            np.maximum(state.voxels.yield_pa, sm.strength.crush_pa, out=state.voxels.yield_pa)
+            np.maximum(state.voxels.yield_pa,
+                       crush_pressures(sm.strength, "voxel_chunk" in model.arrays),
+                       out=state.voxels.yield_pa)
         charges = build_charges(settings.charges, sm.up,
                                 sm.ground_height if settings.ground else None)
         dt = settings.step_seconds()
@@ -214,7 +215,7 @@ class Run:
                               state.voxels.yield_pa.copy()),
             effects=Effects(settings.budgets, settings.seed, len(charges.tnt_kg)),
             # model only what the scene needs: no combustible material, no fire
-            fire=Fire.start(state) if settings.fire and combustible else None,
+            fire=_start_fire(state) if settings.fire and combustible else None,
             # model only what the scene needs: no founded body, no load paths
             stress=(stress := start_stress(model.arrays, len(state.bodies.mass),
                                            settings.stress)),
@@ -231,6 +232,13 @@ class Run:
                 "stress": self.stress is not None,
                 "shock_sphere": s.shock_sphere,
                 "camera_shake": s.camera_shake and s.camera is not None}
+
+
+def _start_fire(state: State) -> Fire:
+    """The run's fire; the voxels' combustibility, the model's array until now, becomes
+    the run's own copy, which the fire burns away."""
+    state.voxels = state.voxels._replace(combust=state.voxels.combust.copy())
+    return Fire.start(state)
 
 
 def _rooms(sm: SimModel, state: State, charges: Charges, ground: float | None) -> dict:

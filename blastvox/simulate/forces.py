@@ -29,10 +29,10 @@ from blastvox.geometry.voxel_faces import FACE_CORNERS
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.clearing import exposure_of
-from blastvox.simulate.kernels import bodies_in_shell, wake_on_impulse
+from blastvox.simulate.kernels import bodies_in_shell, hold, wake_on_impulse
 from blastvox.simulate.model import CONFORM_FACES
 from blastvox.simulate.shielding import grid_cell, ray_blocked
-from blastvox.simulate.state import Front
+from blastvox.simulate.state import Front, clear_held, hold_room
 
 _LIFT = 0.51  # a face's line of sight starts this many grid cells out of the face
 
@@ -155,7 +155,8 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
     and the faces' lines of sight, each cast once per wave).
 
     A fixed body takes no momentum, but its voxels keep what the wave gave them
-    in held_p (N, 3) (N s) and held_l (N, 3) (N m s, about the voxel's centroid):
+    in held_p (N s) and held_l (N m s, about the voxel's centroid), each its row
+    (:class:`~blastvox.simulate.state.Loads`; room made for every boundary voxel):
     a piece that breaks free later in the same wave gets it (see
     :func:`blastvox.simulate.kernels.release_held`), so a piece's momentum does
     not depend on how many steps the front took to cross it before its links
@@ -196,7 +197,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
         # a free body sums about its centre of mass, a fixed one's voxels each keep theirs
         acc_p, acc_l, index, pivot = out_p, out_l, b, body_pos[b]
         if body_fixed[b]:
-            acc_p, acc_l, index, pivot = held_p, held_l, v, centre
+            acc_p, acc_l, index, pivot = held_p, held_l, hold(loads, v), centre
         for c in range(n_charges):
             if reach_out[c] <= 0.0:
                 continue
@@ -275,15 +276,16 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
     if not bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n, charges.position,
                            reach_in, front_out, state.marks.active):
         if state.holding:  # every wave has passed: what held voxels took is spent
-            loads.held_p[:] = 0.0
-            loads.held_l[:] = 0.0
+            clear_held(loads)
             loads.shadow[:] = 0
             state.holding = False
         return
     front = Front(charges.position, charges.time, charges.scale, charges.table, charges.burst,
                   reach_in, front_out)
     exposure = exposure_of(model, state, charges.position, state.marks.active, None)
-    blast_impulses(front, t0, t1, boundary_of(model, state)[1], model.voxels, state.voxels,
-                   bodies, state.marks.active, loads, exposure)
+    boundary = boundary_of(model, state)[1]
+    hold_room(state, len(boundary))  # a fixed body's boundary voxels may hold
+    blast_impulses(front, t0, t1, boundary, model.voxels, state.voxels, bodies,
+                   state.marks.active, state.loads, exposure)
     state.holding = True
     wake_on_impulse(loads.impulse, loads.angular, bodies.asleep, n)

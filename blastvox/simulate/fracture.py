@@ -33,11 +33,12 @@ from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.clearing import exposure_of
-from blastvox.simulate.kernels import release_held
-from blastvox.simulate.members import edge_on, effective_thickness
+from blastvox.simulate.kernels import hold, release_held
+from blastvox.simulate.members import MEMBER_NORMALS, edge_on, effective_thickness
+from blastvox.simulate.model import link_factor
 from blastvox.simulate.shell import mark_in_shell
 from blastvox.simulate.shielding import Occupancy, remove_voxel, sight_line
-from blastvox.simulate.state import Exposure, Front, WaveViews
+from blastvox.simulate.state import Exposure, Front, WaveViews, hold_room
 from blastvox.simulate.topology import refresh_fixed
 from blastvox.simulate.wave import exceedance_integral, peak_overpressure
 
@@ -165,7 +166,8 @@ def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.n
     core: the line of sight through the shielding grid is most of a wave's cost, and
     each voxel's is its own. :func:`fracture_wave` takes them, as it would work them
     out, until a voxel turns to dust and leaves the grid this step. members: the
-    model's (thickness (N,) m, wave_speed (N,) m/s, normal (N, 3)); bodies: the
+    model's (thickness (N,) m, wave_speed (M,) m/s, material (N,), MEMBER_NORMALS (D, 3),
+    member_axis (N,)); bodies: the
     state's Bodies (pos, rot, com read)."""
     # numba's parallel loops take arrays, not structs of arrays: the structs go in
     # as their fields and are built again inside
@@ -180,15 +182,15 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, 
     """:func:`views_ahead`'s loop, each voxel of ``order`` on its own (see there); the
     structs come as tuples of their fields, unpacked before the loop."""
     position, time, scale, table, burst, inner, outer = front_fields
-    origin, cell, dims, count, member, lo, hi = grid_fields
+    origin, cell, dims, count, member, vertices, corners, slot, box_lo, box_hi = grid_fields
     clearing, gas, sight, reach = exposure_fields
-    thickness, speed, member_normal = members
+    thickness, speed, material, normals, member_axis = members
     body_pos, body_rot, body_com = poses
     known, peak, impulse, depth, blocked, thick, squeezed = ahead_fields
     for i in nb.prange(len(order)):
         front = Front(position, time, scale, table, burst, inner, outer)
-        exposure = Exposure(Occupancy(origin, cell, dims, count, member, lo, hi), clearing,
-                            gas, sight, reach)
+        exposure = Exposure(Occupancy(origin, cell, dims, count, member, vertices, corners,
+                                      slot, box_lo, box_hi), clearing, gas, sight, reach)
         v = order[i]
         b = voxel_body[v]
         centre = np.empty(3)
@@ -200,12 +202,12 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, 
             if r < 0.0:
                 continue
             for a in range(3):  # the member's normal, turned with its body
-                normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
-                             + body_rot[b, a, 1] * member_normal[v, 1]
-                             + body_rot[b, a, 2] * member_normal[v, 2])
+                normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
+                             + body_rot[b, a, 1] * normals[member_axis[v], 1]
+                             + body_rot[b, a, 2] * normals[member_axis[v], 2])
             (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
              squeezed[i, c]) = element_view(front, c, r, centre, exposure, b, thickness[v],
-                                            speed[v], normal)
+                                            speed[material[v]], normal)
 
 
 def no_views_ahead(n_charges: int) -> AheadViews:
@@ -230,12 +232,13 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
     second of its two ends is, on the geometric mean of their views (peak and impulse:
     the value at the midpoint of a power-law decay) and
     the thinner of their members (members: the model's (thickness (N,) m,
-    wave_speed (N,) m/s, normal (N, 3))); a link with an end squeezed between the
-    faces of a member the wave sweeps along (:func:`element_view`) is not bent by
-    it, only worn. With params.judge_links False (the damage model) only
-    voxels are judged. The cost is one line of sight per voxel and wave and O(1) per
-    link (there were two per link and step, one of them through all the solid
-    behind the link). The lines of sight are worked out ahead, on every core
+    wave_speed (M,) m/s of each material, material (N,), MEMBER_NORMALS (D, 3),
+    member_axis (N,): each voxel's row of it, the unit normal of its member)); a link
+    with an end squeezed between the faces of a member the wave sweeps along
+    (:func:`element_view`) is not bent by it, only worn. With params.judge_links False
+    (the damage model) only voxels are judged. The cost is one line of sight per voxel
+    and wave and O(1) per link (there were two per link and step, one of them through
+    all the solid behind the link). The lines of sight are worked out ahead, on every core
     (:func:`views_ahead`, ``ahead``); once a voxel turns to dust this step, the views
     after it are worked out here again, as it changed the grid.
 
@@ -256,7 +259,8 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
     (for dust cues), marks.broken (L,) the links broken, marks.dirty (B,) their
     bodies.
     """
-    geometry, link_geometry, strength, (thickness, speed, member_normal) = parts
+    geometry, link_geometry, strength, (thickness, speed, material, normals,
+                                        member_axis) = parts
     links, voxels, bodies, marks, loads = run_state
     charge_pos, charge_scale, table = front.position, front.scale, front.table
     front_in, front_out, weakening = front.inner, front.outer, params.weakening
@@ -285,20 +289,21 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
             if params.pressure_impulse:
                 if gap:  # dust opened the grid this step: the view ahead is stale
                     for a in range(3):  # the member's normal, turned with its body
-                        normal[a] = (body_rot[b, a, 0] * member_normal[v, 0]
-                                     + body_rot[b, a, 1] * member_normal[v, 1]
-                                     + body_rot[b, a, 2] * member_normal[v, 2])
+                        normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
+                                     + body_rot[b, a, 1] * normals[member_axis[v], 1]
+                                     + body_rot[b, a, 2] * normals[member_axis[v], 2])
                     peak, imp, depth, blocked, thick, squeezed = element_view(
-                        front, c, r, centre, exposure, b, thickness[v], speed[v], normal)
+                        front, c, r, centre, exposure, b, thickness[v], speed[material[v]],
+                        normal)
                 else:
                     peak, imp, depth = ahead.peak[i, c], ahead.impulse[i, c], ahead.depth[i, c]
                     blocked, thick = ahead.blocked[i, c], ahead.thickness[i, c]
                     squeezed = ahead.squeezed[i, c]
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
-                i0 = strength.voxel_impulse[v] * thick / REFERENCE_THICKNESS
+                i0 = strength.voxel_impulse[strength.material[v]] * thick / REFERENCE_THICKNESS
                 breaks = depth <= 2.0 * geometry.contact_radius[v] and pi_exceeded(
-                    peak, imp, voxel_yield[v], i0, strength.pi_shape[v])
+                    peak, imp, voxel_yield[v], i0, strength.pi_shape[strength.material[v]])
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
                 imp, blocked, thick, i0, squeezed = 0.0, False, thickness[v], 0.0, False
@@ -309,7 +314,8 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
             views.squeezed[v, c] = squeezed
             crossed[v] = True
             if breaks and params.pressure_impulse and strength.shatter_pa[v] > 0.0 and not (
-                    pi_exceeded(peak, imp, strength.shatter_pa[v], i0, strength.pi_shape[v])):
+                    pi_exceeded(peak, imp, strength.shatter_pa[v], i0,
+                                strength.pi_shape[strength.material[v]])):
                 # failed, not crushed: a voxel as large as the material's rubble comes off
                 # whole (the split frees it with the impulse its body held for it)
                 broken += _shatter(v, geometry, links, marks, b)
@@ -323,10 +329,11 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                     gap = True
                     i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
                     area = (2.0 * geometry.contact_radius[v]) ** 2
+                    row = hold(loads, v)
                     for a in range(3):  # a voxel centred on the charge: pushed evenly
-                        loads.held_p[v, a] = (imp - i_neg) * area * (
+                        loads.held_p[row, a] = (imp - i_neg) * area * (
                             centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
-                        loads.held_l[v, a] = 0.0
+                        loads.held_l[row, a] = 0.0
                     _dust_once(v, geometry, link_geometry, voxels.alive, loads, body_rot[b],
                                cx - charge_pos[c, 0], cy - charge_pos[c, 1],
                                cz - charge_pos[c, 2])
@@ -371,12 +378,13 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                         peak = max(peak, gas)
                         imp += gas * exposure.gas[c, 1]
                     owner = link_voxels[link, 0]
-                    i0 = (strength.link_impulse[owner] * strength.link_factor[link]
+                    i0 = (strength.link_impulse[strength.material[owner]]
+                          * link_factor(strength, link_voxels, link)
                           * min(views.thickness[v, c], views.thickness[w, c])
                           / REFERENCE_THICKNESS)
                     # a chunk of a material that crushes comes apart only as dust
                     breaks = not strength.inner[link] and pi_exceeded(
-                        peak, imp, limit, i0, strength.pi_shape[owner])
+                        peak, imp, limit, i0, strength.pi_shape[strength.material[owner]])
                 else:
                     peak = peak_overpressure(table[front.burst[c]], rm, charge_scale[c])
                     breaks = peak > limit
@@ -408,14 +416,15 @@ def _shatter(v, geometry, links, marks, b) -> int:
 
 @helper
 def _dust_once(v, geometry, links, voxel_alive, loads, rot, rx, ry, rz) -> None:
-    """Voxel v just turned to dust, its wave's impulse in loads.held_p[v]; rot (3, 3):
-    its body's rotation; (rx, ry, rz): from the charge to v, m, world. Marks the face
-    each neighbour shared with v in loads.shadow; if a face of v towards the charge is
-    shadowed (dust of the current waves in front of v), v takes no impulse of its own
-    but a share, by mass, of what that dust still holds (see :func:`fracture_voxels`)."""
+    """Voxel v just turned to dust, its wave's impulse in its row of loads.held_p; rot
+    (3, 3): its body's rotation; (rx, ry, rz): from the charge to v, m, world. Marks
+    the face each neighbour shared with v in loads.shadow; if a face of v towards the
+    charge is shadowed (dust of the current waves in front of v), v takes no impulse
+    of its own but a share, by mass, of what that dust still holds (see
+    :func:`fracture_voxels`)."""
     offsets, ids, link_voxels, link_face = (geometry.link_offsets, geometry.link_ids,
                                             links.voxels, links.face)
-    shadow, held = loads.shadow, loads.held_p
+    shadow, held, slot = loads.shadow, loads.held_p, loads.held_slot
     front = -1
     for k in range(offsets[v], offsets[v + 1]):
         link = ids[k]
@@ -438,15 +447,17 @@ def _dust_once(v, geometry, links, voxel_alive, loads, rot, rx, ry, rz) -> None:
             front = w
     if front < 0:
         return
+    own = slot[v]  # v holds a row: its dusting gave it one
     for a in range(3):
-        held[v, a] = 0.0
-    if voxel_alive[front] or (held[front, 0] == 0.0 and held[front, 1] == 0.0
-                              and held[front, 2] == 0.0):
+        held[own, a] = 0.0
+    there = slot[front]
+    if voxel_alive[front] or there < 0 or (held[there, 0] == 0.0 and held[there, 1] == 0.0
+                                           and held[there, 2] == 0.0):
         return  # that dust has left with it
     mv, mf = geometry.mass[v], geometry.mass[front]
     for a in range(3):
-        held[v, a] = held[front, a] * mv / (mv + mf)
-        held[front, a] -= held[v, a]
+        held[own, a] = held[there, a] * mv / (mv + mf)
+        held[there, a] -= held[own, a]
 
 
 def arrival_order(front, voxel_centroid, voxels, bodies, candidate, active) -> np.ndarray:
@@ -584,7 +595,8 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                             state.scratch.voxel_candidate, front)
     order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
-    members = (model.thickness, model.wave_speed, model.normal)
+    members = (model.thickness, model.wave_speed, model.material, MEMBER_NORMALS,
+               model.member_axis)
     ahead = no_views_ahead(len(front.position))
     if params.pressure_impulse and len(order):
         k, c = len(order), len(front.position)
@@ -593,6 +605,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                            np.zeros((k, c), dtype=bool))
         views_ahead(front, model.voxels, members, state.bodies, state.voxels.body, exposure,
                     order, ahead)
+    hold_room(state, len(order))  # each voxel it dusts holds its impulse
     released, n = fracture_wave(
         front, params, (model.voxels, model.links, model.strength, members),
         (state.links, state.voxels, state.bodies, marks, state.loads), order, exposure,

@@ -91,7 +91,8 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     along = model.voxels.centroid[members] @ rest_dir
     size = 2.0 * float(np.median(model.voxels.contact_radius[members]))
     length = float(along.max() - along.min()) + size
-    speed = float(np.average(model.wave_speed[members], weights=model.voxels.mass[members]))
+    speed = float(np.average(model.wave_speed[model.material[members]],
+                             weights=model.voxels.mass[members]))
     tau = 2.0 * length / speed
     acceleration = dv / tau
     if acceleration < IMPACT_ACCELERATION:

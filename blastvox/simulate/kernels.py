@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from blastvox.geometry.quaternion_nb import matrix_into
-from blastvox.jit import kernel
+from blastvox.jit import helper, kernel
 from blastvox.simulate.integrate import (
     angular_velocity,
     moving,
@@ -177,23 +177,41 @@ def damage_levels(offsets, link_alive_count, voxel_yield, initial_yield, voxel_d
         out[v] = np.uint8(np.rint(damage * 255.0))
 
 
+@helper
+def hold(loads, v) -> int:
+    """Voxel v's row in the held impulses (:class:`~blastvox.simulate.state.Loads`), a
+    new one (zero) if it holds none yet: the caller made room
+    (:func:`~blastvox.simulate.state.hold_room`)."""
+    row = np.int64(loads.held_slot[v])
+    if row < 0:
+        row = loads.held_count[0]
+        loads.held_count[0] += 1
+        loads.held_slot[v] = row
+        loads.held_voxel[row] = v
+    return row
+
+
 @kernel
 def release_held(geometry, voxels, bodies, loads) -> None:
     """Give each freed piece the blast impulse its voxels took while they were held.
 
-    held_p, held_l (N, 3): impulse (N s) and angular impulse about the voxel
+    loads.held_p, held_l: impulse (N s) and angular impulse about the voxel
     centroid (N m s) a voxel took while its body was fixed (see
-    :func:`blastvox.simulate.forces.blast_impulses`). A voxel whose body is now
-    free (split off, or its foundation let go) hands them to that body, about
-    its centre of mass, and is cleared.
+    :func:`blastvox.simulate.forces.blast_impulses`), by row
+    (:class:`~blastvox.simulate.state.Loads`). A voxel whose body is now free (split
+    off, or its foundation let go) hands them to that body, about its centre of mass,
+    and is cleared; voxel by voxel, in order.
     """
-    voxel_body, voxel_centroid, held_p, held_l = (voxels.body, geometry.centroid, loads.held_p,
-                                                  loads.held_l)
+    voxel_body, voxel_centroid, slot = voxels.body, geometry.centroid, loads.held_slot
+    held_p, held_l = loads.held_p, loads.held_l
     body_fixed, body_live, body_com = bodies.fixed, bodies.live, bodies.com
     body_rot, body_lin, body_ang = bodies.rot, bodies.lin, bodies.ang
     for v in range(voxel_body.shape[0]):
-        if held_p[v, 0] == 0.0 and held_p[v, 1] == 0.0 and held_p[v, 2] == 0.0 \
-                and held_l[v, 0] == 0.0 and held_l[v, 1] == 0.0 and held_l[v, 2] == 0.0:
+        s = slot[v]
+        if s < 0:
+            continue
+        if held_p[s, 0] == 0.0 and held_p[s, 1] == 0.0 and held_p[s, 2] == 0.0 \
+                and held_l[s, 0] == 0.0 and held_l[s, 1] == 0.0 and held_l[s, 2] == 0.0:
             continue
         b = voxel_body[v]
         if body_fixed[b] or not body_live[b]:
@@ -207,14 +225,14 @@ def release_held(geometry, voxels, bodies, loads) -> None:
         rx = rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z
         ry = rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z
         rz = rot[2, 0] * x + rot[2, 1] * y + rot[2, 2] * z
-        px, py, pz = held_p[v, 0], held_p[v, 1], held_p[v, 2]
+        px, py, pz = held_p[s, 0], held_p[s, 1], held_p[s, 2]
         body_lin[b, 0] += px
         body_lin[b, 1] += py
         body_lin[b, 2] += pz
-        body_ang[b, 0] += ry * pz - rz * py + held_l[v, 0]
-        body_ang[b, 1] += rz * px - rx * pz + held_l[v, 1]
-        body_ang[b, 2] += rx * py - ry * px + held_l[v, 2]
+        body_ang[b, 0] += ry * pz - rz * py + held_l[s, 0]
+        body_ang[b, 1] += rz * px - rx * pz + held_l[s, 1]
+        body_ang[b, 2] += rx * py - ry * px + held_l[s, 2]
         for a in range(3):
-            held_p[v, a] = 0.0
-            held_l[v, a] = 0.0
+            held_p[s, a] = 0.0
+            held_l[s, a] = 0.0
 

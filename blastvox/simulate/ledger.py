@@ -61,12 +61,15 @@ def applied_blast(loads, bodies, out) -> None:
 
 
 @kernel
-def founded_total(held_p, out) -> None:
-    """out (3,): the impulse (N s) founded voxels hold (loads.held_p summed)."""
+def founded_total(loads, out) -> None:
+    """out (3,): the impulse (N s) founded voxels hold (loads.held_p summed, voxel by
+    voxel in order: a voxel without a row holds nothing)."""
     out[:] = 0.0
-    for v in range(held_p.shape[0]):
-        for a in range(3):
-            out[a] += held_p[v, a]
+    for v in range(loads.held_slot.shape[0]):
+        s = loads.held_slot[v]
+        if s >= 0:
+            for a in range(3):
+                out[a] += loads.held_p[s, a]
 
 
 @kernel
@@ -120,7 +123,7 @@ class Ledger:
 
     def founded_held(self, state) -> np.ndarray:
         """The impulse founded voxels hold now (a copy)."""
-        founded_total(state.loads.held_p, self._part)
+        founded_total(state.loads, self._part)
         return self._part.copy()
 
     def contacts(self, state, end: int) -> tuple[np.ndarray, np.ndarray]:

@@ -37,31 +37,29 @@ import math
 import numpy as np
 
 from blastvox.jit import helper, kernel
-from blastvox.simulate.shielding import Occupancy, cell_range
+from blastvox.simulate.shielding import Occupancy, cells_of
 
 #: The 13 directions of the grid, one of each opposite pair: (13, 3) cell steps.
 DIRECTIONS = np.array([(1, 0, 0), (0, 1, 0), (0, 0, 1),
                        (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1), (0, 1, 1), (0, 1, -1),
                        (1, 1, 1), (1, 1, -1), (1, -1, 1), (1, -1, -1)], dtype=np.int64)
+#: The unit vectors of DIRECTIONS (13, 3): a member's normal is one of them.
+MEMBER_NORMALS = DIRECTIONS / np.linalg.norm(DIRECTIONS, axis=1)[:, None]
 
 
 @kernel
-def solid_fractions(grid, volume, centroid):
+def solid_fractions(grid, lo, hi, volume, centroid):
     """(X*Y*Z,) the solid fraction (0..1) of each cell of ``grid`` (an
     :class:`~blastvox.simulate.shielding.Occupancy` at rest): each voxel's volume
     (N,) m^3 spread evenly over the cells it covers (the cells whose centres lie in
-    its solid box grid.lo/hi, or its centroid's (N, 3) m cell), clamped to 1."""
-    origin, cell, dims = grid.origin, grid.cell[0], grid.dims
+    its solid box (lo, hi (N, 3) m), or its centroid's (N, 3) m cell:
+    :func:`~blastvox.simulate.shielding.cells_of`), clamped to 1."""
+    cell, dims = grid.cell[0], grid.dims
     fraction = np.zeros(dims[0] * dims[1] * dims[2])
     cell_volume = cell * cell * cell
     for v in range(volume.shape[0]):
-        i0, i1 = cell_range(grid.lo[v, 0], grid.hi[v, 0], origin, cell, dims, 0)
-        j0, j1 = cell_range(grid.lo[v, 1], grid.hi[v, 1], origin, cell, dims, 1)
-        k0, k1 = cell_range(grid.lo[v, 2], grid.hi[v, 2], origin, cell, dims, 2)
-        if i0 > i1 or j0 > j1 or k0 > k1:
-            i0 = i1 = min(max(int((centroid[v, 0] - origin[0]) / cell), 0), dims[0] - 1)
-            j0 = j1 = min(max(int((centroid[v, 1] - origin[1]) / cell), 0), dims[1] - 1)
-            k0 = k1 = min(max(int((centroid[v, 2] - origin[2]) / cell), 0), dims[2] - 1)
+        i0, i1, j0, j1, k0, k1 = cells_of(grid, centroid, v, lo[v, 0], hi[v, 0], lo[v, 1],
+                                          hi[v, 1], lo[v, 2], hi[v, 2])
         share = max(volume[v], 0.0) / (cell_volume * (i1 - i0 + 1) * (j1 - j0 + 1)
                                        * (k1 - k0 + 1))
         for i in range(i0, i1 + 1):
@@ -99,7 +97,7 @@ def _run_sums(grid, fraction, di, dj, dk, out):
 
 @kernel
 def member_thickness(grid, fraction, centroid, directions):
-    """(thickness (N,) m, direction (N,) int64): each voxel's member thickness, the
+    """(thickness (N,) m, direction (N,) uint8): each voxel's member thickness, the
     shortest chord of solid through its centroid's (N, 3) m cell over ``directions``
     (D, 3) (see the module docstring), and the row of ``directions`` it runs along
     (the member's normal); grid: the shielding
@@ -110,7 +108,7 @@ def member_thickness(grid, fraction, centroid, directions):
     n = centroid.shape[0]
     home = np.empty(n, dtype=np.int64)
     out = np.full(n, np.inf)
-    along = np.zeros(n, dtype=np.int64)
+    along = np.zeros(n, dtype=np.uint8)
     for v in range(n):
         i = min(max(int((centroid[v, 0] - origin[0]) / cell), 0), dims[0] - 1)
         j = min(max(int((centroid[v, 1] - origin[1]) / cell), 0), dims[1] - 1)
@@ -138,17 +136,18 @@ def member_thickness(grid, fraction, centroid, directions):
     return out, along
 
 
-def thickness_at_rest(grid: Occupancy, volume: np.ndarray,
+def thickness_at_rest(grid: Occupancy, boxes: tuple, volume: np.ndarray,
                       centroid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(thickness (N,) m, normal (N, 3) unit, rest frame): :func:`member_thickness` of
-    the voxels (volume (N,) m^3, centroid (N, 3) m) on the shielding grid at rest, and
-    the direction it is measured along."""
+    """(thickness (N,) m, axis (N,) uint8): :func:`member_thickness` of the voxels
+    (solid boxes (lo, hi) (N, 3) m, volume (N,) m^3, centroid (N, 3) m) on the
+    shielding grid at rest, and the
+    direction it is measured along, the member's normal in the rest frame: a row of
+    :data:`MEMBER_NORMALS`."""
     if not len(volume):
-        return np.zeros(0), np.zeros((0, 3))
-    fraction = solid_fractions(grid, np.ascontiguousarray(volume, dtype=np.float64), centroid)
-    thickness, along = member_thickness(grid, fraction, centroid, DIRECTIONS)
-    unit = DIRECTIONS / np.linalg.norm(DIRECTIONS, axis=1)[:, None]
-    return thickness, np.ascontiguousarray(unit[along])
+        return np.zeros(0), np.zeros(0, dtype=np.uint8)
+    fraction = solid_fractions(grid, *boxes, np.ascontiguousarray(volume, dtype=np.float64),
+                               centroid)
+    return member_thickness(grid, fraction, centroid, DIRECTIONS)
 
 
 @helper
@@ -162,15 +161,14 @@ def edge_on(normal, axis, depth, thickness) -> bool:
 
 
 def wave_speeds(arrays: dict) -> np.ndarray:
-    """(N,) m/s: each voxel's longitudinal (bar) wave speed sqrt(E / rho), from its
-    material's youngs_modulus (30 GPa for a model that predates the column) and
-    density."""
-    material = np.asarray(arrays["voxel_material"], dtype=np.int64)
+    """(M,) m/s: each material's longitudinal (bar) wave speed sqrt(E / rho), from its
+    youngs_modulus (30 GPa for a model that predates the column) and density (a
+    voxel's: that of its voxel_material)."""
     density = np.asarray(arrays["material_density"], dtype=np.float64)
     modulus = arrays.get("material_youngs_modulus")
     modulus = (np.full(len(density), 30e9) if modulus is None
                else np.asarray(modulus, dtype=np.float64))
-    return np.ascontiguousarray(np.sqrt(modulus / density)[material])
+    return np.ascontiguousarray(np.sqrt(modulus / density))
 
 
 @helper

@@ -17,11 +17,17 @@ import numpy as np
 
 from blastvox.blast._numeric import cbrt
 from blastvox.geometry.voxel_faces import SURFACE_TAG
-from blastvox.jit import kernel
+from blastvox.jit import helper, kernel
 from blastvox.model import VoxelModel
-from blastvox.simulate.members import thickness_at_rest, wave_speeds
+from blastvox.simulate.members import MEMBER_NORMALS, thickness_at_rest, wave_speeds
 from blastvox.simulate.shell import dense_grid
-from blastvox.simulate.shielding import Occupancy, build_occupancy, solid_boxes, typical_edge
+from blastvox.simulate.shielding import (
+    Occupancy,
+    build_occupancy,
+    conform_boxes,
+    solid_boxes,
+    typical_edge,
+)
 
 #: A conform voxel's loaded faces: its cell faces 0..5, then its part of the original
 #: surface split by the direction its triangles face most (-x, +x, -y, +y, -z, +z):
@@ -33,14 +39,14 @@ CONFORM_FACES = SURFACE_TAG + 6
 class VoxelGeometry(NamedTuple):
     """Rest geometry and mass properties of the N voxels (read-only).
 
-    vertices (V, 3) m and corners (N, 8) int64: voxel corners at rest (rows of
+    vertices (V, 3) m and corners (N, 8) int32: voxel corners at rest (rows of
     ``vertices``). mass (N,) kg, centroid (N, 3) m, inertia (N, 3, 3) kg m^2
     about the voxel centroid. restitution (N,) from the material. radius (N,):
     farthest corner from the centroid, m; contact_radius (N,): collision sphere,
     (volume)^(1/3) / 2, m; density (N,) kg/m^3 (mass over the contact cube).
-    conform_slot (N,): row in the conform tables or -1; conform_area (C, 7, 3)
+    conform_slot (N,) int32: row in the conform tables or -1; conform_area (C, 7, 3)
     vector areas (m^2, outward) and conform_centroid (C, 7, 3) m of each face.
-    link_offsets (N+1,), link_ids (2L,): the links of each voxel (CSR).
+    link_offsets (N+1,) int64, link_ids (2L,) int32: the links of each voxel (CSR).
     """
 
     vertices: np.ndarray
@@ -62,7 +68,7 @@ class VoxelGeometry(NamedTuple):
 class LinkGeometry(NamedTuple):
     """The L links between face-adjacent voxels (read-only).
 
-    voxels (L, 2) int64; face (L,) int64: the face of voxels[:, 0] the link
+    voxels (L, 2) int32; face (L,) uint8: the face of voxels[:, 0] the link
     crosses (voxels[:, 1] sees face - 1); midpoint (L, 3) m; direction (L, 3)
     unit vector from the first voxel to the second, at rest.
     """
@@ -74,47 +80,83 @@ class LinkGeometry(NamedTuple):
 
 
 class Strength(NamedTuple):
-    """Pressure-impulse strength of each voxel's material (N,): link_impulse and
-    voxel_impulse, Pa s, the impulse asymptotes for a 0.25 m element; pi_shape,
-    K / (P0 I0) (see :func:`blastvox.simulate.fracture.pi_exceeded`); crush_pa, Pa,
-    the pressure below which the voxel never turns to dust: its material's
-    crush_pressure if the voxel is part of a chunk of several voxels, else 0;
-    shatter_pa, Pa: for a voxel that is a chunk of its own (or of a model without
-    chunks: each voxel is the smallest rubble), its material's crush_pressure (0
-    for none): failing below it, the voxel comes off as rubble (its links break),
-    above it as dust; link_factor
-    (L,): each link's strength relative to its material (:func:`link_strength_factor`),
-    which scales its impulse asymptote as its yield; inner (L,) bool: the link holds
-    together a chunk (both voxels in one chunk of ``voxel_chunk``) of a material that
-    crushes (crush_pa > 0): neither the blast nor an impact breaks it; interface (L,)
-    int64: the interface between two chunks a link crosses, numbered from 0 in order
-    of the pair of chunk ids (-1: an inner link, or a model without chunks)."""
+    """Pressure-impulse strength. Of each material (M,), indexed by material (N,) int32,
+    each voxel's (the model's): link_impulse and voxel_impulse, Pa s, the impulse
+    asymptotes for a 0.25 m element; pi_shape, K / (P0 I0) (see
+    :func:`blastvox.simulate.fracture.pi_exceeded`); crush, Pa, the material's
+    crush_pressure (0 for none; a voxel's crush pressure, below which it never turns
+    to dust: :func:`crush_pressures`). Of each voxel (N,): shatter_pa, Pa: for a voxel
+    that is a chunk of its own (or of a model without chunks: each voxel is the
+    smallest rubble), its material's crush_pressure (0 for none): failing below it,
+    the voxel comes off as rubble (its links break), above it as dust. Of each link
+    (L,): link_yield Pa, the model's, with yield_mean (M,) Pa, each material's
+    link_yield_mean: each link's strength relative to its material
+    (:func:`link_factor`), which scales its impulse asymptote as its yield; inner
+    bool: the link holds together a chunk (both voxels in one chunk of
+    ``voxel_chunk``) of a material that crushes (crush pressure > 0): neither the
+    blast nor an impact breaks it; interface int32: the interface between two chunks
+    a link crosses, numbered from 0 in order of the pair of chunk ids (-1: an inner
+    link, or a model without chunks)."""
 
+    material: np.ndarray
     link_impulse: np.ndarray
     voxel_impulse: np.ndarray
     pi_shape: np.ndarray
-    crush_pa: np.ndarray
+    crush: np.ndarray
     shatter_pa: np.ndarray
-    link_factor: np.ndarray
+    link_yield: np.ndarray
+    yield_mean: np.ndarray
     inner: np.ndarray
     interface: np.ndarray
 
 
-def link_strength_factor(arrays: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Each link's (L,) strength relative to its material, and that material (L,).
+#: Links per block of the start-up's per-link passes (link_strength_factor,
+#: member_chunks): their temporaries stay a few MB whatever the model's size.
+LINK_BLOCK = 1 << 18
+
+
+def link_blocks(count: int):
+    """Slices of ``count`` links, LINK_BLOCK at a time."""
+    return (slice(start, min(start + LINK_BLOCK, count)) for start in range(0, count, LINK_BLOCK))
+
+
+def link_strength_factor(arrays: dict, links=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """The strength relative to its material of each link of ``links`` (ids, or a
+    slice: all by default), and that material, int32.
 
     The material is the weaker of the link's two voxels (the lower link_yield_mean,
     as the voxelizer chose it); the factor is the link's yield over that material's
     mean: its random spread, the scene's strength_scale and a chunk bond's scale
-    (1 where the mean is 0 or infinite)."""
-    lv = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
-    mat = np.asarray(arrays["voxel_material"], dtype=np.int64)
-    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
+    (1 where the mean is 0 or infinite). Block by block: the same values, elementwise
+    (:func:`link_factor` works out one link's in a kernel)."""
+    lv = np.asarray(arrays["link_voxels"]).reshape(-1, 2)[links]
+    mat = np.asarray(arrays["voxel_material"])
     mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
-    weaker = np.where(mean[la] <= mean[lb], la, lb)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        factor = np.asarray(arrays["link_yield"], dtype=np.float64) / mean[weaker]
-    return np.where(np.isfinite(factor) & (factor > 0.0), factor, 1.0), weaker
+    link_yield = np.asarray(arrays["link_yield"], dtype=np.float64)[links]
+    factor = np.empty(len(lv))
+    weaker = np.empty(len(lv), dtype=np.int32)
+    for block in link_blocks(len(lv)):
+        la, lb = mat[lv[block, 0]], mat[lv[block, 1]]
+        weaker[block] = np.where(mean[la] <= mean[lb], la, lb)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = link_yield[block] / mean[weaker[block]]
+        factor[block] = np.where(np.isfinite(f) & (f > 0.0), f, 1.0)
+    return factor, weaker
+
+
+@helper
+def link_factor(strength, link_voxels, link) -> float:
+    """Link ``link``'s strength relative to its material (``strength``: the model's
+    :class:`Strength`; link_voxels (L, 2)): :func:`link_strength_factor`'s, to the bit
+    (one IEEE division), without keeping a float per link."""
+    la, lb = strength.material[link_voxels[link, 0]], strength.material[link_voxels[link, 1]]
+    mean = strength.yield_mean[la]
+    if not mean <= strength.yield_mean[lb]:
+        mean = strength.yield_mean[lb]
+    if mean == 0.0:  # the yield over it is infinite or undefined
+        return 1.0
+    f = strength.link_yield[link] / mean
+    return f if math.isfinite(f) and f > 0.0 else 1.0
 
 
 @dataclass(frozen=True)
@@ -123,16 +165,18 @@ class SimModel:
 
     voxels, links, strength: see :class:`VoxelGeometry`, :class:`LinkGeometry` and
     :class:`Strength`.
-    material (N,), object (N,): indices from the VoxelModel. up (3,): unit up
+    material (N,), object (N,) int32: indices from the VoxelModel. up (3,): unit up
     vector (axis index up_axis); ground_height: m along up, or None for no
     ground. voxel_grid: :func:`blastvox.simulate.shell.dense_grid` of
     the voxel centroids at rest, cells of grid_cell m (about
     four voxels). rest_grid: the shielding
     :class:`~blastvox.simulate.shielding.Occupancy` of every voxel at rest (a run
     shields with a copy); thickness (N,) m: each voxel's member thickness
-    (:mod:`blastvox.simulate.members`) and normal (N, 3) the unit direction, at rest,
-    it is measured along; wave_speed (N,) m/s: its material's
-    longitudinal (bar) wave speed sqrt(E / rho).
+    (:mod:`blastvox.simulate.members`) and member_axis (N,) uint8 the unit direction,
+    at rest, it is measured along (a row of
+    :data:`~blastvox.simulate.members.MEMBER_NORMALS`); wave_speed (M,) m/s: each
+    material's longitudinal (bar) wave speed sqrt(E / rho) (a voxel's:
+    ``wave_speed[material[v]]``).
     """
 
     voxels: VoxelGeometry
@@ -147,7 +191,7 @@ class SimModel:
     voxel_grid: tuple
     rest_grid: Occupancy
     thickness: np.ndarray
-    normal: np.ndarray
+    member_axis: np.ndarray
     wave_speed: np.ndarray
 
     @property
@@ -167,24 +211,24 @@ def build_model(model: VoxelModel) -> SimModel:
     """Derive the static simulation arrays from a VoxelModel."""
     a = model.arrays
     n = model.voxel_count
-    links = np.ascontiguousarray(a["link_voxels"], dtype=np.int64)
+    # index arrays stay the model's int32 (shared, not copied: 150 MB at a million voxels)
+    links = np.ascontiguousarray(a["link_voxels"], dtype=np.int32)
     offsets, link_ids = link_csr(links, n)
-    slot = np.full(n, -1, dtype=np.int64)
-    conform = a["conform_voxels"].astype(np.int64)
-    slot[conform] = np.arange(len(conform))
+    slot = np.full(n, -1, dtype=np.int32)
+    slot[a["conform_voxels"]] = np.arange(len(a["conform_voxels"]), dtype=np.int32)
     area, centroid = _conform_faces(a["conform_triangles"], a["conform_tag"],
                                     a["conform_offsets"])
     up = np.zeros(3)
     up[model.up_index] = 1.0
     vertices = np.ascontiguousarray(a["vertices"], dtype=np.float64)
-    corners = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int64)
+    corners = np.ascontiguousarray(a["voxel_vertices"], dtype=np.int32)
     voxel_centroid = np.ascontiguousarray(a["voxel_centroid"], dtype=np.float64)
     ground = model.meta.get("ground_height")
     contact_radius = 0.5 * cbrt(np.maximum(a["voxel_volume"], 0.0))
     grid_cell = 8.0 * float(np.median(contact_radius)) if n else 1.0
     grid_cell = grid_cell if grid_cell > 0.0 else 1.0
     link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)
-    mass = a["voxel_mass"].astype(np.float64)
+    mass = np.ascontiguousarray(a["voxel_mass"], dtype=np.float64)
     voxels = VoxelGeometry(
         vertices=vertices, corners=corners, mass=mass, centroid=voxel_centroid,
         inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
@@ -195,21 +239,26 @@ def build_model(model: VoxelModel) -> SimModel:
         conform_slot=slot, conform_area=area, conform_centroid=centroid,
         link_offsets=offsets, link_ids=link_ids)
     link_geometry = LinkGeometry(
-        voxels=links, face=a["link_face"].astype(np.int64), midpoint=link_midpoint,
+        voxels=links, face=np.ascontiguousarray(a["link_face"], dtype=np.uint8),
+        midpoint=link_midpoint,
         direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
+    conform = conform_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
+                            a["conform_triangles"])
+    boxes = solid_boxes(vertices, corners, a["conform_voxels"], *conform)  # start-up only
     rest_grid = build_occupancy(
-        *solid_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
-                     a["conform_triangles"]),
-        voxel_centroid, typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
-    thickness, normal = thickness_at_rest(rest_grid, _solid_volume(a), voxel_centroid)
+        vertices, corners, (slot, *conform), boxes, voxel_centroid,
+        typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
+    thickness, member_axis = thickness_at_rest(rest_grid, boxes, _solid_volume(a),
+                                               voxel_centroid)
+    del boxes
     return SimModel(
-        voxels=voxels, links=link_geometry, strength=_strength(a, normal),
-        material=a["voxel_material"].astype(np.int64),
-        object=a["voxel_object"].astype(np.int64),
+        voxels=voxels, links=link_geometry, strength=_strength(a, member_axis),
+        material=np.ascontiguousarray(a["voxel_material"], dtype=np.int32),
+        object=np.ascontiguousarray(a["voxel_object"], dtype=np.int32),
         up=up, up_axis=model.up_index, ground_height=None if ground is None else float(ground),
         grid_cell=grid_cell,
         voxel_grid=dense_grid(voxel_centroid, grid_cell), rest_grid=rest_grid,
-        thickness=thickness, normal=normal, wave_speed=wave_speeds(a))
+        thickness=thickness, member_axis=member_axis, wave_speed=wave_speeds(a))
 
 
 def _solid_volume(arrays: dict) -> np.ndarray:
@@ -227,43 +276,60 @@ def _solid_volume(arrays: dict) -> np.ndarray:
     return np.where(np.isfinite(solid) & (solid > 0.0), solid, volume)
 
 
-def _strength(arrays: dict, normal: np.ndarray | None = None) -> Strength:
-    """Per-voxel P-I strength from the material table (0 where a model predates it).
+def _strength(arrays: dict, member_axis: np.ndarray | None = None) -> Strength:
+    """P-I strength from the material table (0 where a model predates it).
 
-    normal (N, 3): each voxel's member normal at rest (:mod:`blastvox.simulate.members`);
-    a chunk is cut where two members meet (:func:`member_chunks`)."""
+    member_axis (N,): each voxel's member normal at rest, a row of MEMBER_NORMALS
+    (:mod:`blastvox.simulate.members`); a chunk is cut where two members meet
+    (:func:`member_chunks`)."""
     material = arrays["voxel_material"]
 
-    def column(name: str) -> np.ndarray:
+    def table(name: str) -> np.ndarray:  # of each material (M,)
         values = arrays.get(f"material_{name}")
         if values is None:
-            return np.zeros(len(material))
-        return np.ascontiguousarray(np.asarray(values, dtype=np.float64)[material])
+            return np.zeros(len(arrays["material_density"]))
+        return np.ascontiguousarray(values, dtype=np.float64)
 
-    factor, _ = link_strength_factor(arrays)
+    def column(name: str) -> np.ndarray:  # of each voxel (N,)
+        return np.ascontiguousarray(table(name)[material])
+
     crush = column("crush_pressure")
     shatter = crush.copy()
-    ends = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
+    ends = np.asarray(arrays["link_voxels"]).reshape(-1, 2)
     inner = np.zeros(len(ends), dtype=bool)
-    interface = np.full(len(ends), -1, dtype=np.int64)
+    interface = np.full(len(ends), -1, dtype=np.int32)
     if "voxel_chunk" not in arrays:
         crush[:] = 0.0
     else:
         # a voxel that is a whole chunk is the material's fragment size or larger: when
         # it fails it comes off as rubble, and only a crushing load pulverizes it
-        voxel_chunk = member_chunks(np.asarray(arrays["voxel_chunk"], dtype=np.int64), ends,
-                                    normal)
+        voxel_chunk = member_chunks(np.asarray(arrays["voxel_chunk"], dtype=np.int32), ends,
+                                    member_axis)
         whole = np.bincount(voxel_chunk)[voxel_chunk] < 2
         crush[whole] = 0.0
         shatter[~whole] = 0.0
-        chunk = voxel_chunk[ends]
-        within = chunk[:, 0] == chunk[:, 1]
-        pair = np.sort(chunk[~within], axis=1)
-        inner = within & (crush[ends[:, 0]] > 0.0)
-        interface[~within] = np.unique(pair[:, 0] * (int(chunk.max(initial=0)) + 1) + pair[:, 1],
-                                      return_inverse=True)[1]
-    return Strength(column("link_impulse"), column("voxel_impulse"), column("pi_shape"),
-                    crush, shatter, np.ascontiguousarray(factor), inner, interface)
+        first, second = voxel_chunk[ends[:, 0]], voxel_chunk[ends[:, 1]]
+        within = first == second
+        inner = within & (crush > 0.0)[ends[:, 0]]
+        lo, hi = first[~within].astype(np.int64), second[~within].astype(np.int64)
+        pair = np.minimum(lo, hi) * (max(int(first.max(initial=0)), int(second.max(initial=0)))
+                                     + 1) + np.maximum(lo, hi)  # each pair sorted
+        interface[~within] = np.unique(pair, return_inverse=True)[1]
+    return Strength(np.ascontiguousarray(material, dtype=np.int32), table("link_impulse"),
+                    table("voxel_impulse"), table("pi_shape"), table("crush_pressure"), shatter,
+                    np.ascontiguousarray(arrays["link_yield"], dtype=np.float64),
+                    table("link_yield_mean"), inner, interface)
+
+
+def crush_pressures(strength: Strength, chunked: bool) -> np.ndarray:
+    """(N,) Pa: each voxel's crush pressure, below which it never turns to dust: its
+    material's crush_pressure if it is part of a chunk of several voxels (of a model
+    with chunks, ``chunked``), else 0. A voxel of a chunk of its own shatters at that
+    pressure instead (strength.shatter_pa, 0 for the others): the same values as the
+    start-up worked out (see :func:`_strength`), not kept for the run."""
+    if not chunked:
+        return np.zeros(len(strength.material))
+    return np.where(strength.shatter_pa > 0.0, 0.0, strength.crush[strength.material])
 
 
 #: Two voxels are of one member when their member normals are within 45 degrees.
@@ -271,23 +337,29 @@ SAME_MEMBER = math.sqrt(0.5)
 
 
 def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
-                  normal: np.ndarray | None) -> np.ndarray:
-    """(N,) chunk ids with every chunk cut where two members meet: a chunk that holds
+                  member_axis: np.ndarray | None) -> np.ndarray:
+    """(N,) int32 chunk ids with every chunk cut where two members meet: a chunk that holds
     voxels of a wall and of the wall or slab it joins (member normals more than 45
-    degrees apart, ``normal`` (N, 3)) becomes one chunk per member. Chunks are the
-    material's fragment size, but a junction is where a wall breaks off from the
-    walls that hold it (it carries the bending of both): a chunk across it made the
-    front wall of a house leave with pieces of its side walls and slabs, which jam in
-    line with the rest of them. ends (L, 2): the links' voxels."""
-    if normal is None or not len(ends):
+    degrees apart; member_axis (N,): each voxel's row of MEMBER_NORMALS) becomes one
+    chunk per member. Chunks are the material's fragment size, but a junction is where
+    a wall breaks off from the walls that hold it (it carries the bending of both): a
+    chunk across it made the front wall of a house leave with pieces of its side walls
+    and slabs, which jam in line with the rest of them. ends (L, 2): the links' voxels."""
+    if member_axis is None or not len(ends):
         return voxel_chunk
-    from blastvox.simulate.stress import components
+    from blastvox.simulate.stress import node_labels
 
-    a, b = ends[:, 0], ends[:, 1]
-    together = (voxel_chunk[a] == voxel_chunk[b]) & (
-        np.abs(np.einsum("ij,ij->i", normal[a], normal[b])) >= SAME_MEMBER)
-    _, labels = components(len(voxel_chunk), a[together], b[together])
-    return labels.astype(np.int64)
+    together = np.empty(len(ends), dtype=bool)
+    for block in link_blocks(len(ends)):  # the (L, 3) normals of both ends took 140 MB
+        a, b = ends[block, 0], ends[block, 1]
+        normal_a, normal_b = MEMBER_NORMALS[member_axis[a]], MEMBER_NORMALS[member_axis[b]]
+        together[block] = (voxel_chunk[a] == voxel_chunk[b]) & (
+            np.abs(np.einsum("ij,ij->i", normal_a, normal_b)) >= SAME_MEMBER)
+    n = len(voxel_chunk)  # the components of the links kept, numbered as components does
+    labels = np.empty(n, dtype=np.int32)
+    node_labels(np.ascontiguousarray(ends, dtype=np.int32), together, np.ones(n, dtype=bool),
+                np.zeros((n, 0), dtype=np.int32), labels)
+    return labels
 
 
 @kernel
@@ -304,7 +376,7 @@ def link_csr(link_voxels, n_voxels):
     for v in range(n_voxels):
         offsets[v + 1] += offsets[v]
     fill = offsets[:-1].copy()
-    ids = np.empty(2 * link_voxels.shape[0], dtype=np.int64)
+    ids = np.empty(2 * link_voxels.shape[0], dtype=np.int32)
     for side in range(2):
         for link in range(link_voxels.shape[0]):
             v = link_voxels[link, side]

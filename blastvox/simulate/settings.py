@@ -341,10 +341,13 @@ def check_settings(settings: SimSettings) -> None:
 #: What a run's arrays take besides its model's own (bytes): per voxel, per link, per
 #: voxel and charge (the waves' element views and lines of sight), and numba's loaded
 #: kernels. Fitted to simulate()'s peak RSS over the loaded model for the 10 m block of
-#: benchmarks/performance.py at 10^4, 10^5 and 10^6 voxels (95, 185 and 1,199 MiB,
-#: 2026-11-29; the estimate: 92, 190 and 1,223 MiB).
-RUN_BYTES_PER_VOXEL = 400
-RUN_BYTES_PER_LINK = 250
+#: benchmarks/performance.py at 10^4, 10^5 and 10^6 voxels, the most of the worker's
+#: five runs (77, 110 and 395 MiB, 2026-11-30; the estimate: 84, 113 and 422 MiB).
+#: Per link: the CSR ids, the yield, the chunk interface and three flags (the strength
+#: factors and the stress springs are worked out where used); per voxel: some twenty
+#: columns of state, geometry and scratch.
+RUN_BYTES_PER_VOXEL = 230
+RUN_BYTES_PER_LINK = 30
 RUN_BYTES_PER_VOXEL_CHARGE = 40
 RUN_BYTES_FIXED = 80 * 2**20
 

@@ -26,7 +26,7 @@ def dense_grid(points, cell):
     """CSR of point indices by the cell of a dense grid over their bounding box.
 
     points (P, 3) m; cell m. Returns origin (3,) m, dims (3,) cells, offsets
-    (C + 1,) and ids (P,): the points of cell (i, j, k) are
+    (C + 1,) and ids (P,) int32: the points of cell (i, j, k) are
     ids[offsets[q]:offsets[q + 1]] with q = (i * dims[1] + j) * dims[2] + k.
     """
     origin = np.zeros(3)
@@ -51,7 +51,7 @@ def dense_grid(points, cell):
     for q in range(offsets.shape[0] - 1):
         offsets[q + 1] += offsets[q]
     fill = offsets[:-1].copy()
-    ids = np.empty(n, dtype=np.int64)
+    ids = np.empty(n, dtype=np.int32)  # point ids: int32 as the model's voxel ids
     for p in range(n):
         ids[fill[cells[p]]] = p
         fill[cells[p]] += 1

@@ -43,34 +43,68 @@ _HUGE = 1.0e300
 class Occupancy(NamedTuple):
     """The shielding grid. origin (3,) m: corner of cell (0, 0, 0); cell (1,) m: edge;
     dims (3,) int64 cells per axis; count (X*Y*Z,) int16: voxels covering each cell;
-    member (N,) bool: the voxel still counts in the grid; lo, hi (N, 3) m: each
-    voxel's solid box at rest (:func:`solid_boxes`)."""
+    member (N,) bool: the voxel still counts in the grid. What each voxel's solid box
+    at rest (:func:`solid_boxes`) is worked out from, by :func:`solid_box` (the
+    model's arrays, shared: the boxes took 46 MiB at a million voxels): vertices (V, 3)
+    m and corners (N, 8), slot (N,) the voxel's row in box_lo, box_hi (C, 3) m, the
+    boxes of the conform voxels (:func:`conform_boxes`), or -1."""
 
     origin: np.ndarray
     cell: np.ndarray
     dims: np.ndarray
     count: np.ndarray
     member: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
+    vertices: np.ndarray
+    corners: np.ndarray
+    slot: np.ndarray
+    box_lo: np.ndarray
+    box_hi: np.ndarray
 
 
-def solid_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.ndarray,
-                conform_offsets: np.ndarray, conform_triangles: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Each voxel's solid bounding box at rest, (lo, hi) (N, 3) m: its corners' box
-    (vertices (V, 3) m, corners (N, 8)), or for a conform voxel (conform_voxels (C,),
-    conform_offsets (C+1,), conform_triangles (T, 3, 3) m: the model's) the box of
-    its exact geometry. A cut voxel's lattice cell spans air: a 0.3 m plate cut from
-    0.5 m cells would cover the air before its own face and shadow it."""
-    lo, hi = corner_boxes(vertices, corners)
+def conform_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.ndarray,
+                  conform_offsets: np.ndarray, conform_triangles: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The solid bounding boxes at rest (lo, hi) (C, 3) m of the C conform voxels
+    (conform_voxels (C,), conform_offsets (C+1,), conform_triangles (T, 3, 3) m: the
+    model's): the box of their exact geometry, or where one has no triangles its
+    corners' (vertices (V, 3) m, corners (N, 8)). A cut voxel's lattice cell spans
+    air: a 0.3 m plate cut from 0.5 m cells would cover the air before its own face
+    and shadow it."""
+    lo, hi = corner_boxes(vertices, np.ascontiguousarray(corners[conform_voxels]))
     if len(conform_voxels):
         tri_lo, tri_hi = conform_triangles.min(axis=1), conform_triangles.max(axis=1)
         starts = np.asarray(conform_offsets[:-1], dtype=np.int64)
         has = np.asarray(conform_offsets[1:], dtype=np.int64) > starts
-        voxels = np.asarray(conform_voxels, dtype=np.int64)[has]
-        lo[voxels] = np.minimum.reduceat(tri_lo, starts[has], axis=0)
-        hi[voxels] = np.maximum.reduceat(tri_hi, starts[has], axis=0)
+        lo[has] = np.minimum.reduceat(tri_lo, starts[has], axis=0)
+        hi[has] = np.maximum.reduceat(tri_hi, starts[has], axis=0)
+    return lo, hi
+
+
+def solid_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.ndarray,
+                box_lo: np.ndarray, box_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each voxel's solid bounding box at rest, (lo, hi) (N, 3) m: its corners' box
+    (vertices (V, 3) m, corners (N, 8)), or for a conform voxel (conform_voxels (C,))
+    its box (box_lo, box_hi (C, 3) m: :func:`conform_boxes`)."""
+    lo, hi = corner_boxes(vertices, corners)
+    lo[conform_voxels] = box_lo
+    hi[conform_voxels] = box_hi
+    return lo, hi
+
+
+@helper
+def solid_box(grid, v, a):
+    """(lo, hi) m of voxel v's solid box at rest along axis a (:func:`solid_boxes`,
+    its values to the bit: the same minima and maxima, in the same order)."""
+    s = grid.slot[v]
+    if s >= 0:
+        return grid.box_lo[s, a], grid.box_hi[s, a]
+    corners, vertices = grid.corners, grid.vertices
+    x = vertices[corners[v, 0], a]
+    lo, hi = x, x
+    for k in range(1, 8):
+        x = vertices[corners[v, k], a]
+        lo = min(lo, x)
+        hi = max(hi, x)
     return lo, hi
 
 
@@ -94,16 +128,20 @@ def corner_boxes(vertices, corners):
     return lo, hi
 
 
-def build_occupancy(lo: np.ndarray, hi: np.ndarray, centroid: np.ndarray,
-                    cell: float) -> Occupancy:
-    """The grid of every voxel at rest. lo, hi (N, 3) m: the voxels' solid boxes
-    (:func:`solid_boxes`), centroid (N, 3) m; cell: the wanted edge, m (coarsened to
-    MAX_CELLS)."""
-    n = len(lo)
+def build_occupancy(vertices: np.ndarray, corners: np.ndarray, conform: tuple,
+                    boxes: tuple, centroid: np.ndarray, cell: float) -> Occupancy:
+    """The grid of every voxel at rest. vertices (V, 3) m, corners (N, 8); conform:
+    the conform voxels' (slot (N,), their rows or -1; box_lo, box_hi (C, 3) m:
+    :func:`conform_boxes`); boxes: (lo, hi) (N, 3) m, every voxel's solid box
+    (:func:`solid_boxes`, for the fill; the grid keeps none); centroid (N, 3) m; cell:
+    the wanted edge, m (coarsened to MAX_CELLS)."""
+    n = len(corners)
+    slot, box_lo, box_hi = conform
     if n == 0:
         return Occupancy(np.zeros(3), np.ones(1), np.ones(3, dtype=np.int64),
                          np.zeros(1, dtype=np.int16), np.zeros(0, dtype=bool),
-                         np.zeros((0, 3)), np.zeros((0, 3)))
+                         vertices, corners, slot, box_lo, box_hi)
+    lo, hi = boxes
     low, high = lo.min(axis=0), hi.max(axis=0)
     extent = np.maximum(high - low, 0.0)
     cell = float(cell) if cell > 0.0 and math.isfinite(cell) else float(extent.max() or 1.0)
@@ -112,9 +150,8 @@ def build_occupancy(lo: np.ndarray, hi: np.ndarray, centroid: np.ndarray,
     dims = (np.floor(extent / cell) + 1).astype(np.int64)
     grid = Occupancy(low.astype(np.float64), np.array([cell]), dims,
                      np.zeros(int(np.prod(dims)), dtype=np.int16), np.ones(n, dtype=bool),
-                     np.ascontiguousarray(lo, dtype=np.float64),
-                     np.ascontiguousarray(hi, dtype=np.float64))
-    _fill(grid, grid.lo, grid.hi, centroid)
+                     vertices, corners, slot, box_lo, box_hi)
+    _fill(grid, lo, hi, centroid)
     return grid
 
 
@@ -149,16 +186,36 @@ def cell_range(lo, hi, origin, cell, dims, a):
 
 
 @helper
-def _cover(grid, lo, hi, centroid, v, delta):
-    """Add delta to the count of every cell voxel v covers (see the module docstring)."""
-    origin, cell, dims, count = grid.origin, grid.cell[0], grid.dims, grid.count
-    i0, i1 = cell_range(lo[v, 0], hi[v, 0], origin, cell, dims, 0)
-    j0, j1 = cell_range(lo[v, 1], hi[v, 1], origin, cell, dims, 1)
-    k0, k1 = cell_range(lo[v, 2], hi[v, 2], origin, cell, dims, 2)
+def cells_of(grid, centroid, v, lo0, hi0, lo1, hi1, lo2, hi2):
+    """(i0, i1, j0, j1, k0, k1): the cells voxel v covers along each axis, the cells
+    whose centres lie in its solid box (lo0..hi0, lo1..hi1, lo2..hi2 m:
+    :func:`solid_box`), or its centroid's (centroid (N, 3) m) if none does (see the
+    module docstring)."""
+    origin, cell, dims = grid.origin, grid.cell[0], grid.dims
+    i0, i1 = cell_range(lo0, hi0, origin, cell, dims, 0)
+    j0, j1 = cell_range(lo1, hi1, origin, cell, dims, 1)
+    k0, k1 = cell_range(lo2, hi2, origin, cell, dims, 2)
     if i0 > i1 or j0 > j1 or k0 > k1:  # smaller than a cell: the centroid's cell
         i0 = i1 = min(max(int((centroid[v, 0] - origin[0]) / cell), 0), dims[0] - 1)
         j0 = j1 = min(max(int((centroid[v, 1] - origin[1]) / cell), 0), dims[1] - 1)
         k0 = k1 = min(max(int((centroid[v, 2] - origin[2]) / cell), 0), dims[2] - 1)
+    return i0, i1, j0, j1, k0, k1
+
+
+@helper
+def box_cells(grid, centroid, v):
+    """:func:`cells_of` voxel v, its solid box worked out (:func:`solid_box`)."""
+    lo0, hi0 = solid_box(grid, v, 0)
+    lo1, hi1 = solid_box(grid, v, 1)
+    lo2, hi2 = solid_box(grid, v, 2)
+    return cells_of(grid, centroid, v, lo0, hi0, lo1, hi1, lo2, hi2)
+
+
+@helper
+def _count(grid, cells, delta):
+    """Add delta to the count of the cells (i0, i1, j0, j1, k0, k1) (:func:`cells_of`)."""
+    dims, count = grid.dims, grid.count
+    i0, i1, j0, j1, k0, k1 = cells
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             for k in range(k0, k1 + 1):
@@ -167,8 +224,10 @@ def _cover(grid, lo, hi, centroid, v, delta):
 
 @kernel
 def _fill(grid, lo, hi, centroid):
+    """Count every voxel in the grid, their solid boxes lo, hi (N, 3) m given."""
     for v in range(lo.shape[0]):
-        _cover(grid, lo, hi, centroid, v, 1)
+        _count(grid, cells_of(grid, centroid, v, lo[v, 0], hi[v, 0], lo[v, 1], hi[v, 1],
+                              lo[v, 2], hi[v, 2]), 1)
 
 
 @kernel
@@ -194,7 +253,7 @@ def remove_voxel(grid, geometry, v) -> None:
     """Take voxel v out of the grid (if it is in)."""
     if not grid.member[v]:
         return
-    _cover(grid, grid.lo, grid.hi, geometry.centroid, v, -1)
+    _count(grid, box_cells(grid, geometry.centroid, v), -1)
     grid.member[v] = False
 
 

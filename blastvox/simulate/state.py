@@ -63,7 +63,7 @@ class Voxels(NamedTuple):
     leaves across face f; yield_pa: current voxel yield, Pa; foundation and
     foundation_pa: foundation flag and its remaining yield, Pa; damage:
     Davison-Stevens damage (links' worth, 0..6); combust: combustibility left
-    (inf = cannot burn); burning.
+    (inf = cannot burn; the model's array, read only, in a run without fire); burning.
     """
 
     body: np.ndarray
@@ -99,19 +99,58 @@ class Marks(NamedTuple):
 
 class Loads(NamedTuple):
     """Blast loads. impulse (B, 3) N s and angular (B, 3) N m s about the centre of
-    mass: this step's, per body. held_p (N, 3) N s and held_l (N, 3) N m s about
-    the voxel centroid: what voxels of fixed bodies took during the current
+    mass: this step's, per body. What voxels of fixed bodies took during the current
     wave, handed to their piece if it breaks free (see
-    :func:`blastvox.simulate.kernels.release_held`). shadow (N,) uint8: bit f set
+    :func:`blastvox.simulate.kernels.release_held`), by the voxels that hold some:
+    held_slot (N,) int32, each voxel's row or -1 (none: nothing held); held_p (K, 3) N
+    s and held_l (K, 3) N m s about the voxel centroid, the rows, held_count[0] of them
+    in use (the others zero), held_voxel (K,) int32 the voxel of each
+    (:func:`blastvox.simulate.kernels.hold` gives a voxel a row, :func:`hold_room`
+    makes room; only the voxels the wave loads hold a row, a block's faces: the (N,
+    3) columns took 46 MiB at a million voxels). shadow (N,) uint8: bit f set
     when the neighbour across face f turned to dust in the current waves: that dust
     left with the wave's impulse through the face, which then loads it no more
     (see :func:`blastvox.simulate.fracture.fracture_voxels`)."""
 
     impulse: np.ndarray
     angular: np.ndarray
+    held_slot: np.ndarray
     held_p: np.ndarray
     held_l: np.ndarray
+    held_count: np.ndarray
+    held_voxel: np.ndarray
     shadow: np.ndarray
+
+
+def held_loads(n: int, capacity: int) -> Loads:
+    """The blast loads of ``capacity`` bodies and N voxels, none held."""
+    return Loads(impulse=np.zeros((capacity, 3)), angular=np.zeros((capacity, 3)),
+                 held_slot=np.full(n, -1, dtype=np.int32), held_p=np.zeros((0, 3)),
+                 held_l=np.zeros((0, 3)), held_count=np.zeros(1, dtype=np.int64),
+                 held_voxel=np.zeros(0, dtype=np.int32), shadow=np.zeros(n, dtype=np.uint8))
+
+
+def hold_room(state: State, more: int) -> None:
+    """Room in the held impulses (:class:`Loads`) for ``more`` voxels beyond those that
+    hold now: a kernel that may give that many a row (:func:`~blastvox.simulate.kernels.hold`)
+    cannot grow them."""
+    loads = state.loads
+    need = int(loads.held_count[0]) + more
+    if need <= len(loads.held_p):
+        return
+    new = max(need, 2 * len(loads.held_p), 1024)
+    state.loads = loads._replace(held_p=padded(loads.held_p, new, 0.0),
+                                 held_l=padded(loads.held_l, new, 0.0),
+                                 held_voxel=padded(loads.held_voxel, new, 0))
+
+
+def clear_held(loads: Loads) -> None:
+    """Every voxel's held impulses spent: none holds a row any more."""
+    count = int(loads.held_count[0])
+    loads.held_slot[loads.held_voxel[:count]] = -1
+    loads.held_p[:count] = 0.0
+    loads.held_l[:count] = 0.0
+    loads.held_count[0] = 0
 
 
 class Contacts(NamedTuple):
@@ -120,7 +159,7 @@ class Contacts(NamedTuple):
     rest, last step and this one; hits (H, 4): this step's contact points (m)
     and approach speeds (m/s), for dust; points (K, 3): ground contact points
     of one body (grows with the largest body); vertex_stamp (V,): body that
-    last listed a corner (-1 none); memory: the contact solver's rows and what they
+    last listed a corner (-1 none), int32; memory: the contact solver's rows and what they
     carry from step to step (:class:`~blastvox.simulate.contact.ground.ContactMemory`),
     made by the first contact phase."""
 
@@ -234,8 +273,8 @@ class Counters:
 
 @dataclass
 class Scratch:
-    """Work arrays of the phases, allocated once. component, order (N,) int64: for
-    splits; voxel_owner (N,): the voxel each fracture candidate moves with;
+    """Work arrays of the phases, allocated once. component, order (N,) int32: for
+    splits; voxel_owner (N,) int32: the voxel each fracture candidate moves with;
     voxel_candidate (N,): fracture candidates."""
 
     component: np.ndarray
@@ -246,8 +285,8 @@ class Scratch:
     @classmethod
     def for_model(cls, model) -> Scratch:
         n = model.n_voxels
-        return cls(component=np.zeros(n, dtype=np.int64), order=np.zeros(n, dtype=np.int64),
-                   voxel_owner=np.arange(n, dtype=np.int64),
+        return cls(component=np.zeros(n, dtype=np.int32), order=np.zeros(n, dtype=np.int32),
+                   voxel_owner=np.arange(n, dtype=np.int32),
                    voxel_candidate=np.zeros(n, dtype=bool))
 
 

@@ -51,8 +51,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from blastvox.jit import kernel
-from blastvox.simulate.model import link_strength_factor
+from blastvox.jit import helper, kernel
+from blastvox.simulate.springs import LinkSprings, SpringTable, has_limits
+from blastvox.simulate.springs import link_springs as link_springs
 
 #: Poisson's ratio of the shear springs (concrete 0.2; the solve is not sensitive to it).
 POISSON = 0.2
@@ -64,70 +65,6 @@ EVENT_BAND = 0.8
 #: Most nodes of one solve: the grid cell k (voxels) grows until the solve has at most
 #: this many (the cost of the sparse solve grows faster than linearly with it).
 TARGET_NODES = 300
-
-
-class LinkSprings(NamedTuple):
-    """What the stress solver needs of the model's L links (read-only).
-
-    midpoint (L, 3) m; direction (L, 3) unit, first voxel to second; area (L,) m^2;
-    modulus (L,) Pa: Young's modulus of the link (its two halves in series);
-    tensile, compressive, shear (L,) Pa: the limits (inf: never).
-    """
-
-    midpoint: np.ndarray
-    direction: np.ndarray
-    area: np.ndarray
-    modulus: np.ndarray
-    tensile: np.ndarray
-    compressive: np.ndarray
-    shear: np.ndarray
-
-
-def _column(arrays: dict, name: str, default: float, count: int) -> np.ndarray:
-    values = arrays.get(f"material_{name}")
-    if values is None:
-        return np.full(count, default)
-    return np.asarray(values, dtype=np.float64)
-
-
-def link_springs(arrays: dict) -> LinkSprings:
-    """The links' moduli and strength limits from VoxelModel ``arrays``.
-
-    A link takes the limits of its weaker material (as the voxelizer chose it for
-    the link yield: the lower link_yield_mean), scaled by the link's yield over
-    that material's mean yield, so the random spread, the scene's strength_scale
-    and chunk bonds scale the stress limits as they scale the blast yield.
-    """
-    lv = np.asarray(arrays["link_voxels"], dtype=np.int64).reshape(-1, 2)
-    mat = np.asarray(arrays["voxel_material"], dtype=np.int64)
-    centroid = np.asarray(arrays["voxel_centroid"], dtype=np.float64)
-    midpoint = np.asarray(arrays["link_midpoint"], dtype=np.float64).reshape(-1, 3)
-    direction = np.asarray(arrays["link_direction"], dtype=np.float64).reshape(-1, 3)
-    area = np.maximum(np.asarray(arrays["link_area"], dtype=np.float64), 1e-12)
-    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
-    mean = np.asarray(arrays["material_link_yield_mean"], dtype=np.float64)
-    factor, weaker = link_strength_factor(arrays)
-    count = len(mean)
-    modulus = _column(arrays, "youngs_modulus", 30e9, count)
-    half_a = np.abs(np.einsum("ij,ij->i", midpoint - centroid[lv[:, 0]], direction))
-    half_b = np.abs(np.einsum("ij,ij->i", centroid[lv[:, 1]] - midpoint, direction))
-    length = np.maximum(half_a + half_b, 1e-12)
-    series = length / (np.maximum(half_a, 0.0) / modulus[la] + np.maximum(half_b, 0.0)
-                       / modulus[lb] + 1e-300)
-
-    def limit(name: str) -> np.ndarray:
-        return np.ascontiguousarray(_column(arrays, name, math.inf, count)[weaker] * factor)
-
-    return LinkSprings(
-        midpoint=np.ascontiguousarray(midpoint), direction=np.ascontiguousarray(direction),
-        area=area, modulus=series, tensile=limit("tensile_strength"),
-        compressive=limit("compressive_strength"), shear=limit("shear_strength"))
-
-
-def has_limits(springs: LinkSprings) -> bool:
-    """Can any link break under stress (a finite limit)?"""
-    return bool(np.isfinite(springs.tensile).any() or np.isfinite(springs.compressive).any()
-                or np.isfinite(springs.shear).any())
 
 
 class Graph(NamedTuple):
@@ -169,19 +106,16 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
                  fixed: np.ndarray, link_alive: np.ndarray, voxel_key: np.ndarray,
                  mass: np.ndarray, centroid: np.ndarray) -> Graph:
     """Group the voxels flagged in voxel_in (N,) into nodes by ``voxel_key`` (N, 6)
-    int64 (body, foundation flag, chunk, cell i, j, k) and connectivity, and the alive links
-    between nodes into interfaces. mass (N,) kg and centroid (N, 3) m of the voxels."""
+    (body, foundation flag, chunk, cell i, j, k; int32, :func:`node_key`) and
+    connectivity, and the alive links between nodes into interfaces. mass (N,) kg and
+    centroid (N, 3) m of the voxels."""
     n = len(voxel_in)
-    inside = np.flatnonzero(voxel_in)
-    local = np.full(n, -1, dtype=np.int64)
-    local[inside] = np.arange(len(inside))
-    ends_in = voxel_in[link_voxels[:, 0]] & voxel_in[link_voxels[:, 1]]
-    alive = np.flatnonzero(link_alive & ends_in)
-    a, b = link_voxels[alive, 0], link_voxels[alive, 1]
-    same = np.ones(len(alive), dtype=bool)
-    for column in voxel_key.T:  # column by column: the (L, 6) gathers of both ends took
-        same &= column[a] == column[b]  # 300 MB at a million voxels
-    count, labels = components(len(inside), local[a[same]], local[b[same]])
+    m = int(np.count_nonzero(voxel_in))  # every voxel, or the flagged ones (no copies)
+    inside = slice(None) if m == n else np.flatnonzero(voxel_in)
+    labels = np.empty(m, dtype=np.int32)
+    count, across = node_labels(np.ascontiguousarray(link_voxels, dtype=np.int32), link_alive,
+                                voxel_in, np.ascontiguousarray(voxel_key, dtype=np.int32),
+                                labels)  # int32 as the model's: one kernel
     node = np.full(n, -1, dtype=np.int64)
     node[inside] = labels
     node_mass = np.bincount(labels, weights=mass[inside], minlength=count)
@@ -190,7 +124,6 @@ def coarse_graph(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.nda
     node_com /= np.maximum(node_mass, 1e-300)[:, None]
     node_fixed = np.bincount(labels, weights=fixed[inside].astype(np.float64),
                              minlength=count) > 0
-    across = alive[~same]
     na, nb = node[link_voxels[across, 0]], node[link_voxels[across, 1]]
     sign = np.where(na < nb, 1.0, -1.0)
     first, second = np.minimum(na, nb), np.maximum(na, nb)
@@ -232,28 +165,28 @@ def components(m: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
     return len(roots), labels.astype(np.int32)
 
 
-@kernel
-def union_find_labels(m, a, b, labels) -> int:
-    """Connected components of m nodes joined by edges (a[i], b[i]) (int64): writes each
-    node's label to labels (m,) int32, numbered in the order of each component's
-    smallest node (SciPy's numbering), and returns their count. Union-find with the
-    smaller root kept and path halving: linear memory (SciPy's connected_components
-    built a symmetric sparse matrix, 117 MB at a million voxels)."""
-    parent = np.arange(m)
-    for e in range(a.shape[0]):
-        x, y = a[e], b[e]
-        while parent[x] != x:  # path halving
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        while parent[y] != y:
-            parent[y] = parent[parent[y]]
-            y = parent[y]
-        if x < y:
-            parent[y] = x
-        elif y < x:
-            parent[x] = y
+@helper
+def _union(parent, x, y) -> None:
+    """Join the sets of x and y, the smaller root kept, halving paths on the way."""
+    while parent[x] != x:  # path halving
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    while parent[y] != y:
+        parent[y] = parent[parent[y]]
+        y = parent[y]
+    if x < y:
+        parent[y] = x
+    elif y < x:
+        parent[x] = y
+
+
+@helper
+def _number(parent, labels) -> int:
+    """Write each node's component label to labels (m,), numbered in the order of each
+    component's smallest node (SciPy's numbering; every root is its set's smallest
+    node), and return their count."""
     count = 0
-    for i in range(m):  # a root is its component's smallest node: numbered in node order
+    for i in range(parent.shape[0]):
         r = parent[i]
         while parent[r] != r:
             r = parent[r]
@@ -264,6 +197,63 @@ def union_find_labels(m, a, b, labels) -> int:
         else:
             labels[i] = labels[r]
     return count
+
+
+@kernel
+def union_find_labels(m, a, b, labels) -> int:
+    """Connected components of m nodes joined by edges (a[i], b[i]) (int64): writes each
+    node's label to labels (m,) int32, numbered in the order of each component's
+    smallest node (SciPy's numbering), and returns their count. Union-find with the
+    smaller root kept and path halving: linear memory (SciPy's connected_components
+    built a symmetric sparse matrix, 117 MB at a million voxels)."""
+    parent = np.arange(m)
+    for e in range(a.shape[0]):
+        _union(parent, a[e], b[e])
+    return _number(parent, labels)
+
+
+@kernel
+def node_labels(link_voxels, link_alive, voxel_in, key, labels):
+    """The nodes of :func:`coarse_graph`: the voxels flagged in voxel_in (N,) joined by
+    their alive links (link_alive (L,), link_voxels (L, 2)) whose two ends have the
+    same key (N, K), in components (:func:`components`' labels, into labels (M,) int32,
+    the M flagged voxels in order). Returns their count and the alive links between two
+    keys (J,), ascending: the interfaces' links. One pass over the links, nothing per
+    link kept but those (the gathers of both ends' keys and the edge lists took 200 MB
+    at a million voxels)."""
+    place = np.empty(voxel_in.shape[0], dtype=np.int64)  # each flagged voxel's among them
+    m = 0
+    for v in range(voxel_in.shape[0]):
+        place[v] = m
+        if voxel_in[v]:
+            m += 1
+    parent = np.arange(labels.shape[0])
+    between = 0
+    for link in range(link_voxels.shape[0]):
+        a, b = link_voxels[link, 0], link_voxels[link, 1]
+        if not (link_alive[link] and voxel_in[a] and voxel_in[b]):
+            continue
+        if _same_key(key, a, b):
+            _union(parent, place[a], place[b])
+        else:
+            between += 1
+    across = np.empty(between, dtype=np.int64)
+    j = 0
+    for link in range(link_voxels.shape[0]):
+        a, b = link_voxels[link, 0], link_voxels[link, 1]
+        if link_alive[link] and voxel_in[a] and voxel_in[b] and not _same_key(key, a, b):
+            across[j] = link
+            j += 1
+    return _number(parent, labels), across
+
+
+@helper
+def _same_key(key, a, b) -> bool:
+    """Do voxels a and b have the same key (a row of key (N, K))?"""
+    for c in range(key.shape[1]):
+        if key[a, c] != key[b, c]:
+            return False
+    return True
 
 
 def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
@@ -303,10 +293,13 @@ def _interfaces(springs: LinkSprings, links: np.ndarray, interface: np.ndarray,
     offset -= np.einsum("ij,ij->i", offset, d)[:, None] * d
     lever = np.cross(offset, d)
     eye = np.eye(3)
-    plane = eye[None] - d[:, :, None] * d[:, None, :]
     shear_modulus = e / (2.0 * (1.0 + POISSON))
-    bend = total(e[:, None, None] * (a[:, None, None] * lever[:, :, None] * lever[:, None, :]
-                                     + (a * a_full / 12.0)[:, None, None] * plane))
+    bend = np.empty((count, 3, 3))
+    for p in range(3):  # entry by entry: the links' (J, 3, 3) tensors took 65 MB at a
+        for q in range(3):  # million voxels
+            plane = eye[p, q] - d[:, p] * d[:, q]
+            bend[:, p, q] = total(e * (a * lever[:, p] * lever[:, q]
+                                       + (a * a_full / 12.0) * plane))
     twist = total(shear_modulus * (a * np.einsum("ij,ij->i", offset, offset)
                                    + TORSION_J * a * a_full))
     k_normal = total(e * a) / length
@@ -394,6 +387,7 @@ def link_stresses(springs, graph, dof, q, out) -> None:
     """Fill ``out`` (J, 4) with each interface link's largest tensile, compressive and
     shear stress (Pa) and its utilization, the largest of the three over its limit.
 
+    springs: the :class:`LinkSprings` of the J links ``graph.links``, row by row;
     graph: the solve's :class:`Graph`; q (6 M',): the solved displacements (m) and
     rotations (rad) of the free nodes (dof, as for :func:`assemble`)."""
     jac = np.empty((3, 12))
@@ -403,7 +397,7 @@ def link_stresses(springs, graph, dof, q, out) -> None:
     force = np.zeros(3)
     y = np.zeros(3)
     for j in range(graph.links.shape[0]):
-        link, k = graph.links[j], graph.link_interface[j]
+        k = graph.link_interface[j]
         _jacobian(graph.centroid, graph.node_com, graph.pair, k, jac)
         da, db = dof[graph.pair[k, 0]], dof[graph.pair[k, 1]]
         for p in range(6):
@@ -427,14 +421,14 @@ def link_stresses(springs, graph, dof, q, out) -> None:
         for r in range(3):
             sliding += (force[r] - axial * d[r]) ** 2
             bend += (phi[r] - phi_n * d[r]) ** 2
-            y[r] = springs.midpoint[link, r] - graph.centroid[k, r]
+            y[r] = springs.midpoint[j, r] - graph.centroid[k, r]
         along = y[0] * d[0] + y[1] * d[1] + y[2] * d[2]
         for r in range(3):
             y[r] -= along * d[r]
         turn = ((phi[1] * y[2] - phi[2] * y[1]) * d[0] + (phi[2] * y[0] - phi[0] * y[2]) * d[1]
                 + (phi[0] * y[1] - phi[1] * y[0]) * d[2])  # (phi x y) . d
-        e = springs.modulus[link]
-        side = math.sqrt(springs.area[link])
+        e = springs.modulus[j]
+        side = math.sqrt(springs.area[j])
         span = graph.length[k]
         # the member's axial stress on a face turned by facing c: c^2 of it is normal
         c = graph.link_facing[j]
@@ -446,8 +440,8 @@ def link_stresses(springs, graph, dof, q, out) -> None:
         tension = normal + own
         compression = -normal + own
         out[j, 0], out[j, 1], out[j, 2] = tension, compression, tau
-        out[j, 3] = max(tension / springs.tensile[link],
-                        compression / springs.compressive[link], tau / springs.shear[link])
+        out[j, 3] = max(tension / springs.tensile[j],
+                        compression / springs.compressive[j], tau / springs.shear[j])
 
 
 class Solution(NamedTuple):
@@ -487,7 +481,7 @@ def solve(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
     if found is None:
         return Solution(g.links, stress, len(held))
     dof, q = found
-    link_stresses(springs, g, dof, q, stress)
+    link_stresses(springs.rows(g.links), g, dof, q, stress)
     return Solution(g.links, stress, len(held))
 
 
@@ -503,7 +497,8 @@ def overloaded(solution: Solution) -> np.ndarray:
 
 @dataclass
 class Stress:
-    """The stress solver's memory over a run: springs (the model's links), cell (N, 3)
+    """The stress solver's memory over a run: springs (the model's links', worked out on
+    demand: :class:`~blastvox.simulate.springs.SpringTable`), cell (N, 3)
     each voxel's lattice index, chunk (N,) its chunk or None, solved (B,) bodies whose
     current solution is known (a body's voxels or links changed: it is solved again),
     and run totals (solves, seconds of wall time, links broken, the worst utilization
@@ -513,7 +508,7 @@ class Stress:
     rested, by body: (live voxels, contact voxels, on the ground) of the support it was
     last judged on (:mod:`blastvox.simulate.support`)."""
 
-    springs: LinkSprings
+    springs: SpringTable
     cell: np.ndarray
     chunk: np.ndarray | None
     solved: np.ndarray
@@ -531,20 +526,21 @@ def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
     with a finite strength)."""
     if not enabled:
         return None
-    springs = link_springs(arrays)
+    springs = SpringTable(arrays)
     if not has_limits(springs):
         return None
     chunk = arrays.get("voxel_chunk")
-    return Stress(springs=springs, cell=np.asarray(arrays["voxel_ijk"], dtype=np.int64),
-                  chunk=None if chunk is None else np.asarray(chunk, dtype=np.int64),
+    # the model's int32 arrays, shared (node_key widens what it keys on)
+    return Stress(springs=springs, cell=np.asarray(arrays["voxel_ijk"], dtype=np.int32),
+                  chunk=None if chunk is None else np.asarray(chunk, dtype=np.int32),
                   solved=np.zeros(capacity, dtype=bool))
 
 
 def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
              fixed: np.ndarray, voxel_in: np.ndarray) -> np.ndarray:
-    """Each voxel's node key (N, 6) for :func:`coarse_graph`: body, foundation flag,
-    chunk (0 where the model has none, or the solve more than :data:`TARGET_NODES` of
-    them) and the grid cell (N, 3) of :func:`cell_size`.
+    """Each voxel's node key (N, 6) int32 for :func:`coarse_graph`: body, foundation flag,
+    chunk and the grid cell (N, 3) of :func:`cell_size`; (N, 5) without the chunk where
+    the model has none, or the solve more than :data:`TARGET_NODES` of them.
 
     A node is the part of a chunk within a cell: every chunk boundary is a node
     boundary (a crack runs along it), and a chunk larger than a cell is cut by the
@@ -552,11 +548,16 @@ def node_key(cell: np.ndarray, chunk: np.ndarray | None, voxel_body: np.ndarray,
     rigid node put its boundary, not the member's section, where the stress is read:
     a cantilever's root read 0.6-0.7 x beam theory)."""
     count = int(np.count_nonzero(voxel_in))
-    head = [voxel_body[:, None], fixed[:, None].astype(np.int64)]
-    chunks = np.zeros((len(voxel_body), 1), dtype=np.int64)
-    if chunk is not None and np.unique(chunk[voxel_in]).size <= TARGET_NODES:
-        chunks = chunk[:, None].astype(np.int64)
-    return np.concatenate(head + [chunks, cell // cell_size(count)], axis=1)
+    chunked = chunk is not None and np.unique(chunk[voxel_in]).size <= TARGET_NODES
+    key = np.empty((len(voxel_body), 5 + chunked), dtype=np.int32)  # 24 MB at a million
+    key[:, 0] = voxel_body
+    key[:, 1] = fixed
+    if chunked:
+        key[:, 2] = chunk
+    k = cell_size(count)
+    for axis in range(3):
+        key[:, 2 + chunked + axis] = cell[:, axis] // k
+    return key
 
 
 def voxel_links(model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -589,7 +590,7 @@ def solve_body(model, state, stress: Stress, members: np.ndarray, links: np.ndar
     voxel_in = np.ones(members.size, dtype=bool)
     chunk = None if stress.chunk is None else stress.chunk[members]
     key = node_key(stress.cell[members], chunk, state.voxels.body[members], fixed, voxel_in)
-    springs = LinkSprings(*(column[links] for column in stress.springs))
+    springs = stress.springs.rows(links)
     stress.solves += 1
     return solve(springs, ends, voxel_in, fixed, state.links.alive[links], key,
                  model.voxels.mass[members], model.voxels.centroid[members], gravity,

@@ -55,9 +55,9 @@ def label_components(dirty: np.ndarray, voxel_body: np.ndarray, link_alive: np.n
             link = link_ids[k]
             if not link_alive[link]:
                 continue
-            w = link_voxels[link, 0]
+            w = np.int64(link_voxels[link, 0])  # int64 as v: one root_of for both
             if w == v:
-                w = link_voxels[link, 1]
+                w = np.int64(link_voxels[link, 1])
             if w < v:
                 continue  # each link once, from its lower voxel
             ra = root_of(parent, v)
@@ -96,7 +96,7 @@ def split_bodies(dirty, step, geometry, link_geometry, voxels, links, bodies, co
     """Split every body flagged in ``dirty`` (B,) that fell apart, at step ``step``.
 
     New bodies take the next free slots (bodies.count grows); the parents are
-    retired (live False, died = step). component, order (N,) int64: work arrays.
+    retired (live False, died = step). component, order (N,) int32: work arrays.
     Returns the number of new bodies, or minus the number it needs when the body
     arrays have too few free slots (nothing is changed then: grow them and call
     again, :func:`split_phase`)."""

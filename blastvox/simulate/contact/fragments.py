@@ -289,10 +289,10 @@ MEMBER_DEPTH = 0.005
 
 
 @kernel
-def mute_member_rows(rows, count, bodies, voxels, held_p, since, holds, half, depth) -> None:
+def mute_member_rows(rows, count, bodies, voxels, loads, since, holds, half, depth) -> None:
     """While a wave passes, a piece that broke off in it does not collide with a fixed
-    body that the wave is loading (one whose voxels hold its impulse, loads.held_p
-    (N, 3) N s): they are parts of one member, which the wave moves together though
+    body that the wave is loading (one whose voxels hold its impulse, rows of
+    loads.held_p N s): they are parts of one member, which the wave moves together though
     its foundation still holds the rest (a wall bends out before its supports give
     way, and the part still held leaves with the impulse it took when its links
     fail: :func:`~blastvox.simulate.kernels.release_held`). Their rows get no corners
@@ -306,11 +306,11 @@ def mute_member_rows(rows, count, bodies, voxels, held_p, since, holds, half, de
     brick wall's debris: 9,030 N s at dt 1/240 s, 2,388 at 1/10,000). Once the waves
     have passed, contacts hold again and the soft push-out separates what overlaps.
     since: the step the current waves began loading; holds (B,) bool: work."""
-    body = voxels.body
+    body, held_p = voxels.body, loads.held_p
     holds[:] = False
-    for v in range(body.shape[0]):
-        if held_p[v, 0] != 0.0 or held_p[v, 1] != 0.0 or held_p[v, 2] != 0.0:
-            holds[body[v]] = True
+    for s in range(loads.held_count[0]):
+        if held_p[s, 0] != 0.0 or held_p[s, 1] != 0.0 or held_p[s, 2] != 0.0:
+            holds[body[loads.held_voxel[s]]] = True
     for r in range(count):
         a, b = rows.body[r, 0], rows.body[r, 1]
         if a < 0 or b < 0:
@@ -399,7 +399,7 @@ def collide_phase(model, state, settings, dt: float) -> int:
     end = count if ground is None else ground_rows(model, state, s, dt, ground, count)
     memory = state.contacts.memory
     if state.holding:  # a wave is passing: a member's parts move together
-        mute_member_rows(memory.rows, count, state.bodies, state.voxels, state.loads.held_p,
+        mute_member_rows(memory.rows, count, state.bodies, state.voxels, state.loads,
                          state.hold_since, _holds(state), memory.half, MEMBER_DEPTH)
     solve_contacts(state.bodies, memory, end, solver_params(memory, s, dt, model.up),
                    state.loads)
