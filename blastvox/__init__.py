@@ -11,6 +11,14 @@ chaotic fracture turns one ulp into different pieces. The simulator does not rel
 on it: its inputs' cube roots, powers and the cues' transcendentals go through
 libm (:mod:`blastvox.blast._numeric`), so ``simulate()`` gives the CLI's bytes
 after numpy, scipy or trimesh were imported first (``tests/test_golden.py``).
+
+It also pins OpenBLAS's kernels to its Haswell ones (``OPENBLAS_CORETYPE``, unless
+set) on an x86-64 CPU that has AVX2 and FMA, for the BLAS libraries loaded after it:
+the stress solver's sparse LU (scipy's SuperLU) calls BLAS, whose kernels OpenBLAS
+picks by CPU (SkylakeX on an AVX-512 EPYC, Haswell or Zen on another), and they round
+differently. The simulator's own small products do not go through BLAS
+(:mod:`blastvox.geometry.exact`). A process that loaded scipy's sparse solver before
+blastvox keeps that library's choice; the CLI always imports blastvox first.
 """
 
 import os as _os
@@ -22,5 +30,28 @@ __version__ = "0.1.0"
 #: dispatch would be an ImportWarning, hence pyproject's numpy >= 2.4)
 AVX512_FEATURES = "X86_V4 AVX512_ICL AVX512_SPR"
 
+#: OpenBLAS's kernels for every x86-64 CPU with AVX2 and FMA (the goldens' rounding)
+OPENBLAS_CORE = "Haswell"
+
 if "numpy" not in _sys.modules:
     _os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", AVX512_FEATURES)
+
+
+def _has_avx2_fma() -> bool:
+    """Whether /proc/cpuinfo lists avx2 and fma (False where it cannot be read): the
+    Haswell kernels would stop an older CPU with an illegal instruction."""
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as info:
+            for line in info:
+                if line.startswith("flags"):
+                    flags = set(line.split(":", 1)[1].split())
+                    return {"avx2", "fma"} <= flags
+    except OSError:
+        pass
+    return False
+
+
+_os.environ.setdefault("OMP_WAIT_POLICY", "passive")  # read when numba loads libgomp
+
+if _sys.platform.startswith("linux") and _has_avx2_fma():
+    _os.environ.setdefault("OPENBLAS_CORETYPE", OPENBLAS_CORE)

@@ -321,3 +321,39 @@ def test_quaternion_faces_agree_on_rotating_points(q, v):
     np.testing.assert_allclose(quaternion.rotate(q, v), m @ v, atol=1e-12 * scale)
     np.testing.assert_allclose(transforms.rest_to_world(v, np.zeros(3), q), m @ v,
                                atol=1e-12 * scale)
+
+
+# ------------------------------------------------------------------- exact products
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.float64, (5, 3), elements=FINITE), arrays(np.float64, (3, 3), elements=FINITE),
+       VECS)
+def test_exact_products_are_numpys_in_a_fixed_order(p, m, v):
+    """exact.dot, norm, matvec and vecmat are the products numpy's BLAS gives, summed
+    left to right one rounded operation at a time: bit for bit the plain Python sums."""
+    from blastvox.geometry import exact
+
+    def sum3(a, b):
+        return (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]
+
+    assert exact.dot(v, v) == sum3(v, v)
+    assert exact.norm(v) == math.sqrt(sum3(v, v))
+    np.testing.assert_array_equal(exact.dot(p, v), [sum3(row, v) for row in p])
+    np.testing.assert_array_equal(exact.matvec(m, v), [sum3(row, v) for row in m])
+    np.testing.assert_array_equal(exact.vecmat(p, m), [[sum3(row, m[:, j]) for j in range(3)]
+                                                       for row in p])
+    np.testing.assert_array_equal(exact.matvec(m, p), [[sum3(m[i], row) for i in range(3)]
+                                                       for row in p])
+    scale = 1e-12 * (1.0 + np.abs(p).max()) * (1.0 + np.abs(m).max())
+    np.testing.assert_allclose(exact.vecmat(p, m), p @ m, rtol=1e-12, atol=scale)
+    np.testing.assert_allclose(exact.matvec(m, p), p @ m.T, rtol=1e-12, atol=scale)
+
+
+def test_exact_products_broadcast_stacks_of_matrices():
+    from blastvox.geometry import exact
+
+    rng = np.random.default_rng(3)
+    rot, vec = rng.normal(size=(4, 3, 3)), rng.normal(size=(4, 3))
+    np.testing.assert_allclose(exact.matvec(rot, vec), np.einsum("kij,kj->ki", rot, vec))
+    np.testing.assert_allclose(exact.vecmat(vec, rot), np.einsum("ki,kij->kj", vec, rot))
+    assert exact.dot(rot[0], vec[0]).shape == (3,)

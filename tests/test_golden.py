@@ -139,3 +139,59 @@ def test_one_thread_and_two_give_the_same_bytes(tmp_path):
         caches.append(out.read_bytes())
     assert caches[0] == caches[1]
     assert caches[0] == (GOLDEN / "house.sim.npz").read_bytes()
+
+
+def _avx512() -> bool:
+    try:
+        return "avx512f" in Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return False
+
+
+def test_blastvox_sets_its_thread_and_blas_defaults_and_leaves_a_users_alone():
+    """Importing blastvox lets numba's OpenMP threads sleep (OMP_WAIT_POLICY=passive) and
+    pins OpenBLAS to its Haswell kernels on an x86-64 CPU with AVX2 and FMA; a value the
+    user set is kept."""
+    import os
+
+    code = ("import os, blastvox\n"
+            "print(os.environ.get('OMP_WAIT_POLICY'), os.environ.get('OPENBLAS_CORETYPE'))\n")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("OMP_WAIT_POLICY", "OPENBLAS_CORETYPE")}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120, check=True)
+    flags = Path("/proc/cpuinfo").read_text() if Path("/proc/cpuinfo").exists() else ""
+    pinned = "Haswell" if " avx2" in flags and " fma" in flags else "None"
+    assert done.stdout.split() == ["passive", pinned]
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**env, "OMP_WAIT_POLICY": "active", "OPENBLAS_CORETYPE": "Zen"},
+                          timeout=120, check=True)
+    assert done.stdout.split() == ["active", "Zen"]
+
+
+@pytest.mark.skipif(not _avx512(), reason="OpenBLAS picks other kernels only on AVX-512")
+def test_the_shot_does_not_depend_on_the_blas_kernels_numpy_picked(tmp_path):
+    """The goldens differed between two AVX-512 EPYC hosts: numpy's and scipy's OpenBLAS
+    picked their SkylakeX kernels on one, Haswell or Zen ones on the other, and ``@``,
+    np.dot and the stress solver's sparse LU (SuperLU calls BLAS) rounded differently.
+    Here numpy is loaded with SkylakeX kernels before blastvox: the shot is still the
+    CLI's bytes (the simulator's products do not go through numpy's BLAS,
+    blastvox.geometry.exact; blastvox pins the kernels of the scipy BLAS loaded after
+    it)."""
+    import os
+
+    where = _bake(tmp_path, "house") / "model.npz"
+    scene = str(ROOT / "examples" / "house" / "scene.toml")
+    plain, first = tmp_path / "plain.npz", tmp_path / "numpy_first.npz"
+    run = subprocess.run([*BLASTVOX, "simulate", str(where), "--scene", scene, "-o",
+                          str(plain), "-q"], capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr
+    code = ("import os, sys, numpy, numpy.linalg\n"
+            "del os.environ['OPENBLAS_CORETYPE']\n"
+            "from blastvox.cli.entry import run\n"
+            f"sys.exit(run(['simulate', {str(where)!r}, '--scene', {scene!r}, '-o', "
+            f"{str(first)!r}, '-q']))\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=900, env={**os.environ, "OPENBLAS_CORETYPE": "SkylakeX"})
+    assert run.returncode == 0, run.stderr
+    assert first.read_bytes() == plain.read_bytes()

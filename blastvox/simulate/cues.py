@@ -18,6 +18,7 @@ import numpy as np
 
 from blastvox.blast._numeric import libm
 from blastvox.blast.charge import blast_parameters
+from blastvox.geometry import exact
 
 _TAU_S = 0.25
 _FREQ_HZ = np.array([11.0, 13.0, 17.0])
@@ -42,7 +43,7 @@ def camera_shake(camera_position: np.ndarray, times: np.ndarray, charge_position
     """Camera offsets (F, 3) in metres at frame ``times`` (s)."""
     offset = np.zeros((len(times), 3))
     for c in range(len(tnt_kg)):
-        r = float(np.linalg.norm(np.asarray(camera_position) - charge_position[c]))
+        r = float(exact.norm(np.asarray(camera_position) - charge_position[c]))
         p = blast_parameters(r, tnt_kg[c])
         arrival = charge_time[c] + float(p.arrival_time_s)
         amplitude = min(0.02 * np.sqrt(float(p.peak_overpressure_pa) / 1e3), 0.5)

@@ -42,6 +42,7 @@ import numpy as np
 
 from blastvox import __version__
 from blastvox.cache import SimCache
+from blastvox.geometry import exact
 from blastvox.model import VoxelModel
 from blastvox.particles import particle_meta
 from blastvox.simulate import cues
@@ -400,7 +401,7 @@ def _sustained_speed(run: Run, dt: float) -> float:
     gravity with its Coulomb friction, sqrt(1 + mu^2) |g| dt, plus the contacts' own
     line between resting and striking (sleep_speed + 2 |g| dt, the rest_speed of
     :mod:`blastvox.simulate.contact.fragments` and :mod:`blastvox.simulate.contact.ground`)."""
-    g, s = float(np.linalg.norm(run.gravity)), run.settings
+    g, s = float(exact.norm(run.gravity)), run.settings
     return g * dt * float(np.hypot(1.0, s.friction)) + rest_speed(s, dt)
 
 
@@ -506,11 +507,11 @@ def _ground_warnings(run: Run) -> list[str]:
     if run.ground is None or run.model.n_voxels == 0:
         return []
     vox = run.model.voxels
-    heights = vox.centroid @ run.model.up
+    heights = exact.dot(vox.centroid, run.model.up)
     below = int(np.count_nonzero(heights < run.ground))
     if below == 0:
         return []
-    lowest = float((vox.vertices @ run.model.up).min())
+    lowest = float(exact.dot(vox.vertices, run.model.up).min())
     return [f"{below} of {run.model.n_voxels} voxels start below the ground at "
             f"{run.ground:g} m (the model's lowest point is at {lowest:g} m): the ground "
             "throws them out of it; lower the ground, or set ground = \"auto\""]
@@ -529,7 +530,7 @@ def _charge_warnings(run: Run, end: float) -> list[str]:
                          "(no ground shock, no cavity gas); its air blast craters the voxels "
                          "around it from point-blank range, a rough guess; move it into the "
                          "air")
-        depth = None if run.ground is None else run.ground - float(np.dot(position, up))
+        depth = None if run.ground is None else run.ground - float(exact.dot(position, up))
         if depth is not None and depth > 0.0:
             lines.append(f"{where} is {depth:g} m below the ground: it bursts there as a "
                          "surface burst through the ground plane (a buried charge's ground "

@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blastvox.geometry import exact
 from blastvox.simulate.stress import Graph, assemble
 
 #: Most rounds of letting supports go (or hold again) in a bearing solve.
@@ -43,7 +44,7 @@ def bearing_springs(g: Graph, voxels: np.ndarray, points: np.ndarray,
     """A spring at each contact ``points`` (S, 3) m of the support ``voxels`` (S,), on
     the voxel's node: along gravity as stiff as the stiffest interface of the node
     shared among the node's contacts, :data:`SLIDING` of that across gravity."""
-    down = gravity / max(float(np.linalg.norm(gravity)), 1e-300)
+    down = gravity / max(float(exact.norm(gravity)), 1e-300)
     node = g.node[voxels]
     normal = np.einsum("kij,ki,kj->k", g.trans, g.direction, g.direction)
     stiffness = np.zeros(len(g.node_fixed))
@@ -110,7 +111,8 @@ def resting(g: Graph, voxels: np.ndarray, points: np.ndarray, gravity: np.ndarra
     for _ in range(BEARING_ROUNDS if found is not None else 0):
         dof, q = found
         sink = np.einsum("sij,sj->si", bed.jac, q[6 * dof[bed.node][:, None]
-                                                  + np.arange(6)]) @ bed.down
+                                                  + np.arange(6)])
+        sink = exact.dot(sink, bed.down)
         scale = max(float(np.abs(sink).max(initial=0.0)), 1e-300)
         changed = (engaged & ~(sink < -1e-9 * scale)) | (~engaged & (sink > 1e-9 * scale))
         if np.array_equal(changed, engaged) or not changed.any():

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from blastvox.geometry import exact
 from blastvox.simulate.stress import Stress, break_links, links_among, solve_body
 
 #: Contact decelerations below this (m/s^2, 20 g) are resting contact, not impacts.
@@ -84,11 +85,11 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     """Impact fracture of body b (its live voxels ``members``) under the contact impulse
     dp (3,) N s, world frame, of which ``sustained`` m/s of velocity change held it up."""
     bodies = state.bodies
-    dv = float(np.linalg.norm(dp)) / bodies.mass[b] - sustained
+    dv = float(exact.norm(dp)) / bodies.mass[b] - sustained
     if dv <= 0.0 or dv < MIN_IMPACT_DV or stress.rubble.get(b) == members.size:
         return False
-    rest_dir = bodies.rot[b].T @ (dp / np.linalg.norm(dp))
-    along = model.voxels.centroid[members] @ rest_dir
+    rest_dir = exact.vecmat(dp / exact.norm(dp), bodies.rot[b])  # R^T dp / |dp|
+    along = exact.dot(model.voxels.centroid[members], rest_dir)
     size = 2.0 * float(np.median(model.voxels.contact_radius[members]))
     length = float(along.max() - along.min()) + size
     speed = float(np.average(model.wave_speed[model.material[members]],
@@ -98,7 +99,8 @@ def _impact(model, state, stress: Stress, b: int, members: np.ndarray, dp: np.nd
     if acceleration < IMPACT_ACCELERATION:
         return False
     known = stress.survived.get(b)
-    if (known is not None and known[0] == members.size and float(known[1] @ rest_dir) >= SAME_SIDE
+    if (known is not None and known[0] == members.size
+            and float(exact.dot(known[1], rest_dir)) >= SAME_SIDE
             and known[3] * acceleration / known[2] < RESOLVE_UTILIZATION):
         return False
     links, ends = links_among(model, members)  # the body alone, renumbered

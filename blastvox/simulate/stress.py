@@ -51,6 +51,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blastvox.geometry import exact
 from blastvox.jit import helper, kernel
 from blastvox.simulate.springs import LinkSprings, SpringTable, has_limits
 from blastvox.simulate.springs import link_springs as link_springs
@@ -611,7 +612,7 @@ def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
     if not todo.any():
         return False
     started = time.perf_counter()
-    gravity_on = float(np.dot(gravity, gravity)) > 0.0
+    gravity_on = float(exact.dot(gravity, gravity)) > 0.0
     if not gravity_on:
         stress.solved[:n] |= todo
         return False

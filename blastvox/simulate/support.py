@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from blastvox.geometry import exact
 from blastvox.simulate.stress import EVENT_BAND, Stress, break_links, links_among, solve_body
 
 #: A free body slower than this (m/s) is held up by what it touches: its weight is
@@ -41,7 +42,7 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
 
     Writes links.alive, marks.broken, marks.dirty and counters.broken_links.
     Returns whether any link broke (the caller splits)."""
-    if end == 0 or not float(np.dot(gravity, gravity)) > 0.0:
+    if end == 0 or not float(exact.dot(gravity, gravity)) > 0.0:
         return False
     bodies, voxels = state.bodies, state.voxels
     body, vox = rows.body[:end], rows.voxel[:end]
@@ -85,7 +86,7 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
         members = np.flatnonzero(voxels.alive & (voxels.body == b))
         placed = ~on_ground[rows_of] & (support[rows_of] >= 0)
         under = support[rows_of][placed]
-        at = (point[rows_of][placed] - bodies.pos[b]) @ bodies.rot[b] + bodies.com[b]  # rest
+        at = exact.vecmat(point[rows_of][placed] - bodies.pos[b], bodies.rot[b]) + bodies.com[b]
         if ground is not None and key[2]:
             lying = _on_the_ground(model, bodies, b, members, ground)
             under = np.concatenate([under, lying])
@@ -100,7 +101,7 @@ def _on_the_ground(model, bodies, b: int, members: np.ndarray, ground: float) ->
     """The voxels of body b (its ``members``) whose centroid is within 1.5 contact
     radii of the ground plane at ``ground`` m along up."""
     rest = model.voxels.centroid[members] - bodies.com[b]
-    height = (rest @ bodies.rot[b].T + bodies.pos[b]) @ model.up
+    height = exact.dot(exact.matvec(bodies.rot[b], rest) + bodies.pos[b], model.up)
     return members[height - ground <= 1.5 * model.voxels.contact_radius[members]]
 
 
@@ -112,7 +113,7 @@ def _supported(model, state, stress: Stress, b: int, members: np.ndarray, under:
     if not links.size or model.strength.inner[links].all():
         return False
     solution = solve_body(model, state, stress, members, links, ends,
-                          np.isin(members, under), state.bodies.rot[b].T @ gravity,
+                          np.isin(members, under), exact.vecmat(gravity, state.bodies.rot[b]),
                           bearing=(np.searchsorted(members, under), at))
     use = solution.stress[:, 3]
     between = ~model.strength.inner[links[solution.links]]  # a chunk never shatters

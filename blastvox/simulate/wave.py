@@ -30,6 +30,7 @@ from blastvox.blast import (
 from blastvox.blast._numeric import cbrt
 from blastvox.blast.face_load import face_tables
 from blastvox.blast.kingery_bulmash import AIR, SURFACE
+from blastvox.geometry import exact
 
 #: a charge whose centre is at most this scaled height (m/kg^(1/3)) above the ground
 #: is a surface burst by default (its TNT sphere's radius is 0.053; a modelling choice)
@@ -139,5 +140,5 @@ def _burst(spec, position: np.ndarray, scale: float, up, ground) -> int:
         return SURFACE
     if up is None or ground is None:
         return AIR
-    height = float(np.dot(position, up)) - ground
+    height = float(exact.dot(position, up)) - ground
     return SURFACE if height <= SURFACE_HEIGHT * scale else AIR

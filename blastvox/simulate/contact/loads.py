@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from blastvox.geometry import exact
 from blastvox.jit import helper, kernel
 from blastvox.simulate.stress import voxel_links
 
@@ -190,7 +191,7 @@ def punch_phase(model, state, stress, punch: Punch, rows, count: int, end: int,
             continue
         punch.floor[(b, g)] = float(np.sum(springs.area[links] * np.minimum(
             springs.compressive[links], np.minimum(springs.tensile[links], springs.shear[links]))))
-        along = outward @ (total[i] / np.linalg.norm(total[i]))
+        along = exact.dot(outward, total[i] / exact.norm(total[i]))
         strength = np.where(along > AHEAD, springs.compressive[links],
                             np.minimum(springs.tensile[links], springs.shear[links]))
         capacity = float(np.sum(springs.area[links] * strength))
@@ -220,4 +221,4 @@ def _boundary_links(model, state, members: np.ndarray) -> tuple[np.ndarray, np.n
     sign = np.where(first, 1.0, -1.0)
     body = int(state.voxels.body[members[0]])
     rest = links.direction[candidates] * sign[:, None]
-    return candidates, rest @ state.bodies.rot[body].T
+    return candidates, exact.matvec(state.bodies.rot[body], rest)

@@ -22,7 +22,7 @@ import math
 import numba as nb
 import numpy as np
 
-from blastvox.geometry import quaternion_nb
+from blastvox.geometry import exact, quaternion_nb
 from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.contact.islands import islands
 from blastvox.simulate.contact.partition import PARTS, cut_island
@@ -143,7 +143,7 @@ def solve_contacts(bodies, memory, count: int, params, loads) -> None:
     restarts = np.zeros(len(groups[4]) - 1, dtype=np.int64)
     masses = (ids, bodies.mass, bodies.rot, bodies.inertia)
     scalars = (params.dt, float(params.substeps), params.rest_speed)
-    weight = float(np.linalg.norm(params.gravity))
+    weight = float(exact.norm(params.gravity))
     up = -params.gravity / weight if weight > 0.0 else np.zeros(3)
     _solve_islands(tuple(memory.rows), (ends, bw, rw, moved, total, bounce), groups, masses,
                    coef, scalars, restarts, (bodies.pos, up))
