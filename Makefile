@@ -108,6 +108,7 @@ bench: $(STAMP)
 	  section 'Stacking against PyBullet' stacking.py; $(BIN)/python benchmarks/stacking.py; \
 	  section "The building's rubble pile against PyBullet" pile.py; \
 	  $(BIN)/python benchmarks/pile.py; \
+	  section 'Threads under load' threads.py; $(BIN)/python benchmarks/threads.py; \
 	  section 'Stress solver' stress.py; $(BIN)/python benchmarks/stress.py; \
 	  section 'Export at scale' 'export_scale.py --quick'; \
 	  $(BIN)/python benchmarks/export_scale.py --quick; \
