@@ -457,7 +457,7 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     cold = not _compiled_before()
     if cold:
         progress.note("first run of this blastvox source: compiling the simulator's kernels "
-                      "into numba's cache (30-40 s on 2 cores, once)")
+                      "into numba's cache (about a minute on 2 cores, once)")
     run = Run.start(model, settings)
     finish = compile_ahead(run) if cold else None  # the late phases, on another core
     if finish is None:
