@@ -9,10 +9,10 @@ STAMP  := $(VENV)/.installed
 # The Khronos glTF Validator (npm) that the export tests run; needs node and npm.
 VALIDATOR := tools/gltf-validator/node_modules/.installed
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test]' -c constraints.txt
 	touch $(STAMP)
 
 ## demo: install, then build the bundled building shot (voxelize, simulate, export)
@@ -79,7 +79,7 @@ previews: $(STAMP)
 ## with their tables (and docs/images/tradeoff.png); progress goes to the terminal
 BENCH_DOC := docs/benchmarks.md
 bench: $(STAMP)
-	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	$(BIN)/python -m pip install --quiet -e '.[test,bench]' -c constraints.txt
 	@set -e; out=$(BENCH_DOC).partial; trap 'rm -f "$$out" "$$out.perf"' EXIT; \
 	section() { printf '\n## %s\n\n`python benchmarks/%s`\n\n' "$$1" "$$2"; }; \
 	{ \
