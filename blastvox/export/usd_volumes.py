@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf
 
+from blastvox.errors import OutputError
 from blastvox.export.usd_specs import attr_spec, prim_spec, vec3f
 
 _T = Sdf.ValueTypeNames
@@ -60,7 +61,10 @@ def write_volume(w, scope: Sdf.PrimSpec, name: str, states: list, size: np.ndarr
         age = (times[f] - birth[alive]) / lifetime
         grids = frame_grids(name, x[alive], size[alive], age, voxel)
         target = volume_file(w.volume_out, name, f)
-        written += write_vdb(target, grids)
+        try:
+            written += write_vdb(target, grids)
+        except OSError as exc:
+            raise OutputError(f"{target}: cannot write ({exc.strerror or exc})") from None
         relative = f"./{w.volume_dir}/{target.name}"
         for field in fields:
             w.layer.SetTimeSample(paths[field], float(f), Sdf.AssetPath(relative))

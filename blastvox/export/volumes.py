@@ -58,8 +58,8 @@ class VolumeLook:
 VOLUME_LOOKS: dict[str, VolumeLook] = {
     "dust": VolumeLook(tau=0.5),
     "smoke": VolumeLook(tau=0.6),
-    "fire": VolumeLook(tau=0.4, hot_k=1500.0, cool_k=900.0),
-    "fireball": VolumeLook(tau=0.8, hot_k=1700.0, cool_k=800.0),
+    "fire": VolumeLook(tau=0.4, hot_k=1600.0, cool_k=900.0),
+    "fireball": VolumeLook(tau=0.8, hot_k=2200.0, cool_k=700.0),
 }
 
 

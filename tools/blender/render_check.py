@@ -5,7 +5,7 @@ the project's::
 
     .venv-blender/bin/python tools/blender/render_check.py FILE OUT_DIR FRAME [FRAME ...]
         [--size WxH] [--samples N] [--motion-blur]
-        [--camera EX,EY,EZ:TX,TY,TZ] [--fire] [--opaque]
+        [--camera EX,EY,EZ:TX,TY,TZ] [--fire [--glow G]] [--opaque]
 
 What an artist does with a cache, in a script: FILE (.usd/.usda/.usdc or
 .gltf/.glb) is imported into an empty scene with the importer's defaults (as
@@ -21,7 +21,8 @@ as Volume objects with Blender's default volume material (its USD importer reads
 material of a Volume prim: grey smoke whose density is the ``density`` grid);
 ``--fire`` gives the volumes that hold a ``temperature`` grid (fire, fireball) the
 one material an artist adds for flames: a Principled Volume with Blackbody Intensity
-1 reading ``temperature``, and dust a warm grey colour. ``--opaque`` renders the sky
+``--glow`` (default 0.5: 1 is physical) reading
+``temperature``, and dust a warm grey colour. ``--opaque`` renders the sky
 behind (for pictures) instead of a transparent film.
 Each FRAME is rendered with Cycles on the CPU (few samples, a tiny image, film
 transparent so that the alpha channel says what is covered) to ``OUT_DIR/frame_NNNN.png``.
@@ -130,12 +131,15 @@ def _light(scene: bpy.types.Scene) -> None:
     scene.world = world
 
 
+#: --fire's Blackbody Intensity (--glow): 1 is physical; half of it keeps the debris
+#: beside a 2,200 K fireball in view in the sun (3 W/m^2) of this script
+GLOW = 0.5
 #: the colour an artist gives each particle system's volume with --fire
 VOLUME_COLORS = {"dust": (0.55, 0.50, 0.45), "smoke": (0.25, 0.25, 0.25),
-                 "fire": (0.2, 0.2, 0.2), "fireball": (0.2, 0.2, 0.2)}
+                 "fire": (0.6, 0.45, 0.3), "fireball": (0.6, 0.45, 0.3)}
 
 
-def _volumes(scene: bpy.types.Scene, fire: bool) -> dict:
+def _volumes(scene: bpy.types.Scene, fire: bool, glow: float = 1.0) -> dict:
     """The imported Volume objects: their grids and materials; with ``fire`` a
     Principled Volume each (Blackbody from ``temperature`` where the volume has it)."""
     out = {}
@@ -143,7 +147,7 @@ def _volumes(scene: bpy.types.Scene, fire: bool) -> dict:
         if obj.type != "VOLUME":
             continue
         volume = obj.data
-        volume.grids.load(bpy.context.blend_data)
+        volume.grids.load()
         grids = [g.name for g in volume.grids]
         if fire:
             material = bpy.data.materials.new(f"render_check_{obj.name}")
@@ -157,8 +161,10 @@ def _volumes(scene: bpy.types.Scene, fire: bool) -> dict:
             color = VOLUME_COLORS.get(system, (0.5, 0.5, 0.5))
             shader.inputs["Color"].default_value = (*color, 1.0)
             if "temperature" in grids:
-                shader.inputs["Blackbody Intensity"].default_value = 1.0
+                shader.inputs["Blackbody Intensity"].default_value = glow
                 shader.inputs["Temperature Attribute"].default_value = "temperature"
+                # Cycles multiplies the Temperature input by the attribute: the grid is K
+                shader.inputs["Temperature"].default_value = 1.0
             obj.data.materials.clear()
             obj.data.materials.append(material)
         out[obj.name] = {"grids": grids, "materials": [m.name for m in obj.data.materials if m]}
@@ -180,7 +186,7 @@ def _render(scene: bpy.types.Scene, frame: int, out: Path) -> dict:
 
 def main(argv: list[str]) -> None:
     args, size, samples, blur, view = [], (96, 54), 4, False, None
-    fire, opaque = False, False
+    fire, opaque, glow = False, False, GLOW
     it = iter(argv)
     for arg in it:
         if arg == "--size":
@@ -191,6 +197,8 @@ def main(argv: list[str]) -> None:
             blur = True
         elif arg == "--fire":
             fire = True
+        elif arg == "--glow":
+            glow = float(next(it))
         elif arg == "--opaque":
             opaque = True
         elif arg == "--camera":
@@ -227,7 +235,7 @@ def main(argv: list[str]) -> None:
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGBA"
     scene.frame_set(frames[0] if frames else 0)
-    volumes = _volumes(scene, fire)
+    volumes = _volumes(scene, fire, glow)
     report = {"blender": bpy.app.version_string, "volumes": volumes,
               "camera": {"from_file": from_file, "lens_mm": scene.camera.data.lens,
                          "sensor_width_mm": scene.camera.data.sensor_width},
