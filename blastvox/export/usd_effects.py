@@ -63,7 +63,10 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
     ``w.particle_mode`` "volumes" each system is a Volume of per-frame OpenVDB files
     instead (:mod:`blastvox.export.usd_volumes`). An instancer, not UsdGeomPoints:
     Blender 5.0 imports Points without their material (white balls), and an empty
-    points array crashed its Cycles."""
+    points array crashed its Cycles. Re-checked in bpy 5.0.1 (2026-11-30): a Points
+    prim with widths and a bound UsdPreviewSurface imports as a POINTCLOUD object
+    with no material slot, and rendering its frame with an empty points sample
+    killed the process (SIGSEGV, exit 139)."""
     from blastvox.particles import SYSTEM_NAMES, SYSTEMS, all_positions_at
 
     c = w.cache
