@@ -19,7 +19,10 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
         Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
                                                   (quath) and orientationsf (quatf, which
                                                   readers prefer), extent and invisibleIds
-      Particles/<system> (PointInstancer)         dust, fire, smoke, fireball particles: a
+      Particles/<system> (Volume)                 dust, fire, smoke, fireball particles as
+        density, temperature (OpenVDBAsset)       volumes: per-frame .vdb files in
+                                                  ``<stem>_volumes/`` (usd_volumes.py);
+      Particles/<system> (PointInstancer)         or (options.particles "spheres", .usdz) a
         Prototypes/sprite (Mesh)                  sphere of diameter 1 bound to
                                                   Materials/particle_<system>, scaled to
                                                   each particle's width

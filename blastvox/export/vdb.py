@@ -107,8 +107,10 @@ def _zip_chunk(data: bytes) -> bytes:
     return struct.pack("<q", -len(data)) + data
 
 
-def _grid_tree(grid: FloatGrid, zipped: bool) -> tuple[bytes, bytes, np.ndarray]:
-    """(topology bytes, buffer bytes, active ijk (M, 3)) of ``grid``."""
+def _grid_tree(grid: FloatGrid, zipped: bool | None
+               ) -> tuple[bytes, bytes, np.ndarray, bool]:
+    """(topology bytes, buffer bytes, active ijk (M, 3), zipped) of ``grid``; ``zipped``
+    None zips where the leaves hold ZIP_MIN_VALUES_PER_LEAF values on average."""
     ijk = np.asarray(grid.ijk, dtype=np.int64).reshape(-1, 3)
     values = np.asarray(grid.values, dtype=np.float32).reshape(-1)
     if len(ijk) != len(values):
@@ -133,6 +135,8 @@ def _grid_tree(grid: FloatGrid, zipped: bool) -> tuple[bytes, bytes, np.ndarray]
     int2_runs = _runs(int1_keys[:, :3])
     int2_keys = int1_keys[int2_runs[:-1], :3]
     n_leaf = len(leaf_keys)
+    if zipped is None:
+        zipped = len(values) >= ZIP_MIN_VALUES_PER_LEAF * max(n_leaf, 1)
     voxel_leaf = np.repeat(np.arange(n_leaf), np.diff(leaf_runs))
     local = keys[:, 9:12]
     leaf_masks = _masks((local[:, 0] << 6) | (local[:, 1] << 3) | local[:, 2], voxel_leaf,
@@ -156,12 +160,26 @@ def _grid_tree(grid: FloatGrid, zipped: bool) -> tuple[bytes, bytes, np.ndarray]
             topo += [int1_masks[b].astype("<u8").tobytes(), bytes(512), no_values,
                      leaf_bytes[int1_runs[b] * 64:int1_runs[b + 1] * 64]]
     raw = values.astype("<f4")
+    if not zipped:
+        return b"".join(topo), _raw_buffers(leaf_masks, raw, leaf_runs), ijk, False
     buffers = []
     for n in range(n_leaf):
         data = raw[leaf_runs[n]:leaf_runs[n + 1]].tobytes()
-        buffers += [leaf_bytes[n * 64:(n + 1) * 64], b"\x00",
-                    _zip_chunk(data) if zipped else data]
-    return b"".join(topo), b"".join(buffers), ijk
+        buffers += [leaf_bytes[n * 64:(n + 1) * 64], b"\x00", _zip_chunk(data)]
+    return b"".join(topo), b"".join(buffers), ijk, True
+
+
+def _raw_buffers(leaf_masks: np.ndarray, raw: np.ndarray, leaf_runs: np.ndarray) -> bytes:
+    """The unzipped leaf buffers at once: per leaf its mask (64 bytes), a 0 byte and
+    its active values (float32), in leaf order."""
+    n_leaf = len(leaf_masks)
+    counts = np.diff(leaf_runs)
+    start = 65 * np.arange(n_leaf) + 4 * leaf_runs[:-1]  # each leaf's record
+    out = np.zeros(65 * n_leaf + 4 * len(raw), dtype=np.uint8)
+    out[(start[:, None] + np.arange(64)).ravel()] = leaf_masks.astype("<u8").view(np.uint8).ravel()
+    first = np.repeat(start + 65 - 4 * leaf_runs[:-1], counts) + 4 * np.arange(len(raw))
+    out[(first[:, None] + np.arange(4)).ravel()] = raw.view(np.uint8)
+    return out.tobytes()
 
 
 def _grid_metadata(grid: FloatGrid, active: np.ndarray, compression: str) -> bytes:
@@ -196,21 +214,17 @@ ZIP_MIN_VALUES_PER_LEAF = 64
 def vdb_bytes(grids: list[FloatGrid], zipped: bool | None = None) -> bytes:
     """The bytes of a .vdb file holding ``grids`` (distinct, non-empty names): the same
     grids give the same bytes. ``zipped``: zlib-compress each leaf's values (smaller
-    for dense grids, slower to write; OpenVDB reads both); None: where the leaves hold
-    :data:`ZIP_MIN_VALUES_PER_LEAF` values or more on average."""
+    for dense grids, slower to write; OpenVDB reads both); None: each grid whose
+    leaves hold :data:`ZIP_MIN_VALUES_PER_LEAF` values or more on average (the
+    compression flags are per grid)."""
     names = [g.name for g in grids]
     if len(set(names)) != len(names) or not all(names):
         raise ValueError(f"grid names must be distinct and non-empty: {names}")
-    if zipped is None:
-        voxels = [np.asarray(g.ijk, dtype=np.int64).reshape(-1, 3)[
-            np.asarray(g.values).reshape(-1) > 0] for g in grids]
-        leaves = sum(len(np.unique(v >> _LEAF_TOTAL, axis=0)) for v in voxels)
-        zipped = sum(map(len, voxels)) >= ZIP_MIN_VALUES_PER_LEAF * max(leaves, 1)
-    flags = COMPRESS_ACTIVE_MASK | (COMPRESS_ZIP if zipped else 0)
-    compression = "zip + active values" if zipped else "active values"
     parts = []
     for grid in grids:
-        topology, buffers, active = _grid_tree(grid, zipped)
+        topology, buffers, active, zips = _grid_tree(grid, zipped)
+        flags = COMPRESS_ACTIVE_MASK | (COMPRESS_ZIP if zips else 0)
+        compression = "zip + active values" if zips else "active values"
         head = (struct.pack("<I", flags) + _grid_metadata(grid, active, compression)
                 + _transform(grid))
         descriptor = _string(grid.name) + _string("Tree_float_5_4_3") + _string("")
