@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 pxr = pytest.importorskip("pxr")
-from pxr import Sdf, Usd, UsdShade, UsdVol  # noqa: E402
+from pxr import Usd, UsdShade, UsdVol  # noqa: E402
 from test_export_usd import F, synthetic  # noqa: E402, F401  (the fixture)
 
 from blastvox.cache import SimCache  # noqa: E402
@@ -305,6 +305,7 @@ def test_cli_run_writes_volumes(tmp_path):
     text = scene.read_text().replace("../../out/house/", "out/")
     text = text.replace('export = ["out/shot.usda", "out/shot.glb"]',
                         'export = "out/shot.usda"\nvolume_voxel_m = 0.4')
+    assert "volume_voxel_m = 0.4" in text
     scene.write_text(text)
     result = subprocess.run([sys.executable, "-m", "blastvox", "run", str(scene), "-q"],
                             capture_output=True, text=True, timeout=600, cwd=tmp_path)
@@ -313,5 +314,15 @@ def test_cli_run_writes_volumes(tmp_path):
     files = _volume_files(stage, "dust", ("density",))
     assert files and all(p.is_file() for p in files.values())
     assert _volume_files(stage, "fireball", ("density", "temperature"))
-    layer = Sdf.Layer.FindOrOpen(str(scene_dir / "out" / "shot.usda"))
-    assert layer is not None
+    path = next(iter(files.values()))
+    assert _openvdb_voxel(path) == pytest.approx(0.4)  # the scene's cell size
+
+
+def _openvdb_voxel(path: Path) -> float:
+    """The cell size a .vdb file's transform holds (read with our own layout: the
+    UniformScaleTranslateMap's voxel size follows its translation)."""
+    import struct
+
+    data = path.read_bytes()
+    at = data.index(b"UniformScaleTranslateMap") + len(b"UniformScaleTranslateMap")
+    return struct.unpack_from("<3d", data, at + 24 + 24)[0]
