@@ -253,6 +253,18 @@ def test_spheres_on_request_and_in_usdz(fiery, tmp_path):
         export(fiery, tmp_path / "x.usdc", ExportOptions(volume_voxel_m=0.0))
 
 
+def test_cells_too_small_for_the_shot_are_one_error(fiery, tmp_path, monkeypatch):
+    """A cell size that would make a frame's splat too large (here a limit of 1,000
+    cells) is one BlastvoxError naming the system and frame, and writes nothing."""
+    from blastvox.export import volumes
+
+    monkeypatch.setattr(volumes, "MAX_SPLAT_CELLS", 1000)
+    with pytest.raises(BlastvoxError, match=r"fireball particles at frame 1: .* use a larger "
+                                            r"--volume-voxel"):
+        export(fiery, tmp_path / "shot.usdc")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_volumes_same_bytes_twice(fiery, tmp_path):
     a, b = tmp_path / "a" / "shot.usdc", tmp_path / "b" / "shot.usdc"
     for out in (a, b):

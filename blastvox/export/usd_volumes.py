@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf
 
-from blastvox.errors import OutputError
+from blastvox.errors import BlastvoxError, OutputError
 from blastvox.export.usd_specs import attr_spec, prim_spec, vec3f
 
 _T = Sdf.ValueTypeNames
@@ -59,7 +59,12 @@ def write_volume(w, scope: Sdf.PrimSpec, name: str, states: list, size: np.ndarr
     for f in range(first, last + 1):
         alive, x = states[f]
         age = (times[f] - birth[alive]) / lifetime
-        grids = frame_grids(name, x[alive], size[alive], age, voxel)
+        try:
+            grids = frame_grids(name, x[alive], size[alive], age, voxel)
+        except ValueError as exc:  # cells too small for the shot: one line, no output
+            raise BlastvoxError(f"{name} particles at frame {f}: {exc}; use a larger "
+                                f"--volume-voxel ([output] volume_voxel_m) or --particles "
+                                f"spheres") from None
         target = volume_file(w.volume_out, name, f)
         try:
             written += write_vdb(target, grids)

@@ -40,6 +40,8 @@ from blastvox.jit import kernel
 
 #: the kernel's central optical depth per unit A / r^2: 2 r (16/35) / (4 pi r^3 16/315)
 KERNEL_TAU = (2 * 16 / 35) / (4 * math.pi * 16 / 315)
+#: the most kernel cells one frame's splat may touch: 24 bytes each, about 1.2 GB
+MAX_SPLAT_CELLS = 50_000_000
 #: packed cell keys: 21 bits per axis, offset so that negative indices pack
 _BITS, _OFFSET = 21, 1 << 20
 
@@ -160,6 +162,9 @@ def splat(positions: np.ndarray, radius: np.ndarray, amount: np.ndarray, voxel_m
     counts = _box_counts(pos, r, h)
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     total = int(starts[-1])
+    if total > MAX_SPLAT_CELLS:
+        raise ValueError(f"{len(pos):,} particles reach {total:,} cells of {h} m in one "
+                         f"frame (at most {MAX_SPLAT_CELLS:,})")
     keys = np.empty(total, dtype=np.int64)
     mass = np.zeros(total, dtype=np.float64)
     heat = np.zeros(total, dtype=np.float64)
