@@ -58,7 +58,8 @@ def export(
         Particles.auto, "--particles", case_sensitive=False,
         help="USD: dust, fire, smoke and the fireball as volumes (OpenVDB grids per frame "
         "in <stem>_volumes/: soft clouds, fire with a temperature grid) or spheres (a "
-        "PointInstancer); auto: volumes, spheres in a .usdz (it cannot carry .vdb files)."),
+        "PointInstancer); auto: volumes, spheres in a .usdz (it cannot carry .vdb files). "
+        "glTF: spheres writes a node per particle (at most 256 per system), else none."),
     volume_voxel: float = typer.Option(0.1, "--volume-voxel", metavar="M",
                                        help="Cell size of the particle volumes, m."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),

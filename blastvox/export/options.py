@@ -26,7 +26,9 @@ class ExportOptions:
     particles: how USD writes dust, fire, smoke and the fireball: "volumes" (OpenVDB
     density and temperature grids per frame in ``<stem>_volumes/``, a UsdVolVolume per
     system), "spheres" (a PointInstancer of spheres per system) or "auto" (volumes
-    for .usd/.usda/.usdc, spheres for .usdz, which cannot carry .vdb files).
+    for .usd/.usda/.usdc, spheres for .usdz, which cannot carry .vdb files); glTF
+    writes a sphere node per particle with "spheres" only
+    (:mod:`blastvox.export.gltf_particles`).
     volume_voxel_m: the volumes' cell size (m)."""
 
     up_axis: str = "Y"
