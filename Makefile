@@ -102,6 +102,7 @@ bench: $(STAMP)
 	  section 'Rubble faces' rubble.py; $(BIN)/python benchmarks/rubble.py; \
 	  section 'USD against glTF at 20,000 pieces' export_usd.py; \
 	  $(BIN)/python benchmarks/export_usd.py; \
+	  section 'Particle volumes' 'volumes.py --voxel 0.1 0.2'; $(BIN)/python benchmarks/volumes.py --voxel 0.1 0.2; \
 	  section Preview preview.py; $(BIN)/python benchmarks/preview.py; \
 	  section 'Wedges on Dask' wedge.py; $(BIN)/python benchmarks/wedge.py; \
 	  section 'Contact cost' contacts.py; $(BIN)/python benchmarks/contacts.py; \

@@ -521,6 +521,16 @@ class Output(_Model):
         "rough: fracture faces drawn as broken rubble (the voxels' steps smoothed and "
         "their corners roughened; pieces still fit together at rest; collision stays "
         "voxel-based); voxel: the voxels' cell faces."))
+    particles: Literal["auto", "volumes", "spheres"] = Field("auto", description=(
+        "How USD exports dust, fire, smoke and the fireball: volumes (OpenVDB density "
+        "and, for fire, temperature grids per frame in <stem>_volumes/ beside the file, "
+        "a UsdVolVolume per system: renders as soft clouds), spheres (a PointInstancer "
+        "of spheres per system) or auto (volumes for .usd/.usda/.usdc, spheres for "
+        ".usdz, which cannot carry .vdb files). glTF: spheres writes a translucent "
+        "sphere node per particle (at most 256 per system), else no particles."))
+    volume_voxel_m: Annotated[float, Field(ge=0.001, le=100.0)] = Field(0.1, description=(
+        "Cell size of the particle volumes (m): smaller is finer and costs about the "
+        "cube of the ratio in time and disk."))
 
 
 class Wedge(_Model):

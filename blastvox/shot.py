@@ -40,7 +40,7 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
                    layout: str = "xforms") -> None:
     """The output policy (blastvox.io.outputs) for every file the shot writes, before any
     stage runs: none is a device or an input, and no two are the same file."""
-    from blastvox.export.api import GLTF_SUFFIXES, USD_SUFFIXES, side_outputs
+    from blastvox.export.api import GLTF_SUFFIXES, USD_SUFFIXES, side_folders, side_outputs
     from blastvox.io.outputs import (
         check_distinct,
         check_npz_output,
@@ -53,11 +53,11 @@ def _check_outputs(model: Path, cache: Path, exports: list[Path], inputs: list[P
     for i, path in enumerate(exports):
         label = "output.export" if len(exports) == 1 else f"output.export.{i}"
         outputs.append((label, path))
-        buffer, textures = side_outputs(path)
+        buffer, _ = side_outputs(path)
         if buffer is not None:  # a .gltf's buffer is written beside it
             outputs.append((f"{label} (its .bin)", buffer))
-        if textures is not None:
-            folders.append((f"{label} (its textures)", textures))
+        folders += [(f"{label} (its {f.name.rsplit('_', 1)[-1]})", f)
+                    for f in side_folders(path)]
     for label, path in outputs:
         check_output(path, inputs, label=label, make_dirs=True)
     check_npz_output(model, "output.model", "VoxelModel")
@@ -187,7 +187,9 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
             export(cache, path, ExportOptions(up_axis=out.up_axis, layout=out.layout,
                                               shock=out.shock,
                                               damage_textures=out.damage_textures,
-                                              fracture_faces=out.fracture_faces))
+                                              fracture_faces=out.fracture_faces,
+                                              particles=out.particles,
+                                              volume_voxel_m=out.volume_voxel_m))
             seconds["export"] = seconds.get("export", 0.0) + time.perf_counter() - started
             ran.append("export")
     if not ran:

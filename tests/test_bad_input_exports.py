@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import resource
 import signal
 import subprocess
@@ -74,14 +75,16 @@ def test_a_re_export_onto_a_full_disk_keeps_the_last_good_one(exported: Path,
                                                              output: str) -> None:
     """The limit lets the textures be written and stops the USD file: before, the new
     textures had replaced the old ones and were then deleted (the folder left empty),
-    and a .usda printed 9,963 lines of USD's C++ errors."""
+    and a .usda printed 9,963 lines of USD's C++ errors. Particles as spheres: the
+    volume files would meet the limit first (see the next test but one)."""
     largest = max(p.stat().st_size for p in (exported / "shot_textures").iterdir())
     limit = largest + 4096
     assert limit < (exported / "shot.usdc").stat().st_size
     if output == "shot.usda":  # a good .usda first, to be kept
         assert run_blastvox("export", "sim.npz", "-o", output, "-q", cwd=exported).code == 0
     before, names = _files(exported), listing(exported)
-    done = _limited(exported, limit, "export", "sim.npz", "-o", output, "-q")
+    done = _limited(exported, limit, "export", "sim.npz", "-o", output, "-q",
+                    "--particles", "spheres")
     assert done.returncode == 1, done.stderr[-2000:]
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr[-2000:]
@@ -92,10 +95,24 @@ def test_a_re_export_onto_a_full_disk_keeps_the_last_good_one(exported: Path,
 
 def test_a_texture_that_cannot_be_written_names_its_place(exported: Path) -> None:
     before, names = _files(exported), listing(exported)
-    done = _limited(exported, 1000, "export", "sim.npz", "-o", "shot.usdc", "-q")
+    done = _limited(exported, 1000, "export", "sim.npz", "-o", "shot.usdc", "-q",
+                    "--particles", "spheres")
     assert done.returncode == 1
     assert done.stderr.strip().splitlines() == [
         "blastvox: error: shot_textures/damage_concrete.png: cannot write (File too large)"]
+    assert _files(exported) == before and listing(exported) == names
+
+
+def test_a_volume_file_that_cannot_be_written_names_its_place(exported: Path) -> None:
+    """The particle volumes (written first) meet the limit: one line naming the .vdb
+    file where it was to go; the previous export, its volumes included, is whole."""
+    assert list((exported / "shot_volumes").glob("*.vdb"))
+    before, names = _files(exported), listing(exported)
+    done = _limited(exported, 1000, "export", "sim.npz", "-o", "shot.usdc", "-q")
+    assert done.returncode == 1
+    (line,) = done.stderr.strip().splitlines()
+    assert re.fullmatch(r"blastvox: error: shot_volumes/dust\.\d{4}\.vdb: cannot write "
+                        r"\(File too large\)", line), line
     assert _files(exported) == before and listing(exported) == names
 
 

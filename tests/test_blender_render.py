@@ -82,6 +82,12 @@ def test_house_renders_at_frame_0_and_mid_shot(house: tuple[SimCache, Path], suf
         assert got["coverage"] > 0.03, (f, got)   # the asset is in view
         assert got["luminance"] > 0.08, (f, got)  # and lit: not a black frame
         r, g, b = got["rgb"]
+        if suffix == ".usdc" and f == 0:
+            # the fireball, born at the blast, is a volume (Blender's default volume
+            # material: grey smoke) between the camera and the house: the frame greys
+            assert report["volumes"]["fireball"]["grids"] == ["density", "temperature"]
+            assert max(r, g, b) - min(r, g, b) < 0.1, (f, got)
+            continue
         assert r > b * 1.1, (f, got)  # brick walls: red over blue, not a white sphere
 
 

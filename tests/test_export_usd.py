@@ -134,9 +134,10 @@ def wall(tmp_path_factory) -> tuple[SimCache, Path]:
 
 
 def _write(cache: SimCache, path: Path, up: str = "Y", layout: str = "xforms",
-           shock: bool = False, damage_textures: bool = True) -> Usd.Stage:
+           shock: bool = False, damage_textures: bool = True,
+           particles: str = "auto") -> Usd.Stage:
     export(cache, path, ExportOptions(up_axis=up, layout=layout, shock=shock,
-                                      damage_textures=damage_textures))
+                                      damage_textures=damage_textures, particles=particles))
     stage = Usd.Stage.Open(str(path))
     assert stage is not None
     return stage
@@ -332,7 +333,7 @@ def test_dust_points_fly_ballistically(synthetic, tmp_path, up):
     scales once, no velocities: a constant count blurs by its positions)."""
     from blastvox.particles import positions_at
 
-    stage = _write(synthetic, tmp_path / "shot.usdc", up=up)
+    stage = _write(synthetic, tmp_path / "shot.usdc", up=up, particles="spheres")
     points = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
     assert points
     assert [t.name for t in points.GetPrototypesRel().GetTargets()] == ["sprite", "hidden"]
@@ -374,7 +375,7 @@ def test_dust_is_dropped_after_its_lifetime(synthetic, tmp_path):
     last = float(synthetic.frame_time[-1])
     arrays["particle_birth"] = np.where(early, 0.05 - life, last)
     cache = SimCache(arrays=arrays, model=synthetic.model, meta=synthetic.meta)
-    stage = _write(cache, tmp_path / "shot.usda")
+    stage = _write(cache, tmp_path / "shot.usda", particles="spheres")
     points = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
     assert [t.name for t in points.GetPrototypesRel().GetTargets()] == ["sprite"]
     assert np.array_equal(points.GetIdsAttr().Get(0), np.flatnonzero(early))  # just alive
@@ -414,7 +415,7 @@ def test_no_dust_no_points_prim(synthetic, tmp_path):
 def test_particles_have_their_materials(synthetic, tmp_path):
     from pxr import UsdShade
 
-    stage = _write(synthetic, tmp_path / "shot.usda")
+    stage = _write(synthetic, tmp_path / "shot.usda", particles="spheres")
     instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
     sprite = instancer.GetPrototypesRel().GetTargets()[0]
     ball = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath(sprite)).GetPointsAttr().Get())
@@ -682,8 +683,8 @@ def test_real_simulation(wall, tmp_path):
         assert prim.ComputeVisibility(Usd.TimeCode(end)) == "invisible"
         if end > 0:
             assert prim.ComputeVisibility(Usd.TimeCode(end - 1)) == "inherited"
-    if len(cache.dust_voxel):
-        assert UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
+    if len(cache.dust_voxel):  # volumes by default (tests/test_export_volumes.py)
+        assert stage.GetPrimAtPath("/Shot/Particles/dust").GetTypeName() == "Volume"
 
 
 def _cli(*args, cwd: Path) -> subprocess.CompletedProcess[str]:

@@ -90,6 +90,7 @@ UNITS: dict[str, str] = {
     "camera.focal_length_mm": "mm",
     "wedge.sample": "shots",
     "wedge.sample_seed": "-",
+    "output.volume_voxel_m": "m",
 }
 
 #: Defaults that a model validator computes (the schema marks these keys required or unset).

@@ -16,6 +16,12 @@ class FractureFaces(StrEnum):
     voxel = "voxel"
 
 
+class Particles(StrEnum):
+    auto = "auto"
+    volumes = "volumes"
+    spheres = "spheres"
+
+
 class Layout(StrEnum):
     xforms = "xforms"
     instancer = "instancer"
@@ -48,28 +54,39 @@ def export(
         help="rough: fracture faces drawn as broken rubble (steps smoothed, corners "
         "roughened; the pieces still fit together at rest; collision stays voxel-based); "
         "voxel: the voxels' cell faces."),
+    particles: Particles = typer.Option(
+        Particles.auto, "--particles", case_sensitive=False,
+        help="USD: dust, fire, smoke and the fireball as volumes (OpenVDB grids per frame "
+        "in <stem>_volumes/: soft clouds, fire with a temperature grid) or spheres (a "
+        "PointInstancer); auto: volumes, spheres in a .usdz (it cannot carry .vdb files). "
+        "glTF: spheres writes a node per particle (at most 256 per system), else none."),
+    volume_voxel: float = typer.Option(0.1, "--volume-voxel", metavar="M",
+                                       help="Cell size of the particle volumes, m."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),
 ) -> None:
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
     from blastvox.cache import SimCache
     from blastvox.cli.console import cli_warnings, err_console
-    from blastvox.export.api import ExportOptions, side_outputs
+    from blastvox.export.api import ExportOptions, side_folders, side_outputs
     from blastvox.export.api import export as run
     from blastvox.io.outputs import check_distinct, check_output, check_side_directory
 
     check_output(output, [cache_path])
-    buffer, textures = side_outputs(output)
+    buffer, _ = side_outputs(output)
     if buffer is not None:  # a .gltf's buffer is written beside it
         check_output(buffer, [cache_path], label="-o (the .gltf's .bin)")
         check_distinct([("-o", output), ("its .bin", buffer)])
-    if textures is not None:
-        check_side_directory(textures, [cache_path], label="-o (its textures)")
+    for folder in side_folders(output):  # textures, volumes
+        check_side_directory(folder, [cache_path],
+                             label=f"-o (its {folder.name.rsplit('_', 1)[-1]})")
     started = time.perf_counter()
     cache = SimCache.load(cache_path)
     with cli_warnings(err_console()):
         run(cache, output, ExportOptions(up_axis=up_axis.value, layout=layout.value,
                                            shock=shock, damage_textures=damage_textures,
-                                           fracture_faces=fracture_faces.value))
+                                           fracture_faces=fracture_faces.value,
+                                           particles=particles.value,
+                                           volume_voxel_m=volume_voxel))
     if not quiet:
         err_console().print(f"{output}: {cache.piece_count:,} pieces, {cache.frame_count} "
                             f"frames, {output.stat().st_size / 1e6:.2f} MB "

@@ -17,7 +17,8 @@ from blastvox.errors import BlastvoxError, OutputError
 from blastvox.export.options import ExportOptions
 from blastvox.geometry.frames import UP_AXES
 
-__all__ = ["ExportOptions", "GLTF_SUFFIXES", "USD_SUFFIXES", "export", "side_outputs"]
+__all__ = ["ExportOptions", "GLTF_SUFFIXES", "USD_SUFFIXES", "export", "side_folders",
+           "side_outputs"]
 
 USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
 GLTF_SUFFIXES = (".gltf", ".glb")
@@ -39,6 +40,42 @@ def side_outputs(path: str | Path) -> tuple[Path | None, Path | None]:
     return None, None
 
 
+def side_folders(path: str | Path) -> list[Path]:
+    """Every folder an export to ``path`` may write files into: a .usd/.usda/.usdc's
+    ``<stem>_textures/`` and ``<stem>_volumes/`` (its particle volumes)."""
+    _, textures = side_outputs(path)
+    if textures is None:
+        return []
+    path = Path(path)
+    return [textures, path.with_name(path.stem + "_volumes")]
+
+
+PARTICLE_MODES = ("auto", "volumes", "spheres")
+
+
+def _resolved(options: ExportOptions, path: Path) -> ExportOptions:
+    """``options`` with ``particles`` "auto" made "volumes" or "spheres" for ``path``'s
+    format; a bad particles mode or cell size is a BlastvoxError."""
+    import dataclasses
+    import math
+
+    if options.particles not in PARTICLE_MODES:
+        raise BlastvoxError(f"{path}: --particles must be one of {', '.join(PARTICLE_MODES)} "
+                            f"(got {options.particles!r})")
+    voxel = options.volume_voxel_m
+    if not (isinstance(voxel, int | float) and math.isfinite(voxel) and 0.001 <= voxel <= 100):
+        raise BlastvoxError(f"{path}: --volume-voxel must be a cell size from 0.001 to 100 m "
+                            f"(got {voxel!r})")
+    suffix = path.suffix.lower()
+    if suffix == ".usdz" and options.particles == "volumes":
+        raise BlastvoxError(f"{path}: a .usdz cannot carry the .vdb files of particle volumes; "
+                            f"use --particles spheres (or auto), or a .usdc")
+    mode = options.particles
+    if mode == "auto":
+        mode = "spheres" if suffix == ".usdz" else "volumes"
+    return dataclasses.replace(options, particles=mode)
+
+
 def export(cache: SimCache, path: str | Path, options: ExportOptions | None = None) -> None:
     """Write ``cache`` to ``path`` in the format its suffix names."""
     options = options or ExportOptions()
@@ -46,6 +83,7 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
     suffix = path.suffix.lower()
     if options.up_axis not in UP_AXES:
         raise BlastvoxError(f"{path}: --up-axis must be Y or Z (got {options.up_axis!r})")
+    options = _resolved(options, path)
     if suffix in USD_SUFFIXES:
         if options.layout == "skinned":
             raise BlastvoxError(f"{path}: --layout skinned is glTF only; USD takes xforms "
@@ -79,9 +117,10 @@ def export(cache: SimCache, path: str | Path, options: ExportOptions | None = No
 
 
 def _write_usd_staged(cache: SimCache, path: Path, options: ExportOptions) -> None:
-    """write_usd into a private folder beside ``path``, then its textures folder and the
-    file moved into place, the folder first (issue 36): a failed export (a full disk,
-    Ctrl-C, an error) leaves the previous export and its textures as they were, and no
+    """write_usd into a private folder beside ``path``, then its textures and volumes
+    folders and the file moved into place, the folders first (issue 36): a failed export
+    (a full disk, Ctrl-C, an error) leaves the previous export and its folders as they
+    were, and no
     temporary behind (a killed one's is removed by the next export); USD's errors are
     one line."""
     import os
@@ -90,7 +129,6 @@ def _write_usd_staged(cache: SimCache, path: Path, options: ExportOptions) -> No
     from blastvox.io.atomic import staged_directory, swapped_in
     from blastvox.io.outputs import refuse_special
 
-    _, textures = side_outputs(path)
     with staged_directory(path) as staging, _usd_errors(path):
         staged = staging / path.name
         try:
@@ -98,11 +136,12 @@ def _write_usd_staged(cache: SimCache, path: Path, options: ExportOptions) -> No
         except OutputError as exc:  # name the file where it was to go, not the staging
             where = "" if path.parent == Path(".") else f"{path.parent}{os.sep}"
             raise OutputError(str(exc).replace(f"{staging}{os.sep}", where)) from None
-        new = staging / textures.name if textures is not None else None
-        swap = (swapped_in(new, textures) if new is not None and new.is_dir()
-                else contextlib.nullcontext())
         try:
-            with swap:
+            with contextlib.ExitStack() as swaps:
+                for folder in side_folders(path):  # textures, then volumes
+                    new = staging / folder.name
+                    if new.is_dir():
+                        swaps.enter_context(swapped_in(new, folder))
                 refuse_special(path, "output")  # it may have become a device meanwhile
                 os.replace(staged, path)
         except OSError as exc:

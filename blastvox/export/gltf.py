@@ -106,7 +106,8 @@ def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None 
                            else quote(bin_name), shock=options.shock,
                            damage_textures=options.damage_textures,
                            skinned=options.layout == "skinned",
-                           fracture_faces=options.fracture_faces)
+                           fracture_faces=options.fracture_faces,
+                           particles=options.particles == "spheres")
     if path.suffix.lower() == ".glb":
         with atomic_path(path) as tmp:
             tmp.write_bytes(glb_bytes(doc, blob))
@@ -138,7 +139,8 @@ def _json_bytes(doc: dict[str, Any]) -> bytes:
 
 def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = False,
                damage_textures: bool = True, skinned: bool = False,
-               fracture_faces: str = "rough") -> tuple[dict[str, Any], bytes]:
+               fracture_faces: str = "rough", particles: bool = False
+               ) -> tuple[dict[str, Any], bytes]:
     """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
 
     ``buffer_uri``: the buffer's uri (.gltf), or None for a GLB's embedded buffer.
@@ -148,6 +150,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     (the piece nodes), instead of a mesh per piece: importers make a few objects,
     not thousands.
     ``fracture_faces``: "rough" (rubble surfaces) or "voxel" (cell faces).
+    ``particles``: also a node per particle (:mod:`blastvox.export.gltf_particles`).
     """
     b = _Builder()
     mats, mat_index = _materials(cache)
@@ -235,8 +238,13 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
                         b.accessor(sc_view, c * n_frames * 12, FLOAT, n_frames, "VEC3"))
 
     cameras = _camera(cache, b, nodes, channel, t_acc if n_frames else None)
+    if particles:
+        from blastvox.export.gltf_particles import add_particles
 
-    others = list(range(n_pieces, len(nodes)))  # shock fronts and the camera
+        add_particles(cache, b, mats, meshes, nodes, channel, t_acc if n_frames else None,
+                      _sphere_mesh)
+
+    others = list(range(n_pieces, len(nodes)))  # shock fronts, camera, particles
     groups = object_groups(objects)
     if skinned:  # a node per skin between each object and its pieces
         for name in groups:

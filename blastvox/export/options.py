@@ -22,10 +22,19 @@ class ExportOptions:
     (:mod:`blastvox.export.damage_textures`; USD: PNGs in ``<stem>_textures/``);
     False keeps the flat ``damage_color`` and writes no texture files for them.
     fracture_faces: "rough" (default) draws fracture faces as rubble surfaces
-    (:mod:`blastvox.export.rubble`), "voxel" as the voxels' cell faces."""
+    (:mod:`blastvox.export.rubble`), "voxel" as the voxels' cell faces.
+    particles: how USD writes dust, fire, smoke and the fireball: "volumes" (OpenVDB
+    density and temperature grids per frame in ``<stem>_volumes/``, a UsdVolVolume per
+    system), "spheres" (a PointInstancer of spheres per system) or "auto" (volumes
+    for .usd/.usda/.usdc, spheres for .usdz, which cannot carry .vdb files); glTF
+    writes a sphere node per particle with "spheres" only
+    (:mod:`blastvox.export.gltf_particles`).
+    volume_voxel_m: the volumes' cell size (m)."""
 
     up_axis: str = "Y"
     layout: str = "xforms"
     shock: bool = False
     damage_textures: bool = True
     fracture_faces: str = "rough"
+    particles: str = "auto"
+    volume_voxel_m: float = 0.1

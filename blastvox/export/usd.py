@@ -19,7 +19,10 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
         Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
                                                   (quath) and orientationsf (quatf, which
                                                   readers prefer), extent and invisibleIds
-      Particles/<system> (PointInstancer)         dust, fire, smoke, fireball particles: a
+      Particles/<system> (Volume)                 dust, fire, smoke, fireball particles as
+        density, temperature (OpenVDBAsset)       volumes: per-frame .vdb files in
+                                                  ``<stem>_volumes/`` (usd_volumes.py);
+      Particles/<system> (PointInstancer)         or (options.particles "spheres", .usdz) a
         Prototypes/sprite (Mesh)                  sphere of diameter 1 bound to
                                                   Materials/particle_<system>, scaled to
                                                   each particle's width
@@ -45,6 +48,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -123,9 +127,15 @@ def _finite_hold(a: np.ndarray) -> np.ndarray:
 
 class _Writer:
     def __init__(self, cache: SimCache, options: ExportOptions,
-                 texture_dir: str | None = None) -> None:
+                 texture_dir: str | None = None, volume_out: Path | None = None) -> None:
         self.cache = cache
         self.options = options
+        #: "volumes" (into the folder ``volume_out``, named ``volume_dir`` in the layer)
+        #: or "spheres"
+        self.particle_mode = ("volumes" if volume_out is not None
+                              and options.particles in ("auto", "volumes") else "spheres")
+        self.volume_out = volume_out
+        self.volume_dir = volume_out.name if volume_out is not None else ""
         self.frames = cache.frame_count
         self.pieces = cache.piece_count
         self.instancer = options.layout == "instancer"
@@ -350,15 +360,21 @@ def build_layer(cache: SimCache, options: ExportOptions,
 def write_usd(cache: SimCache, path: Path, options: ExportOptions) -> None:
     """Write ``cache`` to ``path`` (.usda, .usdc or .usd: crate), atomically. Its
     textures (the source look's, the damage textures) go beside it as PNG files in
-    ``<stem>_textures/`` (removed again if the USD file cannot be written)."""
+    ``<stem>_textures/``, and with ``options.particles`` "volumes" or "auto" its
+    particle volumes as .vdb files in ``<stem>_volumes/`` (both removed again if the
+    USD file cannot be written)."""
     path = Path(path)
     texture_dir = f"{path.stem}_textures"
-    writer = _Writer(cache, options, texture_dir)
-    layer = writer.build()
+    volumes = volume_folder(path)
+    volumes_existed = volumes.exists()
+    before = set(volumes.iterdir()) if volumes_existed else set()
     directory = path.parent / texture_dir
     existed = directory.exists()
-    written = _write_textures(writer.texture_files(), directory)
+    written: list[Path] = []
     try:
+        writer = _Writer(cache, options, texture_dir, volumes)
+        layer = writer.build()
+        written = _write_textures(writer.texture_files(), directory)
         _export_layer(layer, path)
     except BaseException:
         for file in written:
@@ -367,7 +383,19 @@ def write_usd(cache: SimCache, path: Path, options: ExportOptions) -> None:
         if not existed:
             with contextlib.suppress(OSError):
                 directory.rmdir()
+        if volumes.exists():  # the volume files this export added
+            if not volumes_existed:
+                shutil.rmtree(volumes, ignore_errors=True)
+            else:
+                for file in set(volumes.iterdir()) - before:
+                    with contextlib.suppress(OSError):
+                        file.unlink()
         raise
+
+
+def volume_folder(path: Path) -> Path:
+    """``<stem>_volumes/`` beside a USD file: its particle volumes (.vdb files)."""
+    return path.parent / f"{path.stem}_volumes"
 
 
 def _write_textures(files: list[tuple[str, bytes]], directory: Path) -> list[Path]:

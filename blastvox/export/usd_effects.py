@@ -59,9 +59,14 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
       velocities (the count changes, so motion blur needs the velocities); a
       frame without particles holds one instance of scale 0.
 
-    Either way the instancer is invisible at a frame without live particles. An
-    instancer, not UsdGeomPoints: Blender 5.0 imports Points without their material
-    (white balls), and an empty points array crashed its Cycles."""
+    Either way the instancer is invisible at a frame without live particles. With
+    ``w.particle_mode`` "volumes" each system is a Volume of per-frame OpenVDB files
+    instead (:mod:`blastvox.export.usd_volumes`). An instancer, not UsdGeomPoints:
+    Blender 5.0 imports Points without their material (white balls), and an empty
+    points array crashed its Cycles. Re-checked in bpy 5.0.1 (2026-11-30): a Points
+    prim with widths and a bound UsdPreviewSurface imports as a POINTCLOUD object
+    with no material slot, and rendering its frame with an empty points sample
+    killed the process (SIGSEGV, exit 139)."""
     from blastvox.particles import SYSTEM_NAMES, SYSTEMS, all_positions_at
 
     c = w.cache
@@ -82,6 +87,13 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
         states = [all_positions_at(birth[mine], x0[mine], v0[mine],
                                    np.full(len(mine), index, dtype=np.uint8), t, g)
                   for t in times]
+        if w.particle_mode == "volumes":
+            from blastvox.export.usd_volumes import write_volume
+
+            write_volume(w, scope, name, states, size[mine].astype(np.float64), birth[mine],
+                         SYSTEMS[name].lifetime,
+                         lambda prim, n: _bind(prim, _particle_material(w, n)))
+            continue
         fixed = _layout_of(len(mine), [int(alive.sum()) for alive, _ in states]) == "fixed"
         instancer = _particle_instancer(w, scope, name, hidden=fixed)
         if fixed:

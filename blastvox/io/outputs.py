@@ -115,12 +115,19 @@ def check_distinct(outputs: Iterable[tuple[str, str | os.PathLike]]) -> None:
         seen.append((label, path))
 
 
+def _what(folder: Path) -> str:
+    """What an export writes into ``folder``: "volumes" (``<stem>_volumes/``) or
+    "textures"."""
+    return "volumes" if folder.name.endswith("_volumes") else "textures"
+
+
 def check_side_directory(directory: str | os.PathLike,
                          inputs: Iterable[str | os.PathLike | None] = (),
                          label: str = "-o") -> Path:
     """The output policy for a directory an output writes files into (a USD export's
-    ``<stem>_textures/``): it is a directory or does not exist yet, and holds none of the
-    command's ``inputs`` (its files would be overwritten). Returns it as a Path."""
+    ``<stem>_textures/`` and ``<stem>_volumes/``): it is a directory or does not exist
+    yet, and holds none of the command's ``inputs`` (its files would be overwritten).
+    Returns it as a Path."""
     folder = Path(directory)
     try:
         mode = os.stat(folder).st_mode
@@ -131,11 +138,11 @@ def check_side_directory(directory: str | os.PathLike,
     if mode is not None and not stat.S_ISDIR(mode):
         kind = "a file" if stat.S_ISREG(mode) else file_kind(mode)
         raise OutputError(f"{folder}: {label}: is {kind}, where the export "
-                          f"writes its textures (a directory); move it away")
+                          f"writes its {_what(folder)} (a directory); move it away")
     inside = os.path.realpath(folder)
     for source in inputs:
         if source is not None and os.path.realpath(source).startswith(inside + os.sep):
             raise OutputError(f"{folder}: {label}: holds an input of this command ({source}), "
-                              f"and the export writes its textures there; write the output "
-                              f"elsewhere")
+                              f"and the export writes its {_what(folder)} there; write the "
+                              f"output elsewhere")
     return folder

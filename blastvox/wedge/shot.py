@@ -131,17 +131,18 @@ def _shot_files(spec: ShotSpec) -> list[tuple[Path, Path]]:
     """(output, file) of every file a finished shot consists of: the model, the cache,
     each export with the files it writes beside it (a .gltf's .bin, a USD file's
     textures), the preview; ``output`` is the file whose stage makes ``file``."""
-    from blastvox.export.api import side_outputs
+    from blastvox.export.api import side_folders, side_outputs
 
     output = spec.scene["output"]
     files = [(Path(output["model"]),) * 2, (Path(output["cache"]),) * 2]
     for export in map(Path, output.get("export", [])):
         files.append((export, export))
-        buffer, textures = side_outputs(export)
+        buffer, _ = side_outputs(export)
         if buffer is not None:
             files.append((export, buffer))
-        if textures is not None and textures.is_dir():
-            files += [(export, f) for f in sorted(textures.rglob("*")) if f.is_file()]
+        for folder in side_folders(export):  # textures, volumes
+            if folder.is_dir():
+                files += [(export, f) for f in sorted(folder.rglob("*")) if f.is_file()]
     if spec.preview:
         files.append((Path(spec.directory) / PREVIEW,) * 2)
     return files

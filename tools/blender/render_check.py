@@ -5,7 +5,7 @@ the project's::
 
     .venv-blender/bin/python tools/blender/render_check.py FILE OUT_DIR FRAME [FRAME ...]
         [--size WxH] [--samples N] [--motion-blur]
-        [--camera EX,EY,EZ:TX,TY,TZ]
+        [--camera EX,EY,EZ:TX,TY,TZ] [--fire [--glow G]] [--opaque]
 
 What an artist does with a cache, in a script: FILE (.usd/.usda/.usdc or
 .gltf/.glb) is imported into an empty scene with the importer's defaults (as
@@ -16,6 +16,14 @@ looking at the centre of the imported meshes' box at frame 0 from the front
 right, above, far enough away to frame the box. A sun and a grey sky light
 the scene (the exports carry no lights). ``--camera`` puts a 35 mm camera at E
 looking at T instead (Blender's world: Z up, m), for a close look at the debris.
+Particle volumes (a USD export's ``<stem>_volumes/``, read where the file is) import
+as Volume objects with Blender's default volume material (its USD importer reads no
+material of a Volume prim: grey smoke whose density is the ``density`` grid);
+``--fire`` gives the volumes that hold a ``temperature`` grid (fire, fireball) the
+one material an artist adds for flames: a Principled Volume with Blackbody Intensity
+``--glow`` (default 0.5: 1 is physical) reading
+``temperature``, and dust a warm grey colour. ``--opaque`` renders the sky
+behind (for pictures) instead of a transparent film.
 Each FRAME is rendered with Cycles on the CPU (few samples, a tiny image, film
 transparent so that the alpha channel says what is covered) to ``OUT_DIR/frame_NNNN.png``.
 
@@ -23,6 +31,7 @@ Prints one JSON object, alone, on stdout (Blender's log goes to stderr)::
 
     {"blender": "5.0.1", "camera": {"from_file": bool, "lens_mm": 35.0,
                                    "sensor_width_mm": 36.0},
+     "volumes": {"NAME": {"grids": [names], "materials": [names]}},
      "frames": {"FRAME": {"png": path,
                           "coverage": c,      # fraction of pixels with alpha > 0.5
                           "luminance": l,     # mean Rec. 709 luminance of covered pixels
@@ -122,6 +131,46 @@ def _light(scene: bpy.types.Scene) -> None:
     scene.world = world
 
 
+#: --fire's Blackbody Intensity (--glow): 1 is physical; half of it keeps the debris
+#: beside a 2,200 K fireball in view in the sun (3 W/m^2) of this script
+GLOW = 0.5
+#: the colour an artist gives each particle system's volume with --fire
+VOLUME_COLORS = {"dust": (0.55, 0.50, 0.45), "smoke": (0.25, 0.25, 0.25),
+                 "fire": (0.6, 0.45, 0.3), "fireball": (0.6, 0.45, 0.3)}
+
+
+def _volumes(scene: bpy.types.Scene, fire: bool, glow: float = 1.0) -> dict:
+    """The imported Volume objects: their grids and materials; with ``fire`` a
+    Principled Volume each (Blackbody from ``temperature`` where the volume has it)."""
+    out = {}
+    for obj in scene.objects:
+        if obj.type != "VOLUME":
+            continue
+        volume = obj.data
+        volume.grids.load()
+        grids = [g.name for g in volume.grids]
+        if fire:
+            material = bpy.data.materials.new(f"render_check_{obj.name}")
+            material.use_nodes = True
+            nodes = material.node_tree.nodes
+            nodes.clear()
+            shader = nodes.new("ShaderNodeVolumePrincipled")
+            output = nodes.new("ShaderNodeOutputMaterial")
+            material.node_tree.links.new(shader.outputs["Volume"], output.inputs["Volume"])
+            system = obj.name.split(".")[0]
+            color = VOLUME_COLORS.get(system, (0.5, 0.5, 0.5))
+            shader.inputs["Color"].default_value = (*color, 1.0)
+            if "temperature" in grids:
+                shader.inputs["Blackbody Intensity"].default_value = glow
+                shader.inputs["Temperature Attribute"].default_value = "temperature"
+                # Cycles multiplies the Temperature input by the attribute: the grid is K
+                shader.inputs["Temperature"].default_value = 1.0
+            obj.data.materials.clear()
+            obj.data.materials.append(material)
+        out[obj.name] = {"grids": grids, "materials": [m.name for m in obj.data.materials if m]}
+    return out
+
+
 def _render(scene: bpy.types.Scene, frame: int, out: Path) -> dict:
     scene.frame_set(frame)
     scene.render.filepath = str(out)
@@ -137,6 +186,7 @@ def _render(scene: bpy.types.Scene, frame: int, out: Path) -> dict:
 
 def main(argv: list[str]) -> None:
     args, size, samples, blur, view = [], (96, 54), 4, False, None
+    fire, opaque, glow = False, False, GLOW
     it = iter(argv)
     for arg in it:
         if arg == "--size":
@@ -145,6 +195,12 @@ def main(argv: list[str]) -> None:
             samples = int(next(it))
         elif arg == "--motion-blur":
             blur = True
+        elif arg == "--fire":
+            fire = True
+        elif arg == "--glow":
+            glow = float(next(it))
+        elif arg == "--opaque":
+            opaque = True
         elif arg == "--camera":
             view = [Vector(float(c) for c in point.split(",")) for point in next(it).split(":")]
         else:
@@ -168,7 +224,7 @@ def main(argv: list[str]) -> None:
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
     scene.cycles.use_denoising = False
-    scene.render.film_transparent = True
+    scene.render.film_transparent = not opaque
     # Cycles' motion blur, shutter open a whole frame: it blurs what moves between the
     # frame's sub-steps as the importers evaluate them (USD transform caches at
     # sub-frames, glTF keyframes interpolated)
@@ -178,7 +234,9 @@ def main(argv: list[str]) -> None:
     scene.render.resolution_percentage = 100
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGBA"
-    report = {"blender": bpy.app.version_string,
+    scene.frame_set(frames[0] if frames else 0)
+    volumes = _volumes(scene, fire, glow)
+    report = {"blender": bpy.app.version_string, "volumes": volumes,
               "camera": {"from_file": from_file, "lens_mm": scene.camera.data.lens,
                          "sensor_width_mm": scene.camera.data.sensor_width},
               "frames": {str(f): _render(scene, f, out_dir / f"frame_{f:04d}.png")
