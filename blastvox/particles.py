@@ -6,7 +6,9 @@ negative for buoyant smoke and fire):
 
     x(t) = x0 + v0 (1 - e^(-k s)) / k + a (s - (1 - e^(-k s)) / k) / k,   s = t - t0
 
-so a SimCache stores only each particle's birth (time, position, velocity,
+A particle that reaches the ground stays on it (its height along up is held at the
+ground's; its motion across the ground goes on): dust settles instead of sinking
+through the floor. So a SimCache stores only each particle's birth (time, position, velocity,
 lifetime, size, system) and export evaluates positions at any frame exactly
 (:func:`positions_at`). Each system has a particle budget set by the scene;
 emission beyond it is dropped (first come, first kept), and each system draws
@@ -19,6 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from blastvox.geometry import exact
 
 
 @dataclass(frozen=True)
@@ -47,17 +51,34 @@ def particle_meta() -> list[dict]:
 
 
 def positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarray,
-                 system: np.ndarray, time: float, gravity: np.ndarray
+                 system: np.ndarray, time: float, gravity: np.ndarray,
+                 ground: tuple[np.ndarray, float] | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Alive particles at ``time``: (indices (K,), positions (K, 3) m).
 
-    gravity: (3,) m/s^2 in the same frame as the positions.
+    gravity: (3,) m/s^2 in the same frame as the positions; ground: (up (3,) unit
+    vector, height m along it) in that frame, or None (no ground: see
+    :func:`ground_plane`).
     """
-    alive, x = all_positions_at(birth, position, velocity, system, time, gravity)
+    alive, x = all_positions_at(birth, position, velocity, system, time, gravity, ground)
     return np.flatnonzero(alive), x[alive]
 
+
+def ground_plane(ground_height: float | None, up: np.ndarray,
+                 change: np.ndarray | None = None) -> tuple[np.ndarray, float] | None:
+    """The ``ground`` argument of :func:`positions_at` from a SimCache's
+    ``meta["ground_height"]`` (m along the model's ``up`` (3,), None: no ground), in the
+    frame ``change`` (3, 3) rotates model vectors into (the model's own if None)."""
+    if ground_height is None:
+        return None
+    up = np.asarray(up, dtype=np.float64)
+    if change is not None:
+        up = exact.matvec(change, up)
+    return up / exact.norm(up), float(ground_height)
+
 def all_positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarray,
-                     system: np.ndarray, time: float, gravity: np.ndarray
+                     system: np.ndarray, time: float, gravity: np.ndarray,
+                     ground: tuple[np.ndarray, float] | None = None
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Every particle at ``time``: (alive (P,) bool, positions (P, 3) m), an unborn one
     at its birth position and a dead one where it died (the motion of
@@ -71,4 +92,9 @@ def all_positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarr
     g = np.array([SYSTEMS[n].gravity_scale for n in SYSTEM_NAMES])[system][:, None]
     decay = -np.expm1(-k * s) / k  # (1 - e^-ks) / k
     accel = g * np.asarray(gravity)[None, :]
-    return alive, position + velocity * decay + accel * (s - decay) / k
+    x = position + velocity * decay + accel * (s - decay) / k
+    if ground is not None:
+        up, height = ground
+        below = np.minimum(exact.dot(x, up) - height, 0.0)  # (P,) m under it, or 0
+        x = x - below[:, None] * up[None, :]
+    return alive, x

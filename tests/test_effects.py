@@ -115,6 +115,36 @@ def test_particle_closed_form_matches_numerical_integration():
     np.testing.assert_array_equal(alive, expected)
 
 
+def test_particles_settle_on_the_ground_and_go_on_across_it():
+    """A particle that reaches the ground stays on it: its height along up is held at
+    the ground's, its motion across the ground is the closed form's; above the ground
+    nothing changes, and without a ground nothing does."""
+    from blastvox.particles import ground_plane
+
+    rng = np.random.default_rng(5)
+    birth = np.zeros(200)
+    pos = np.column_stack([rng.normal(size=200), rng.normal(size=200),
+                           rng.uniform(0.0, 3.0, 200)])
+    vel = rng.normal(size=(200, 3)) * 4.0
+    system = np.zeros(200, dtype=np.uint8)  # dust: falls
+    gravity = np.array([0.0, 0.0, -9.81])
+    ground = ground_plane(0.5, np.array([0.0, 0.0, 2.0]))  # up need not be unit
+    free = positions_at(birth, pos, vel, system, 3.0, gravity)[1]
+    held = positions_at(birth, pos, vel, system, 3.0, gravity, ground)[1]
+    assert (free[:, 2] < 0.5).sum() > 50  # most have fallen through without a ground
+    np.testing.assert_allclose(held[~(free[:, 2] >= 0.5), 2], 0.5, atol=1e-12)
+    np.testing.assert_array_equal(held[:, :2], free[:, :2])
+    above = free[:, 2] >= 0.5
+    np.testing.assert_array_equal(held[above], free[above])
+    assert ground_plane(None, np.array([0.0, 0.0, 1.0])) is None
+    # in a turned frame (Z-up model into a Y-up export) the plane turns with it
+    change = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+    turned = positions_at(birth, pos @ change.T, vel @ change.T, system, 3.0,
+                          change @ gravity, ground_plane(0.5, np.array([0.0, 0.0, 1.0]),
+                                                         change))[1]
+    np.testing.assert_allclose(turned, held @ change.T, atol=1e-12)
+
+
 def test_camera_shakes_only_after_the_wave_arrives(tmp_path):
     model = wall(tmp_path, "brick")
     camera = ((0.0, -40.0, 2.0), (0.0, 0.0, 1.0), 35.0)

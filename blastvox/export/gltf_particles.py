@@ -36,8 +36,8 @@ def add_particles(cache, b: _Builder, mats: list, meshes: list, nodes: list, cha
     animation channel; ``t_acc`` the frame times' accessor (None: no frames)."""
     from blastvox.export.usd_effects import PARTICLE_COLORS, PARTICLE_LOOKS
     from blastvox.export.usd_specs import model_gravity
-    from blastvox.geometry.frames import frame_change
-    from blastvox.particles import SYSTEM_NAMES, all_positions_at
+    from blastvox.geometry.frames import frame_change, up_vector
+    from blastvox.particles import SYSTEM_NAMES, all_positions_at, ground_plane
 
     system = cache.arrays.get("particle_system")
     if system is None or not len(system) or t_acc is None:
@@ -46,6 +46,8 @@ def add_particles(cache, b: _Builder, mats: list, meshes: list, nodes: list, cha
     g = change @ model_gravity(cache)
     x0 = cache.particle_position.astype(np.float64) @ change.T
     v0 = cache.particle_velocity.astype(np.float64) @ change.T
+    ground = ground_plane(cache.meta.get("ground_height"),
+                          up_vector(cache.model.meta.get("up_axis", "Y")), change)
     birth = cache.particle_birth.astype(np.float64)
     radius = cache.particle_size.astype(np.float64) / 2
     times = cache.frame_time.astype(np.float64)
@@ -70,7 +72,7 @@ def add_particles(cache, b: _Builder, mats: list, meshes: list, nodes: list, cha
         mesh["name"] = f"particle_{name}"
         meshes.append(mesh)
         kinds = np.full(len(mine), index, dtype=np.uint8)
-        states = [all_positions_at(birth[mine], x0[mine], v0[mine], kinds, t, g)
+        states = [all_positions_at(birth[mine], x0[mine], v0[mine], kinds, t, g, ground)
                   for t in times]
         position = np.stack([x for _, x in states], axis=1)                # (K, F, 3)
         alive = np.stack([a for a, _ in states], axis=1)                   # (K, F)

@@ -67,7 +67,7 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
     prim with widths and a bound UsdPreviewSurface imports as a POINTCLOUD object
     with no material slot, and rendering its frame with an empty points sample
     killed the process (SIGSEGV, exit 139)."""
-    from blastvox.particles import SYSTEM_NAMES, SYSTEMS, all_positions_at
+    from blastvox.particles import SYSTEM_NAMES, SYSTEMS, all_positions_at, ground_plane
 
     c = w.cache
     system = c.arrays.get("particle_system")
@@ -80,12 +80,14 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
     birth = c.particle_birth.astype(np.float64)
     size = c.particle_size.astype(np.float32)
     times = c.frame_time.astype(np.float64).tolist()
+    ground = ground_plane(c.meta.get("ground_height"),
+                          up_vector(c.model.meta.get("up_axis", "Y")), w.change)
     for index, name in enumerate(SYSTEM_NAMES):
         mine = np.flatnonzero(system == index)
         if not mine.size:
             continue
         states = [all_positions_at(birth[mine], x0[mine], v0[mine],
-                                   np.full(len(mine), index, dtype=np.uint8), t, g)
+                                   np.full(len(mine), index, dtype=np.uint8), t, g, ground)
                   for t in times]
         if w.particle_mode == "volumes":
             from blastvox.export.usd_volumes import write_volume

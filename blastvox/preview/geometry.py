@@ -23,7 +23,7 @@ from blastvox.cache import SimCache
 from blastvox.export.pieces import piece_meshes
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import gravity_vector, up_vector
-from blastvox.particles import SYSTEM_NAMES, SYSTEMS, positions_at
+from blastvox.particles import SYSTEM_NAMES, SYSTEMS, ground_plane, positions_at
 
 CHAR_S = 3.0                             #: s for a burning voxel to char fully
 CHAR_COLOR = np.array([0.02, 0.015, 0.012])  #: linear RGB of fully charred faces
@@ -98,6 +98,7 @@ class PreviewScene:
         self.tri_ignite = ignite_frame[self.tri_voxel]
         self.gravity = np.asarray(cache.meta.get("gravity_vector", gravity_vector(up_axis)),
                                   dtype=np.float64).reshape(3)
+        self.ground = ground_plane(cache.meta.get("ground_height"), up_vector(up_axis))
         get = cache.arrays.get
         self.particle_birth = np.asarray(get("particle_birth", np.zeros(0)), dtype=np.float64)
         self.particle_position = np.asarray(get("particle_position", np.zeros((0, 3))),
@@ -133,7 +134,8 @@ class PreviewScene:
         system = self.particle_system
         t = float(self.times[frame])
         alive, pos = positions_at(self.particle_birth, self.particle_position,
-                                  self.particle_velocity, system, t, self.gravity)
+                                  self.particle_velocity, system, t, self.gravity,
+                                  self.ground)
         sys_alive = system[alive]
         life = np.array([SYSTEMS[n].lifetime for n in SYSTEM_NAMES])[sys_alive]
         age = np.clip((t - self.particle_birth[alive]) / life, 0.0, 1.0)
