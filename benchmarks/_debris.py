@@ -19,7 +19,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from blastvox.materials import MaterialLibrary
 from blastvox.model import VoxelModel
@@ -68,6 +67,8 @@ def cubes(centres: np.ndarray, directory: Path) -> VoxelModel:
     The centres must lie on a lattice of pitch 2 x 0.2 m or coarser so that every
     cube fills exactly one lattice cell and no two cubes touch.
     """
+    import trimesh  # here, not at the top: blastvox first (see _machine's docstring)
+
     # a hair under the voxel, so float32 mesh files cannot stretch the lattice by a cell
     box = trimesh.creation.box(extents=(PIECE_M * (1 - 1e-3),) * 3)
     centres = np.asarray(centres, dtype=np.float64)

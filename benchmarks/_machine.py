@@ -1,4 +1,9 @@
-"""What every benchmark shares: the machine line above its tables, pass/FAIL, --repeat."""
+"""What every benchmark shares: the machine line above its tables, pass/FAIL, --repeat.
+
+Importing it imports blastvox, which pins numpy's loops and OpenBLAS's kernels for
+what loads after it (blastvox/__init__.py): a benchmark that imports this module
+before trimesh or scipy.linalg times the CLI's shot, byte for byte.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +11,8 @@ import argparse
 import os
 import platform
 from importlib import metadata
+
+import blastvox  # noqa: F401  (see the docstring)
 
 
 def machine(packages: tuple[str, ...] = ("blastvox", "numpy", "numba")) -> str:

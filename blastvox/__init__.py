@@ -53,5 +53,11 @@ def _has_avx2_fma() -> bool:
 
 _os.environ.setdefault("OMP_WAIT_POLICY", "passive")  # read when numba loads libgomp
 
+#: scipy's BLAS was loaded before blastvox with no OPENBLAS_CORETYPE set: it keeps the
+#: kernels its CPU picked, which the stress solver's sparse LU calls (simulate() warns)
+SCIPY_BLAS_FIRST = ("OPENBLAS_CORETYPE" not in _os.environ
+                    and any(name in _sys.modules
+                            for name in ("scipy.linalg", "scipy.sparse.linalg")))
+
 if _sys.platform.startswith("linux") and _has_avx2_fma():
     _os.environ.setdefault("OPENBLAS_CORETYPE", OPENBLAS_CORE)

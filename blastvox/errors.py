@@ -57,6 +57,10 @@ class ExportWarning(BlastvoxWarning):
     import of thousands of nodes)."""
 
 
+class HostDependenceWarning(BlastvoxWarning):
+    """A run whose bytes may depend on the CPU it runs on (see blastvox/__init__.py)."""
+
+
 class SimulationLimitWarning(BlastvoxWarning):
     """A run's settings go beyond what the simulator can honour (see blastvox.simulate.limits).
 

@@ -195,3 +195,28 @@ def test_the_shot_does_not_depend_on_the_blas_kernels_numpy_picked(tmp_path):
                          timeout=900, env={**os.environ, "OPENBLAS_CORETYPE": "SkylakeX"})
     assert run.returncode == 0, run.stderr
     assert first.read_bytes() == plain.read_bytes()
+
+
+def test_simulate_warns_when_scipy_s_blas_came_first():
+    """A process that imported scipy.linalg before blastvox (trimesh does) keeps the BLAS
+    kernels its CPU picked: simulate() says so with a HostDependenceWarning; imported
+    after blastvox, or with OPENBLAS_CORETYPE set by the user, it does not."""
+    import os
+
+    code = ("import warnings, {first}\n"
+            "import blastvox\n"
+            "from blastvox.simulate import engine\n"
+            "with warnings.catch_warnings(record=True) as caught:\n"
+            "    warnings.simplefilter('always')\n"
+            "    engine._warn_if_host_dependent()\n"
+            "print([type(w.message).__name__ for w in caught])\n")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+
+    def caught(first: str, **extra: str) -> str:
+        return subprocess.run([sys.executable, "-c", code.format(first=first)],
+                              capture_output=True, text=True, timeout=120, check=True,
+                              env={**env, **extra}).stdout.strip()
+
+    assert caught("trimesh, scipy.sparse.linalg") == "['HostDependenceWarning']"
+    assert caught("os") == "[]"
+    assert caught("scipy.linalg", OPENBLAS_CORETYPE="Zen") == "[]"

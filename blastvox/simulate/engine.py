@@ -452,6 +452,7 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
     """
     check_settings(settings)
     run_bytes = check_run_memory(settings, model)
+    _warn_if_host_dependent()
     progress = progress or Progress()
     warn = warn or (lambda message: None)
     cold = not _compiled_before()
@@ -469,6 +470,22 @@ def simulate(model: VoxelModel, settings: SimSettings, progress: Progress | None
         raise
     finish()
     return cache
+
+
+def _warn_if_host_dependent() -> None:
+    """A :class:`~blastvox.errors.HostDependenceWarning` when scipy's BLAS was loaded
+    before blastvox could pin its kernels (``blastvox.SCIPY_BLAS_FIRST``)."""
+    import warnings
+
+    import blastvox
+    from blastvox.errors import HostDependenceWarning
+
+    if blastvox.SCIPY_BLAS_FIRST:
+        warnings.warn(HostDependenceWarning(
+            "scipy.linalg was imported before blastvox, so its BLAS kept the kernels this "
+            "CPU picks: the stress solver may round differently from another CPU's and the "
+            "shot differ from the CLI's there; import blastvox first, or set "
+            "OPENBLAS_CORETYPE=Haswell before importing scipy"), stacklevel=3)
 
 
 def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Progress,
