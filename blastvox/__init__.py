@@ -17,8 +17,10 @@ set) on an x86-64 CPU that has AVX2 and FMA, for the BLAS libraries loaded after
 the stress solver's sparse LU (scipy's SuperLU) calls BLAS, whose kernels OpenBLAS
 picks by CPU (SkylakeX on an AVX-512 EPYC, Haswell or Zen on another), and they round
 differently. The simulator's own small products do not go through BLAS
-(:mod:`blastvox.geometry.exact`). A process that loaded scipy's sparse solver before
-blastvox keeps that library's choice; the CLI always imports blastvox first.
+(:mod:`blastvox.geometry.exact`). A process that imported scipy.linalg before
+blastvox (trimesh does) keeps that library's choice, and ``simulate()`` says so
+(:class:`~blastvox.errors.HostDependenceWarning`); the CLI always imports blastvox
+first, and so does every benchmark that imports ``benchmarks/_machine.py`` first.
 """
 
 import os as _os
