@@ -6,14 +6,14 @@ negative for buoyant smoke and fire):
 
     x(t) = x0 + v0 (1 - e^(-k s)) / k + a (s - (1 - e^(-k s)) / k) / k,   s = t - t0
 
-A particle that reaches the ground stays on it (its height along up is held at the
-ground's; its motion across the ground goes on): dust settles instead of sinking
-through the floor. So a SimCache stores only each particle's birth (time, position, velocity,
+so a SimCache stores only each particle's birth (time, position, velocity,
 lifetime, size, system) and export evaluates positions at any frame exactly
-(:func:`positions_at`). Each system has a particle budget set by the scene;
-emission beyond it is dropped (first come, first kept), and each system draws
-from its own seeded random stream, so switching one effect off leaves the
-others' particles unchanged.
+(:func:`positions_at`). One exception to "never collides": a particle that reaches
+the ground stays on it (its height along up is held at the ground's, its motion
+across the ground goes on), so dust settles instead of sinking through the floor.
+Each system has a particle budget set by the scene; emission beyond it is
+dropped (first come, first kept), and each system draws from its own seeded
+random stream, so switching one effect off leaves the others' particles unchanged.
 """
 
 from __future__ import annotations
