@@ -21,6 +21,14 @@ differently. The simulator's own small products do not go through BLAS
 blastvox (trimesh does) keeps that library's choice, and ``simulate()`` says so
 (:class:`~blastvox.errors.HostDependenceWarning`); the CLI always imports blastvox
 first, and so does every benchmark that imports ``benchmarks/_machine.py`` first.
+
+And it lets numba's OpenMP threads sleep between parallel loops
+(``OMP_WAIT_POLICY=passive``, unless set): libgomp's default spins them, and on a
+2-core machine with one other busy process (a render, a second shot of ``make -j``)
+the spinning threads and that process took turns on the cores: the papers' building
+ran 1.7x slower on two threads than on one. The price is in small scenes, whose steps
+are many tiny parallel loops: 100 pieces' contacts 1.7x slower (docs/benchmarks.md,
+"Threads under load"; ``GOMP_SPINCOUNT=10000`` wins that back, not made the default).
 """
 
 import os as _os
