@@ -125,6 +125,7 @@ bench: $(STAMP)
 ## docs/physics.md ("Verification"). `python benchmarks/verification.py --quick`: ~1 minute
 verify: $(STAMP)
 	$(BIN)/python benchmarks/verification.py --docs
+	$(BIN)/python benchmarks/verification_support.py --docs
 
 ## clean: outputs, and numba's compiled kernels of this source tree (never needed after
 ## an edit: the cache is keyed on the source, see blastvox/_kernel_cache.py)

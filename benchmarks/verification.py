@@ -155,6 +155,18 @@ def _model(boxes, size: float, material: str, ground="auto", chunk_size=None,
     return model, float(abs(mesh.volume))
 
 
+def voxelize_meshes(objects, size: float, ground="auto"):
+    """Voxelize (trimesh mesh, material) pairs as separate objects at ``size`` m cubes,
+    Z up (one resting on another is not bonded to it)."""
+    with tempfile.TemporaryDirectory(prefix="blastvox-verify-") as tmp:
+        requests = []
+        for k, (mesh, material) in enumerate(objects):
+            path = Path(tmp) / f"object{k}.stl"
+            mesh.export(path)
+            requests.append(ObjectRequest(mesh=path, voxel_size=(size,) * 3, material=material))
+        return voxelize(requests, VoxelizeSettings(up_axis="Z", ground=ground, library=LIBRARY))
+
+
 def _advance(model, settings: SimSettings, seconds: float,
              watch: Callable[[engine.Run, float], None] | None = None) -> engine.Run:
     """Run ``model`` for ``seconds`` s of shot by stepping it (no frames recorded);

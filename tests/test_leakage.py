@@ -119,15 +119,17 @@ def _shot(model, settings) -> engine.Run:
 
 def test_the_side_walls_of_a_house_are_pushed_in(tmp_path, monkeypatch):
     """20 kg TNT 3 m before the door: the side walls break and their pieces move into the
-    room. With the room open to the wave (as before leaky rooms) the inside faces took the
-    outside's diffracted load too and the pieces barely moved."""
+    room (485 N s inward). With the room open to the wave (as before leaky rooms) the
+    inside faces take the wave through the door, in sight of it, while the outside
+    faces, behind the front wall's corners, take what comes round: the pieces move out
+    (-177 N s; with both at their straight-line distances they barely moved)."""
     model = _house(tmp_path)
     settings = _settings()
     leaky = _inward_momentum(_shot(model, settings), model)
     monkeypatch.setattr(engine, "find_leaky_rooms", lambda *args: None)
-    squeezed = _inward_momentum(_shot(model, settings), model)
+    open_room = _inward_momentum(_shot(model, settings), model)
     assert leaky > 0.0
-    assert leaky > 3.0 * abs(squeezed), (leaky, squeezed)
+    assert open_room < 0.4 * leaky, (leaky, open_room)
 
 
 def test_the_cache_lists_the_room_and_info_counts_it(tmp_path):

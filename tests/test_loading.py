@@ -396,7 +396,9 @@ def test_a_pulverized_wall_takes_the_wave_s_momentum_once(tmp_path, mass):
     0.125 m voxels (four layers) the wall left with 90.7 and 488 kN s, at 0.25 m (two
     layers) 55.1 and 244 kN s, against at most 64 and 204 kN s (the normal reflected
     impulse at the nearest point times the face's 9 m^2). Now the impulse through a
-    face is taken once: both voxel sizes agree within 5 %, under that bound."""
+    face is taken once: both voxel sizes agree within 6 %, under that bound. (The back
+    face takes the wave that came round the wall, weaker for its longer path, measured
+    on each size's own lattice: 100 kg gives 43.2 and 41.0 kN s.)"""
     charge = ChargeSpec((-2.25, 0.0, 1.5), mass)
     ir = _reflected_impulse(2.0 / mass ** (1 / 3), mass, AIR)[0]
     totals = []
@@ -407,7 +409,7 @@ def test_a_pulverized_wall_takes_the_wave_s_momentum_once(tmp_path, mass):
                          VoxelizeSettings(up_axis="Z", ground=None))
         totals.append(_momentum_after(model, _free(duration=0.05, fps=120.0,
                                                    charges=(charge,))))
-    assert totals[1] == pytest.approx(totals[0], rel=0.05), totals
+    assert totals[1] == pytest.approx(totals[0], rel=0.06), totals
     assert 0.0 < max(totals) <= ir * 9.0, (totals, ir * 9.0)
 
 

@@ -126,14 +126,16 @@ def reset_clearing(state) -> None:
     if state.caches.sight is not None:
         state.caches.sight[:] = 0
     state.caches.reach = None
+    state.caches.detour = None
 
 
 def exposure_of(model, state, charge_pos: np.ndarray, active: np.ndarray,
                 gas: np.ndarray | None) -> Exposure:
     """The :class:`~blastvox.simulate.state.Exposure` of the current wave: the shielding
     grid, :func:`clearing_of`, the charges' gas (zeros if None), the faces' sight
-    cache and the air the waves reach (kept in state.caches, reset with the clearing
-    by :func:`reset_clearing`: a new wave)."""
+    cache, the air the waves reach and their detours round solid
+    (:mod:`blastvox.simulate.diffraction`; kept in state.caches, reset with the
+    clearing by :func:`reset_clearing`: a new wave)."""
     caches = state.caches
     n_charges = len(charge_pos)
     if caches.sight is None or caches.sight.shape[1] != n_charges:
@@ -145,6 +147,10 @@ def exposure_of(model, state, charge_pos: np.ndarray, active: np.ndarray,
         caches.reach = wave_reach(state.shielding, charge_pos)
         if caches.leaky is not None:  # rooms fill through their openings, not by the wave
             caches.reach[:, caches.leaky] = False
+    if caches.detour is None or caches.detour.extra.shape[0] != n_charges:
+        from blastvox.simulate.diffraction import detour_field
+
+        caches.detour = detour_field(state.shielding, charge_pos, caches.ground)
     return Exposure(state.shielding, clearing_of(model, state, charge_pos, active),
                     np.zeros((n_charges, 2)) if gas is None else gas, caches.sight,
-                    caches.reach)
+                    caches.reach, caches.detour)

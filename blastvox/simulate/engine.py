@@ -207,6 +207,8 @@ class Run:
                                 sm.ground_height if settings.ground else None)
         dt = settings.step_seconds()
         combustible = bool(np.isfinite(state.voxels.combust).any())
+        if settings.ground and sm.ground_height is not None:  # the detours' solid below it
+            state.caches.ground = (np.asarray(sm.up, dtype=np.float64), float(sm.ground_height))
         return cls(
             model=sm, state=state, charges=charges, settings=settings, dt=dt,
             gravity=gravity_vector(sm.up, settings.gravity),

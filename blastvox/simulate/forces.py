@@ -29,6 +29,7 @@ from blastvox.geometry.voxel_faces import FACE_CORNERS
 from blastvox.jit import helper, kernel
 from blastvox.simulate.boundary import boundary_of
 from blastvox.simulate.clearing import exposure_of
+from blastvox.simulate.diffraction import detour_at, voxel_detour
 from blastvox.simulate.kernels import bodies_in_shell, hold, wake_on_impulse
 from blastvox.simulate.model import CONFORM_FACES
 from blastvox.simulate.shielding import grid_cell, ray_blocked
@@ -104,11 +105,13 @@ def _cached_sight(sight, v, c, f, exposure, point, area, charge_pos) -> int:
 
 
 @helper
-def _point_load(front, c, px, py, pz, t0, t1, out):
+def _point_load(front, c, px, py, pz, t0, t1, out, extra):
     """The wave of charge c at point p: out[0] distance m, out[1:4] unit radius,
     out[4] positive step fraction, out[5] negative step fraction, out[6:15] ps, td, b,
-    is, pr, ir, q, u, i_neg (see face_params_at). Returns False if the wave has not
-    reached p by t1 or p is at the charge."""
+    is, pr, ir, q, u, i_neg (see face_params_at). ``extra`` m: the wave's detour round
+    solid to p (:mod:`blastvox.simulate.diffraction`): it arrives, and is as strong, as
+    that much farther out. Returns False if the wave has not reached p by t1 or p is at
+    the charge."""
     rx = px - front.position[c, 0]
     ry = py - front.position[c, 1]
     rz = pz - front.position[c, 2]
@@ -116,7 +119,7 @@ def _point_load(front, c, px, py, pz, t0, t1, out):
     if r <= 0.0:
         return False
     (ps, ta, td, b, imp, pr, ir, q, u, p_neg, i_neg,
-     td_neg) = face_params_at(front.table, front.burst[c], r, front.scale[c])
+     td_neg) = face_params_at(front.table, front.burst[c], r + extra, front.scale[c])
     ta += front.time[c]
     if t1 <= ta:
         return False
@@ -125,6 +128,18 @@ def _point_load(front, c, px, py, pz, t0, t1, out):
     out[6], out[7], out[8], out[9], out[10] = ps, td, b, imp, pr
     out[11], out[12], out[13], out[14] = ir, q, u, i_neg
     return True
+
+
+@helper
+def _face_detour(exposure, c, point, area) -> float:
+    """The detour (m) of charge c's wave round solid to the air just outside the face
+    (centre ``point``, outward vector area ``area``; :func:`detour_at`)."""
+    norm = math.sqrt(area[0] ** 2 + area[1] ** 2 + area[2] ** 2)
+    if norm <= 0.0:
+        return 0.0
+    lift = _LIFT * exposure.detour.cell / norm
+    return detour_at(exposure.detour, c, point[0] + lift * area[0], point[1] + lift * area[1],
+                     point[2] + lift * area[2])
 
 
 @helper
@@ -181,6 +196,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
     corner_point = np.empty((8, 3))
     corner_load = np.empty((8, 15))
     corner_state = np.zeros(8, dtype=np.int64)  # 0 unknown, 1 loaded, -1 no load
+    shadow_load = np.empty(15)
     for k in range(boundary.shape[0]):
         v = boundary[k]
         if not voxel_alive[v]:
@@ -203,8 +219,9 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                 continue
             d = math.sqrt((centre[0] - charge_pos[c, 0]) ** 2 + (centre[1] - charge_pos[c, 1]) ** 2
                           + (centre[2] - charge_pos[c, 2]) ** 2)
-            if d - voxel_radius[v] > reach_out[c] or d + voxel_radius[v] < reach_in[c]:
-                continue
+            if d - voxel_radius[v] > reach_out[c] or d + voxel_radius[v] + voxel_detour(
+                    exposure.detour, c, v, centre[0], centre[1], centre[2]) < reach_in[c]:
+                continue  # not reached yet, or passed (come round to its far faces too)
             s_clear, g_clear = clearing[b, c, 0], clearing[b, c, 1]
             if slot >= 0:
                 for f in range(CONFORM_FACES):
@@ -215,12 +232,13 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                         continue  # no such face (it would take exactly no load)
                     rotate_into(rot, conform_area[slot, f], area)
                     to_world_into(rot, body_pos[b], body_com[b], conform_centroid[slot, f], point)
-                    if not _point_load(front, c, point[0], point[1], point[2], t0, t1,
-                                       corner_load[0]):
-                        continue
                     seen = _cached_sight(sight, v, c, f, exposure, point, area, charge_pos)
                     if seen == 3:
                         continue  # sealed off from this wave
+                    extra = 0.0 if seen == 1 else _face_detour(exposure, c, point, area)
+                    if not _point_load(front, c, point[0], point[1], point[2], t0, t1,
+                                       corner_load[0], extra):
+                        continue
                     j = _face_impulse(corner_load[0], area, seen == 1, s_clear, g_clear)
                     _push(point[0], point[1], point[2], j, area, 1.0, pivot, acc_p, acc_l, index)
                 continue
@@ -239,7 +257,7 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                         to_world_into(rot, body_pos[b], body_com[b],
                                       vertices[voxel_vertices[v, q]], corner_point[q])
                         placed = _point_load(front, c, corner_point[q, 0], corner_point[q, 1],
-                                             corner_point[q, 2], t0, t1, corner_load[q])
+                                             corner_point[q, 2], t0, t1, corner_load[q], 0.0)
                         corner_state[q] = 1 if placed else -1
                     for a in range(3):
                         point[a] += 0.25 * corner_point[q, a]
@@ -250,11 +268,19 @@ def blast_impulses(front, t0, t1, boundary, geometry, voxels, bodies, active, lo
                 if seen == 3:
                     continue  # sealed off from this wave
                 direct = seen == 1
+                extra = 0.0 if direct else _face_detour(exposure, c, point, area)
+                # the wave that comes round (later, weaker) is the same at the four corners
+                # of a face in its shadow: its centre's
+                shadowed = extra > 0.0 and _point_load(front, c, point[0], point[1], point[2],
+                                                       t0, t1, shadow_load, extra)
+                if extra > 0.0 and not shadowed:
+                    continue  # it has not come round to this face yet
                 for n in range(4):
                     q = FACE_CORNERS[f, n]
                     if corner_state[q] < 0:
                         continue
-                    j = _face_impulse(corner_load[q], area, direct, s_clear, g_clear)
+                    load = shadow_load if shadowed else corner_load[q]
+                    j = _face_impulse(load, area, direct, s_clear, g_clear)
                     _push(corner_point[q, 0], corner_point[q, 1], corner_point[q, 2], j, area,
                           0.25, pivot, acc_p, acc_l, index)
 
@@ -273,8 +299,11 @@ def blast_phase(model, state, charges, t0: float, t1: float, front_out: np.ndarr
     loads.impulse[:n] = 0.0
     loads.angular[:n] = 0.0
     reach_in = charges.tail_radius(t0)
+    # a shadowed face's wave comes round, later: a body is loaded until it has passed
+    # the farthest way round too (each voxel's own way round: blast_impulses)
+    shell_in = reach_in if state.caches.detour is None else reach_in - state.caches.detour.most
     if not bodies_in_shell(bodies.pos, bodies.radius, bodies.live, n, charges.position,
-                           reach_in, front_out, state.marks.active):
+                           shell_in, front_out, state.marks.active):
         if state.holding:  # every wave has passed: what held voxels took is spent
             clear_held(loads)
             loads.shadow[:] = 0

@@ -33,6 +33,7 @@ from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.clearing import exposure_of
+from blastvox.simulate.diffraction import Detour
 from blastvox.simulate.kernels import hold, release_held
 from blastvox.simulate.members import MEMBER_NORMALS, edge_on, effective_thickness
 from blastvox.simulate.model import link_factor
@@ -171,26 +172,28 @@ def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.n
     state's Bodies (pos, rot, com read)."""
     # numba's parallel loops take arrays, not structs of arrays: the structs go in
     # as their fields and are built again inside
-    _views_ahead(tuple(front), tuple(exposure.grid), tuple(exposure)[1:], geometry.centroid,
-                 members, (bodies.pos, bodies.rot, bodies.com), voxel_body, order,
-                 tuple(ahead))
+    _views_ahead(tuple(front), tuple(exposure.grid), tuple(exposure)[1:5],
+                 tuple(exposure.detour), geometry.centroid, members,
+                 (bodies.pos, bodies.rot, bodies.com), voxel_body, order, tuple(ahead))
 
 
 @parallel_kernel
-def _views_ahead(front_fields, grid_fields, exposure_fields, centroid, members, poses,
-                 voxel_body, order, ahead_fields):
+def _views_ahead(front_fields, grid_fields, exposure_fields, detour_fields, centroid, members,
+                 poses, voxel_body, order, ahead_fields):
     """:func:`views_ahead`'s loop, each voxel of ``order`` on its own (see there); the
     structs come as tuples of their fields, unpacked before the loop."""
     position, time, scale, table, burst, inner, outer = front_fields
     origin, cell, dims, count, member, vertices, corners, slot, box_lo, box_hi = grid_fields
     clearing, gas, sight, reach = exposure_fields
+    d_origin, d_cell, d_dims, d_extra, d_most, d_voxel = detour_fields
     thickness, speed, material, normals, member_axis = members
     body_pos, body_rot, body_com = poses
     known, peak, impulse, depth, blocked, thick, squeezed = ahead_fields
     for i in nb.prange(len(order)):
         front = Front(position, time, scale, table, burst, inner, outer)
         exposure = Exposure(Occupancy(origin, cell, dims, count, member, vertices, corners,
-                                      slot, box_lo, box_hi), clearing, gas, sight, reach)
+                                      slot, box_lo, box_hi), clearing, gas, sight, reach,
+                            Detour(d_origin, d_cell, d_dims, d_extra, d_most, d_voxel))
         v = order[i]
         b = voxel_body[v]
         centre = np.empty(3)

@@ -198,13 +198,16 @@ class Exposure(NamedTuple):
     line of sight to each charge in the current wave: 0 not yet known, 1 clear,
     2 shadowed, 3 sealed off (faces 0-5, and a conform voxel's surface by facing,
     6-11); reach (C, X*Y*Z) bool, the grid cells each charge's wave reaches through
-    air (:func:`blastvox.simulate.confinement.wave_reach`), at the wave's start."""
+    air (:func:`blastvox.simulate.confinement.wave_reach`), at the wave's start;
+    detour: how much farther each charge's wave travels round solid to each cell
+    (:class:`~blastvox.simulate.diffraction.Detour`), at the wave's start."""
 
     grid: Occupancy
     clearing: np.ndarray
     gas: np.ndarray
     sight: np.ndarray
     reach: np.ndarray
+    detour: tuple
 
 
 class WaveViews(NamedTuple):
@@ -241,7 +244,9 @@ class Caches:
     ground's follow them). views: the waves' element views (see
     :func:`blastvox.simulate.fracture.fracture_wave`). leaky: (X*Y*Z,) bool, the
     shielding grid's cells in rooms the waves enter only through openings
-    (:mod:`blastvox.simulate.leakage`), which no wave reaches directly."""
+    (:mod:`blastvox.simulate.leakage`), which no wave reaches directly. detour: the
+    current wave's :class:`~blastvox.simulate.diffraction.Detour`; ground: (up (3,),
+    height m) of the ground plane, or None without one (solid under the detours)."""
 
     boundary: tuple | None = None
     version: int = 0
@@ -259,6 +264,8 @@ class Caches:
     fragment_rows: tuple = (0, 0)
     views: WaveViews | None = None
     leaky: np.ndarray | None = None
+    detour: tuple | None = None
+    ground: tuple | None = None
 
 
 @dataclass
