@@ -1085,13 +1085,14 @@ def revision() -> str:
     return f"git {sha} + local changes in blastvox/ (diff sha1 {digest})"
 
 
-def write_docs(report: list[str], path: Path = DOC) -> None:
-    """Replace what lies between the verification markers of ``path`` with ``report``."""
+def write_docs(report: list[str], path: Path = DOC, begin: str = BEGIN, end: str = END) -> None:
+    """Replace what lies between the markers ``begin`` and ``end`` (the verification's)
+    of ``path`` with ``report``."""
     text = path.read_text(encoding="utf-8")
-    if BEGIN not in text or END not in text:
-        raise SystemExit(f"{path}: no {BEGIN} ... {END} block to rewrite")
-    block = "\n".join([BEGIN, *report, END])
-    text = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
+    if begin not in text or end not in text:
+        raise SystemExit(f"{path}: no {begin} ... {end} block to rewrite")
+    block = "\n".join([begin, *report, end])
+    text = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: block, text, flags=re.S)
     path.write_text(text, encoding="utf-8")
 
 

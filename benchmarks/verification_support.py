@@ -35,10 +35,8 @@ from __future__ import annotations
 import argparse
 import datetime
 import math
-import re
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -252,16 +250,6 @@ def tables(out: dict) -> list[str]:
     return lines
 
 
-def write_docs(report: list[str], path: Path = DOC) -> None:
-    """Replace what lies between this part's markers in ``path`` with ``report``."""
-    text = path.read_text(encoding="utf-8")
-    if BEGIN not in text or END not in text:
-        raise SystemExit(f"{path}: no {BEGIN} ... {END} block to rewrite")
-    block = "\n".join([BEGIN, *report, END])
-    text = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-    path.write_text(text, encoding="utf-8")
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true",
@@ -279,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
               f"These rows took {time.perf_counter() - started:.0f} s.", "", *tables(out)]
     print("\n".join(report[4:]))
     if args.docs:
-        write_docs(report)
+        base.write_docs(report, begin=BEGIN, end=END)
         print(f"wrote {DOC.relative_to(base.ROOT)}", file=sys.stderr)
     return 0
 

@@ -184,7 +184,7 @@ def _lower(heap, place, dist, size, q, value) -> int:
     while pos > 0:
         parent = (pos - 1) // 2
         other = heap[parent]
-        if dist[other] < value or (dist[other] == value and other < q):
+        if _before(dist, other, q):
             break
         heap[pos] = other
         place[other] = pos
