@@ -121,7 +121,7 @@ bench: $(STAMP)
 	mv "$$out" $(BENCH_DOC); echo "wrote $(BENCH_DOC)"
 
 ## verify: the verification suite (issue 34): canonical scenes against their published
-## references over voxel size x dt (an hour or more on 2 cores); rewrites its tables in
+## references over voxel size x dt (about 15 minutes on 2 cores, 2026-11-30); rewrites its tables in
 ## docs/physics.md ("Verification"). `python benchmarks/verification.py --quick`: ~1 minute
 verify: $(STAMP)
 	$(BIN)/python benchmarks/verification.py --docs
