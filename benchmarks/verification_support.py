@@ -98,8 +98,7 @@ def _fallen(run, model, part: np.ndarray) -> float:
 
 def lintel(size: float, dt: float) -> dict:
     """Scene 6a: the stone lintel on two piers (one object each: it rests on them)."""
-    import trimesh
-
+    trimesh = base.trimesh
     started = time.perf_counter()
     piers = trimesh.util.concatenate([
         trimesh.creation.box(extents=(PIER, PIER, PIER_HEIGHT)).apply_translation(

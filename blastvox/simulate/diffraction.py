@@ -227,12 +227,19 @@ def _before(dist, a, b) -> bool:
 
 
 @helper
+def _cell_at(detour, x, y, z):
+    """The (i, j, k) of the detour grid's cell holding the point (x, y, z) m (may lie
+    outside the grid)."""
+    return (int(math.floor((x - detour.origin[0]) / detour.cell)),
+            int(math.floor((y - detour.origin[1]) / detour.cell)),
+            int(math.floor((z - detour.origin[2]) / detour.cell)))
+
+
+@helper
 def detour_at(detour, c, x, y, z) -> float:
     """The detour (m) of charge c's wave at the point (x, y, z) m: 0 outside the grid
     (the open) or where the wave reaches no air there (a face pressed against solid)."""
-    i = int(math.floor((x - detour.origin[0]) / detour.cell))
-    j = int(math.floor((y - detour.origin[1]) / detour.cell))
-    k = int(math.floor((z - detour.origin[2]) / detour.cell))
+    i, j, k = _cell_at(detour, x, y, z)
     dims = detour.dims
     if not (0 <= i < dims[0] and 0 <= j < dims[1] and 0 <= k < dims[2]):
         return 0.0
@@ -254,9 +261,7 @@ def voxel_detour(detour, c, v, x, y, z) -> float:
     if known >= 0.0:
         return known
     dims = detour.dims
-    i0 = int(math.floor((x - detour.origin[0]) / detour.cell))
-    j0 = int(math.floor((y - detour.origin[1]) / detour.cell))
-    k0 = int(math.floor((z - detour.origin[2]) / detour.cell))
+    i0, j0, k0 = _cell_at(detour, x, y, z)
     most = 0.0
     for i in range(max(i0 - _AROUND, 0), min(i0 + _AROUND + 1, dims[0])):
         for j in range(max(j0 - _AROUND, 0), min(j0 + _AROUND + 1, dims[1])):
