@@ -293,7 +293,9 @@ def step(run: Run, n: int, frame_next: int) -> None:
         run.effects.fireball(charges, t0, t1)
     if s.dust and run.ground is not None:
         run.effects.ground_ring(model, charges, run.ground, t1, front.outer, dt)
-    if run.stress is not None and stress_phase(model, state, run.stress, run.gravity):
+    if run.stress is not None and stress_phase(model, state, run.stress, run.gravity,
+                                               None if run.punch is None
+                                               else run.punch.sustained):
         split(run, n, t1, frame_next)
     ledger.book(state, "released")  # founded voxels' held impulses, to freed pieces
     held = ledger.founded_held(state) if state.holding else None
@@ -373,10 +375,23 @@ def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
             split(run, n, t1, frame_next)
         if attempt == PUNCH_ROUNDS - 1 or run.punch is None or not punch_phase(
                 model, state, run.stress, run.punch, state.contacts.memory.rows,
-                *state.caches.fragment_rows, run.dt):
+                *state.caches.fragment_rows, run.dt, rest_speed(s, run.dt)):
+            _sustain(run)
             return
         _restore(state.bodies, count, before)
         split(run, n, t1, frame_next)
+
+
+def _sustain(run: Run) -> None:
+    """What the step's contacts (as finally solved) pushed into founded bodies, into
+    their sustained loads (:class:`~blastvox.simulate.contact.loads.SustainedLoads`)."""
+    punch = run.punch
+    if punch is None:
+        return
+    if punch.last is not None:
+        punch.sustained.add(*punch.last)
+        punch.last = None
+    punch.sustained.close(run.state, run.stress, run.gravity, run.model.voxels.mass, run.dt)
 
 
 def _restore(bodies, count: int, before: tuple) -> None:

@@ -64,11 +64,14 @@ def bearing_springs(g: Graph, voxels: np.ndarray, points: np.ndarray,
 
 
 def equilibrium(g: Graph, held: np.ndarray, gravity: np.ndarray,
-                 bed: BearingSprings | None = None, engaged: np.ndarray | None = None
+                 bed: BearingSprings | None = None, engaged: np.ndarray | None = None,
+                 load: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> tuple[np.ndarray, np.ndarray] | None:
     """(dof, q) of the graph's equilibrium under gravity with the nodes ``held`` (M,)
     still (see :func:`assemble`) and the ``engaged`` (S,) springs of ``bed``; None
-    when nothing holds the graph or the system is singular (a part held by nothing)."""
+    when nothing holds the graph or the system is singular (a part held by nothing).
+    ``load``: external forces (M, 3) N on the nodes and their moments (M, 3) N m about
+    the nodes' centres of mass (:func:`node_loads`), besides their weights."""
     from scipy.sparse import csc_matrix
     from scipy.sparse.linalg import splu
 
@@ -91,11 +94,30 @@ def equilibrium(g: Graph, held: np.ndarray, gravity: np.ndarray,
     blocks = np.flatnonzero(free)
     for axis in range(3):
         rhs[6 * dof[blocks] + axis] = g.node_mass[blocks] * gravity[axis]
+        if load is not None:
+            rhs[6 * dof[blocks] + axis] += load[0][blocks, axis]
+            rhs[6 * dof[blocks] + 3 + axis] += load[1][blocks, axis]
     try:
         return dof, splu(matrix, permc_spec="COLAMD").solve(rhs)
     except RuntimeError:  # "Factor is exactly singular": a part let go of everything
         return None
 
+
+
+def node_loads(g: Graph, force: np.ndarray, centroid: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The graph's nodes' external loads from forces (N, 3) N on the voxels at centroid
+    (N, 3) m (voxels outside the graph ignored): each node's force (M, 3) N and moment
+    (M, 3) N m about its centre of mass, summed voxel by voxel in id order."""
+    m = len(g.node_mass)
+    on = np.flatnonzero((g.node >= 0) & (force != 0.0).any(axis=1))
+    node, f = g.node[on], force[on]
+    arm = centroid[on] - g.node_com[node]
+    moment = np.stack([arm[:, 1] * f[:, 2] - arm[:, 2] * f[:, 1],
+                       arm[:, 2] * f[:, 0] - arm[:, 0] * f[:, 2],
+                       arm[:, 0] * f[:, 1] - arm[:, 1] * f[:, 0]], axis=1)
+    return tuple(np.stack([np.bincount(node, weights=x[:, a], minlength=m)
+                           for a in range(3)], axis=1) for x in (f, moment))
 
 
 def resting(g: Graph, voxels: np.ndarray, points: np.ndarray, gravity: np.ndarray

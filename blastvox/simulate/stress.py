@@ -458,7 +458,8 @@ class Solution(NamedTuple):
 def solve(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
           fixed: np.ndarray, link_alive: np.ndarray, voxel_key: np.ndarray,
           mass: np.ndarray, centroid: np.ndarray, gravity: np.ndarray,
-          bearing: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
+          bearing: tuple[np.ndarray, np.ndarray] | None = None,
+          load: np.ndarray | None = None) -> Solution:
     """Static equilibrium under gravity (3,) m/s^2 of the voxels flagged in voxel_in
     (N,), those flagged in fixed (N,) held still; only alive links (L,) carry load.
     voxel_key (N, 6): see :func:`coarse_graph`. Every component must hold a fixed voxel.
@@ -467,8 +468,11 @@ def solve(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
     rests on, not what it is bonded to, touching its support at those S points, each
     of one of them; each holds the body only by pushing
     (:func:`blastvox.simulate.equilibrium.resting`): a deck on two piers spans
-    between them as a simply supported beam instead of being clamped over them."""
-    from blastvox.simulate.equilibrium import equilibrium, resting
+    between them as a simply supported beam instead of being clamped over them.
+
+    ``load`` (N, 3) N: forces on the voxels besides their weights (what resting pieces
+    push into a founded body: :class:`~blastvox.simulate.contact.loads.SustainedLoads`)."""
+    from blastvox.simulate.equilibrium import equilibrium, node_loads, resting
 
     g = coarse_graph(springs, link_voxels, voxel_in, fixed, link_alive, voxel_key, mass,
                      centroid)
@@ -478,7 +482,8 @@ def solve(springs: LinkSprings, link_voxels: np.ndarray, voxel_in: np.ndarray,
         found = resting(g, bearing[0], bearing[1], gravity)
     else:
         held = g.node_fixed
-        found = equilibrium(g, held, gravity)
+        found = equilibrium(g, held, gravity, load=None if load is None
+                            else node_loads(g, load, centroid))
     if found is None:
         return Solution(g.links, stress, len(held))
     dof, q = found
@@ -598,9 +603,11 @@ def solve_body(model, state, stress: Stress, members: np.ndarray, links: np.ndar
                  bearing=bearing)
 
 
-def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
-    """Phase: solve the founded bodies whose voxels or links changed since their last
-    solve, and mark the overloaded links broken (state.marks.broken, bodies dirty).
+def stress_phase(model, state, stress: Stress, gravity: np.ndarray, sustained=None) -> bool:
+    """Phase: solve the founded bodies whose voxels, links or contact loads changed since
+    their last solve, and mark the overloaded links broken (state.marks.broken, bodies
+    dirty). ``sustained``: what resting pieces push into them
+    (:class:`~blastvox.simulate.contact.loads.SustainedLoads`), or None.
 
     Reads bodies (live, fixed, dust), voxels (body, alive, foundation) and the
     model's masses; writes links.alive, marks.broken, marks.dirty, stress.solved and
@@ -621,8 +628,11 @@ def stress_phase(model, state, stress: Stress, gravity: np.ndarray) -> bool:
     voxel_in = voxels.alive & target[voxels.body]
     fixed = voxels.foundation & voxels.alive
     key = node_key(stress.cell, stress.chunk, voxels.body, fixed, voxel_in)
+    load = None if sustained is None else sustained.force
     solution = solve(stress.springs, model.links.voxels, voxel_in, fixed, state.links.alive,
-                     key, model.voxels.mass, model.voxels.centroid, gravity)
+                     key, model.voxels.mass, model.voxels.centroid, gravity, load=load)
+    if load is not None:
+        sustained.solved(voxel_in)
     stress.solves += 1
     stress.solved[:n] |= todo
     broken = overloaded(solution)

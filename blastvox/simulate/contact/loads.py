@@ -19,6 +19,11 @@ So a wall that the wave throws into the end of a side wall (the corner of a hous
 shears that end off and goes on, where an immovable side wall stopped it dead.
 Foundation voxels are anchored to the ground (their own yield decides them) and are
 never punched.
+
+What the contacts push in over time is also a static load on the founded body's load
+paths (:class:`SustainedLoads`): rubble heaped on a floor weighs on it, and the
+pieces of a cracked lintel wedged between its piers thrust them apart at its height,
+a moment at their bases that breaks them where the lintel's own weight did not.
 """
 
 from __future__ import annotations
@@ -59,10 +64,14 @@ def _lost(net, k, out) -> None:
 
 
 @kernel
-def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net) -> int:
+def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net, slow,
+                           resting) -> int:
     """Sum into impulse (N, 3) (N s; zero where nothing touched, the caller zeroes what
     it read) what free pieces pushed into each fixed body's voxel through the first
     ``count`` solved rows, and list those voxels in touched (N,); returns how many.
+    resting (N, 3): the same through the rows whose points approached no faster than
+    ``slow`` m/s before the solve alone (what rests on, leans on or is wedged against
+    the body, not what strikes it).
 
     A piece squeezed between the ground and a founded body is pushed by both in
     amounts the solve does not determine, only their sum; that cancelling part loads
@@ -112,9 +121,85 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net) -> i
             if impulse[v, 0] == 0.0 and impulse[v, 1] == 0.0 and impulse[v, 2] == 0.0:
                 touched[n] = v
                 n += 1
+            rests = rows.approach[r] >= -slow
             for a in range(3):
                 impulse[v, a] += d[a] * w / net[k, 6]
+                if rests:
+                    resting[v, a] += d[a] * w / net[k, 6]
     return n
+
+
+#: The window (s) over which what contacts push into a founded body is averaged into a
+#: static load on its links (:class:`SustainedLoads`): long against a step and the
+#: contact solver's jitter, short against a collapse.
+LOAD_WINDOW = 0.05
+#: A founded body is solved again under its contacts' load when that load changed, summed
+#: over its voxels, by more than this fraction of the load (before or after), and by
+#: more than :data:`LOAD_FLOOR` of its weight.
+LOAD_CHANGE = 0.1
+#: Changes of a founded body's contact load smaller than this fraction of its weight
+#: are not solved for (dust settling on a building).
+LOAD_FLOOR = 1e-3
+
+
+class SustainedLoads:
+    """What free pieces push into founded bodies, as forces on their voxels.
+
+    The impulses of the resting contacts (that approached no faster than the contacts'
+    line between resting and striking, :func:`~blastvox.simulate.contact.ground.rest_speed`:
+    a strike is the punch's and the impact phase's) on each founded voxel (:func:`fixed_contact_impulses`) are summed
+    over a window of :data:`LOAD_WINDOW` s; at its end their mean, ``force``
+    (N, 3) N, is the voxels' load in the stress solve
+    (:func:`~blastvox.simulate.stress.stress_phase`), and a body whose load changed by
+    more than :data:`LOAD_CHANGE` since its last solve is solved again. Arrays are made
+    on the first push (a scene whose pieces never touch a founded body needs none)."""
+
+    def __init__(self, count: int, window: float = LOAD_WINDOW) -> None:
+        self.count, self.window = count, window
+        self.impulse: np.ndarray | None = None  # (N, 3) N s, this window's
+        self.force: np.ndarray | None = None  # (N, 3) N, the last window's mean
+        self.under: np.ndarray | None = None  # (N, 3) N, each body's at its last solve
+        self.elapsed = 0.0
+
+    def add(self, voxels: np.ndarray, impulse: np.ndarray) -> None:
+        """The step's impulses (K, 3) N s on the founded ``voxels`` (K,)."""
+        if self.impulse is None:
+            self.impulse = np.zeros((self.count, 3))
+            self.force = np.zeros((self.count, 3))
+            self.under = np.zeros((self.count, 3))
+        self.impulse[voxels] += impulse
+
+    def close(self, state, stress, gravity: np.ndarray, mass: np.ndarray, dt: float) -> None:
+        """After a step of dt s: at the window's end its mean force replaces ``force``,
+        and the founded bodies whose load changed are marked unsolved (stress.solved).
+        gravity (3,) m/s^2; mass (N,) kg, the voxels'."""
+        if self.impulse is None:
+            return
+        self.elapsed += dt
+        if self.elapsed < self.window * (1.0 - 1e-9):
+            return
+        np.divide(self.impulse, self.elapsed, out=self.force)
+        self.impulse[:] = 0.0
+        self.elapsed = 0.0
+        voxels, bodies = state.voxels, state.bodies
+        founded = voxels.alive & bodies.fixed[voxels.body] & bodies.live[voxels.body]
+        on = np.flatnonzero(founded & ((self.force != 0.0) | (self.under != 0.0)).any(axis=1))
+        if not on.size:
+            return
+        body = voxels.body[on]
+        size = len(bodies.mass)
+        change = np.bincount(body, weights=exact.norm(self.force[on] - self.under[on]),
+                             minlength=size)
+        load = np.maximum(np.bincount(body, weights=exact.norm(self.force[on]), minlength=size),
+                          np.bincount(body, weights=exact.norm(self.under[on]), minlength=size))
+        weight = np.bincount(voxels.body[founded], weights=mass[founded], minlength=size
+                             ) * float(exact.norm(gravity))
+        stress.solved[(change > LOAD_CHANGE * load) & (change > LOAD_FLOOR * weight)] = False
+
+    def solved(self, voxel_in: np.ndarray) -> None:
+        """The voxels flagged in voxel_in (N,) were solved under ``force``."""
+        if self.under is not None:
+            self.under[voxel_in] = self.force[voxel_in]
 
 
 class Punch:
@@ -130,6 +215,7 @@ class Punch:
         self.group_offsets = np.searchsorted(group[order], np.arange(int(group.max(
             initial=-1)) + 2))
         self.impulse = np.zeros((len(group), 3))
+        self.resting = np.zeros((len(group), 3))
         self.touched = np.zeros(len(group), dtype=np.int64)
         self.net: np.ndarray | None = None
         # the least each (body, group) carries whichever way it is pushed (N), while the
@@ -137,6 +223,8 @@ class Punch:
         self.floor: dict[tuple[int, int], float] = {}
         self.version = -1
         self.punched = 0
+        self.sustained = SustainedLoads(len(group))
+        self.last: tuple[np.ndarray, np.ndarray] | None = None  # the last phase's pushes
 
     @classmethod
     def of(cls, chunk: np.ndarray | None, count: int) -> Punch:
@@ -147,25 +235,29 @@ class Punch:
 
 
 def punch_phase(model, state, stress, punch: Punch, rows, count: int, end: int,
-                dt: float) -> bool:
+                dt: float, resting: float = 0.0) -> bool:
     """Phase: the chunks of founded bodies that this step's contacts (the first
     ``count`` solved rows between fragments, then the ground's up to ``end``) pushed
     harder than their links can carry are punched out (see the module docstring).
     Writes links.alive, marks.broken and marks.dirty and counters.broken_links (the
     caller splits, and solves the step's contacts again with the punched chunks
     free: :func:`blastvox.simulate.engine.step`). stress: the run's
-    :class:`~blastvox.simulate.stress.Stress` (the links' areas and strengths).
-    Returns whether any link broke."""
+    :class:`~blastvox.simulate.stress.Stress` (the links' areas and strengths);
+    resting: the approach speed (m/s) below which a row rests (its push is kept in
+    punch.last for :class:`SustainedLoads`). Returns whether any link broke."""
     bodies, voxels = state.bodies, state.voxels
     if punch.net is None or len(punch.net) != len(bodies.mass):
         punch.net = np.zeros((len(bodies.mass), 7))
     k = fixed_contact_impulses(rows, count, end, bodies, punch.impulse, punch.touched,
-                               punch.net)
+                               punch.net, resting, punch.resting)
+    punch.last = None
     if k == 0:
         return False
     touched = np.unique(punch.touched[:k])  # a voxel whose sum passed through zero repeats
     pushed = punch.impulse[touched].copy()
+    punch.last = (touched, punch.resting[touched].copy())
     punch.impulse[touched] = 0.0
+    punch.resting[touched] = 0.0
     span = len(punch.group_offsets) - 1  # (body, group) as one key: body * span + group
     keys, which = np.unique(voxels.body[touched] * span + punch.group[touched],
                             return_inverse=True)
