@@ -70,8 +70,9 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net, slow
     it read) what free pieces pushed into each fixed body's voxel through the first
     ``count`` solved rows, and list those voxels in touched (N,); returns how many.
     resting (N, 3): the same through the rows whose points approached no faster than
-    ``slow`` m/s before the solve alone (what rests on, leans on or is wedged against
-    the body, not what strikes it).
+    ``slow`` m/s before the solve, of pieces moving no faster than that after it (what
+    rests on, leans on or is wedged against the body, not what strikes it or is still
+    being slowed down on it).
 
     A piece squeezed between the ground and a founded body is pushed by both in
     amounts the solve does not determine, only their sum; that cancelling part loads
@@ -121,7 +122,9 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net, slow
             if impulse[v, 0] == 0.0 and impulse[v, 1] == 0.0 and impulse[v, 2] == 0.0:
                 touched[n] = v
                 n += 1
-            rests = rows.approach[r] >= -slow
+            rests = rows.approach[r] >= -slow and (
+                bodies.lin[k, 0] ** 2 + bodies.lin[k, 1] ** 2 + bodies.lin[k, 2] ** 2
+                <= (slow * bodies.mass[k]) ** 2)
             for a in range(3):
                 impulse[v, a] += d[a] * w / net[k, 6]
                 if rests:
@@ -146,8 +149,9 @@ class SustainedLoads:
     """What free pieces push into founded bodies, as forces on their voxels.
 
     The impulses of the resting contacts (that approached no faster than the contacts'
-    line between resting and striking, :func:`~blastvox.simulate.contact.ground.rest_speed`:
-    a strike is the punch's and the impact phase's) on each founded voxel (:func:`fixed_contact_impulses`) are summed
+    line between resting and striking, :func:`~blastvox.simulate.contact.ground.rest_speed`,
+    of pieces no faster than that: a strike is the punch's and the impact phase's) on
+    each founded voxel (:func:`fixed_contact_impulses`) are summed
     over a window of :data:`LOAD_WINDOW` s; at its end their mean, ``force``
     (N, 3) N, is the voxels' load in the stress solve
     (:func:`~blastvox.simulate.stress.stress_phase`), and a body whose load changed by
