@@ -65,14 +65,16 @@ def _lost(net, k, out) -> None:
 
 @kernel
 def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net, slow,
-                           resting) -> int:
+                           resting, up, support) -> int:
     """Sum into impulse (N, 3) (N s; zero where nothing touched, the caller zeroes what
     it read) what free pieces pushed into each fixed body's voxel through the first
     ``count`` solved rows, and list those voxels in touched (N,); returns how many.
     resting (N, 3): the same through the rows whose points approached no faster than
     ``slow`` m/s before the solve, of pieces moving no faster than that after it (what
     rests on, leans on or is wedged against the body, not what strikes it or is still
-    being slowed down on it).
+    being slowed down on it). support (2,): adds the mass (kg) of the resting pieces
+    (no faster than ``slow``) in the rows, and the ground's impulse (N s) on them along
+    ``up`` (3,): how much of their weight the ground carried.
 
     A piece squeezed between the ground and a founded body is pushed by both in
     amounts the solve does not determine, only their sum; that cancelling part loads
@@ -99,6 +101,21 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net, slow
             row_impulse(rows, r, side, j)
             for a in range(3):
                 net[k, a if r < count else 3 + a] += j[a]
+    for r in range(end):  # each resting piece once: net[k, 6] is still 0 before the shares
+        for side in range(2):
+            k = rows.body[r, side]
+            if k < 0 or bodies.fixed[k] or net[k, 6] != 0.0 or (
+                    bodies.lin[k, 0] ** 2 + bodies.lin[k, 1] ** 2 + bodies.lin[k, 2] ** 2
+                    > (slow * bodies.mass[k]) ** 2):
+                continue
+            net[k, 6] = 1.0
+            support[0] += bodies.mass[k]
+            support[1] += net[k, 3] * up[0] + net[k, 4] * up[1] + net[k, 5] * up[2]
+    for r in range(end):
+        for side in range(2):
+            k = rows.body[r, side]
+            if k >= 0 and not bodies.fixed[k]:
+                net[k, 6] = 0.0
     for sweep in range(2):  # the weights' sums, then the shares
         n = 0
         for r in range(count):
@@ -145,6 +162,29 @@ LOAD_CHANGE = 0.1
 LOAD_FLOOR = 1e-3
 
 
+def _weight_only(force: np.ndarray, gravity: np.ndarray, carried: float) -> None:
+    """Keep of each force (N, 3) N only its part along gravity (3,) m/s^2, and only
+    where it pushes down, at most ``carried`` N in all: what rests on a body weighs on
+    it, and the resting pieces' statics bound it (their weight less what the ground
+    carries of it; the forces are scaled down together to that sum). A piece jammed
+    between a founded overhang and the pile under it, or wedged between two founded
+    parts, is squeezed by forces the contact solve does not determine (only their sum,
+    through the soft push-out's overlap): an edge-on wall's own broken end, jammed under
+    it, pushed it up with 230 kN, more than the wall weighs, and broke it; squeezed
+    pieces pushed another 154 kN down on it (the whole wall weighs 56 kN)."""
+    size = float(exact.norm(gravity))
+    if size == 0.0:
+        force[:] = 0.0
+        return
+    down = gravity / size
+    along = np.maximum(force[:, 0] * down[0] + force[:, 1] * down[1] + force[:, 2] * down[2],
+                       0.0)
+    total = float(along.sum())
+    if total > carried:
+        along *= carried / total
+    np.multiply(along[:, None], down[None, :], out=force)
+
+
 class SustainedLoads:
     """What free pieces push into founded bodies, as forces on their voxels.
 
@@ -164,14 +204,19 @@ class SustainedLoads:
         self.force: np.ndarray | None = None  # (N, 3) N, the last window's mean
         self.under: np.ndarray | None = None  # (N, 3) N, each body's at its last solve
         self.elapsed = 0.0
+        self.carried = 0.0  # N s: this window's weight of resting pieces less the ground's
 
-    def add(self, voxels: np.ndarray, impulse: np.ndarray) -> None:
-        """The step's impulses (K, 3) N s on the founded ``voxels`` (K,)."""
+    def add(self, voxels: np.ndarray, impulse: np.ndarray, support: np.ndarray,
+            weight_impulse: float) -> None:
+        """The step's impulses (K, 3) N s on the founded ``voxels`` (K,); support (2,):
+        the resting pieces' mass (kg) and the ground's impulse on them along up (N s)
+        (:func:`fixed_contact_impulses`); weight_impulse: |g| dt, N s per kg."""
         if self.impulse is None:
             self.impulse = np.zeros((self.count, 3))
             self.force = np.zeros((self.count, 3))
             self.under = np.zeros((self.count, 3))
         self.impulse[voxels] += impulse
+        self.carried += support[0] * weight_impulse - support[1]
 
     def close(self, state, stress, gravity: np.ndarray, mass: np.ndarray, dt: float) -> None:
         """After a step of dt s: at the window's end its mean force replaces ``force``,
@@ -183,7 +228,9 @@ class SustainedLoads:
         if self.elapsed < self.window * (1.0 - 1e-9):
             return
         np.divide(self.impulse, self.elapsed, out=self.force)
+        _weight_only(self.force, gravity, max(self.carried, 0.0) / self.elapsed)
         self.impulse[:] = 0.0
+        self.carried = 0.0
         self.elapsed = 0.0
         voxels, bodies = state.voxels, state.bodies
         founded = voxels.alive & bodies.fixed[voxels.body] & bodies.live[voxels.body]
@@ -239,7 +286,7 @@ class Punch:
 
 
 def punch_phase(model, state, stress, punch: Punch, rows, count: int, end: int,
-                dt: float, resting: float = 0.0) -> bool:
+                dt: float, resting: float = 0.0, up: np.ndarray | None = None) -> bool:
     """Phase: the chunks of founded bodies that this step's contacts (the first
     ``count`` solved rows between fragments, then the ground's up to ``end``) pushed
     harder than their links can carry are punched out (see the module docstring).
@@ -248,18 +295,22 @@ def punch_phase(model, state, stress, punch: Punch, rows, count: int, end: int,
     free: :func:`blastvox.simulate.engine.step`). stress: the run's
     :class:`~blastvox.simulate.stress.Stress` (the links' areas and strengths);
     resting: the approach speed (m/s) below which a row rests (its push is kept in
-    punch.last for :class:`SustainedLoads`). Returns whether any link broke."""
+    punch.last for :class:`SustainedLoads`, with the resting pieces' support: see
+    :func:`fixed_contact_impulses`); up (3,): the unit vector against gravity (None: no
+    gravity). Returns whether any link broke."""
     bodies, voxels = state.bodies, state.voxels
     if punch.net is None or len(punch.net) != len(bodies.mass):
         punch.net = np.zeros((len(bodies.mass), 7))
+    support = np.zeros(2)
     k = fixed_contact_impulses(rows, count, end, bodies, punch.impulse, punch.touched,
-                               punch.net, resting, punch.resting)
+                               punch.net, resting, punch.resting,
+                               np.zeros(3) if up is None else up, support)
     punch.last = None
     if k == 0:
         return False
     touched = np.unique(punch.touched[:k])  # a voxel whose sum passed through zero repeats
     pushed = punch.impulse[touched].copy()
-    punch.last = (touched, punch.resting[touched].copy())
+    punch.last = (touched, punch.resting[touched].copy(), support)
     punch.impulse[touched] = 0.0
     punch.resting[touched] = 0.0
     span = len(punch.group_offsets) - 1  # (body, group) as one key: body * span + group
