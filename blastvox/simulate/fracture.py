@@ -33,6 +33,12 @@ from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel, parallel_kernel
 from blastvox.simulate.clearing import exposure_of
+from blastvox.simulate.criteria import (
+    REFERENCE_THICKNESS,
+    crushes,
+    oriented_yield,
+    pi_exceeded,
+)
 from blastvox.simulate.diffraction import Detour
 from blastvox.simulate.kernels import hold, release_held
 from blastvox.simulate.members import MEMBER_NORMALS, edge_on, effective_thickness
@@ -59,7 +65,6 @@ class FractureParams(NamedTuple):
     judge_links: bool
 
 
-REFERENCE_THICKNESS = 0.25  #: m: the element thickness a material's impulse asymptote is for
 #: A neighbour is in front of a voxel (between it and the charge) when the line from the
 #: voxel to it is within 45 degrees of the line to the charge.
 FRONT_COSINE = math.sqrt(0.5)
@@ -68,7 +73,7 @@ FRONT_COSINE = math.sqrt(0.5)
 @helper
 def element_view(front, c, r, centre, exposure, b, member, speed, normal):
     """(peak overpressure Pa, positive impulse Pa s, depth m, blocked, thickness m,
-    squeezed) that the wave of charge c puts on the element holding the point
+    squeezed, cosine) that the wave of charge c puts on the element holding the point
     ``centre`` (3,) m (in solid, at r m from the charge, in body b): the face load
     (:func:`blastvox.blast.face_load.face_load_nb`) of the surface the line from the
     point to the charge leaves the element through, at that surface's angle of
@@ -79,7 +84,7 @@ def element_view(front, c, r, centre, exposure, b, member, speed, normal):
     the line runs along the member (normal (3,), its unit normal in the world) and
     leaves it through an edge (:func:`~blastvox.simulate.members.edge_on`): its
     faces take the wave at grazing incidence (what wears it and its foundation),
-    and it is not bent."""
+    and it is not bent; cosine: of the angle of incidence on that surface (0 squeezed)."""
     grid = exposure.grid
     px, py, pz = centre[0], centre[1], centre[2]
     qx, qy, qz = front.position[c, 0], front.position[c, 1], front.position[c, 2]
@@ -96,40 +101,8 @@ def element_view(front, c, r, centre, exposure, b, member, speed, normal):
         cos_a = 0.0
     i_pos, p_peak = face_load_nb((ps, td, bb, imp, pr, ir, q, u), cos_a, not blocked,
                                  exposure.clearing[b, c, 0], exposure.clearing[b, c, 1])
-    return (p_peak, i_pos, depth, blocked, effective_thickness(member, speed, td), squeezed)
-
-
-@helper
-def pi_exceeded(p, i, p0, i0, shape) -> bool:
-    """Pressure-impulse criterion: (p - p0)(i - i0) >= shape p0 i0 with p > p0, i > i0
-    (Pa, Pa s); i0 = 0 is the peak-pressure criterion p > p0."""
-    if p <= p0:
-        return False
-    if i0 <= 0.0:
-        return True
-    return i > i0 and (p - p0) * (i - i0) >= shape * p0 * i0
-
-
-@helper
-def oriented_yield(yield_pa, orientation, body_rot, b, link_direction, link, dx, dy, dz,
-                   r) -> float:
-    """Yield (Pa) of a link after the orientation factor: Y (1 - k |R_hat . l_hat|).
-
-    The link's rest direction ``link_direction[link]`` turns with body b's
-    rotation ``body_rot[b]``; (dx, dy, dz) is the wave's radius vector R (m) from
-    the charge to where it is taken, |R| = r. Indices, not row views: this runs
-    once per link a front crosses, and a view costs two reference counts.
-    """
-    if r <= 0.0:
-        return yield_pa
-    cosang = 0.0
-    for a in range(3):
-        la = (body_rot[b, a, 0] * link_direction[link, 0]
-              + body_rot[b, a, 1] * link_direction[link, 1]
-              + body_rot[b, a, 2] * link_direction[link, 2])
-        ra = dx if a == 0 else (dy if a == 1 else dz)
-        cosang += la * ra / r
-    return yield_pa * (1.0 - orientation * abs(cosang))
+    return (p_peak, i_pos, depth, blocked, effective_thickness(member, speed, td), squeezed,
+            cos_a)
 
 
 @helper
@@ -149,7 +122,7 @@ class AheadViews(NamedTuple):
     judges them (:func:`views_ahead`), (K, C) for the K voxels of its ``order``:
     known, the front crosses the voxel this step (then the rest is its
     :func:`element_view`): peak Pa, impulse Pa s, depth m, blocked, thickness m,
-    squeezed."""
+    squeezed, cosine."""
 
     known: np.ndarray
     peak: np.ndarray
@@ -158,6 +131,7 @@ class AheadViews(NamedTuple):
     blocked: np.ndarray
     thickness: np.ndarray
     squeezed: np.ndarray
+    cosine: np.ndarray
 
 
 def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.ndarray,
@@ -188,7 +162,7 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, detour_fields, cent
     d_origin, d_cell, d_dims, d_extra, d_most, d_voxel = detour_fields
     thickness, speed, material, normals, member_axis = members
     body_pos, body_rot, body_com = poses
-    known, peak, impulse, depth, blocked, thick, squeezed = ahead_fields
+    known, peak, impulse, depth, blocked, thick, squeezed, cosine = ahead_fields
     for i in nb.prange(len(order)):
         front = Front(position, time, scale, table, burst, inner, outer)
         exposure = Exposure(Occupancy(origin, cell, dims, count, member, vertices, corners,
@@ -209,15 +183,15 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, detour_fields, cent
                              + body_rot[b, a, 1] * normals[member_axis[v], 1]
                              + body_rot[b, a, 2] * normals[member_axis[v], 2])
             (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
-             squeezed[i, c]) = element_view(front, c, r, centre, exposure, b, thickness[v],
-                                            speed[material[v]], normal)
+             squeezed[i, c], cosine[i, c]) = element_view(
+                 front, c, r, centre, exposure, b, thickness[v], speed[material[v]], normal)
 
 
 def no_views_ahead(n_charges: int) -> AheadViews:
     """An empty :class:`AheadViews` (the damage and papers' models need none)."""
     empty = np.zeros((0, n_charges))
     flag = np.zeros((0, n_charges), dtype=bool)
-    return AheadViews(flag, empty, empty, empty, flag, empty, flag)
+    return AheadViews(flag, empty, empty, empty, flag, empty, flag, empty)
 
 
 @kernel
@@ -295,35 +269,40 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                         normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
                                      + body_rot[b, a, 1] * normals[member_axis[v], 1]
                                      + body_rot[b, a, 2] * normals[member_axis[v], 2])
-                    peak, imp, depth, blocked, thick, squeezed = element_view(
+                    peak, imp, depth, blocked, thick, squeezed, cos_a = element_view(
                         front, c, r, centre, exposure, b, thickness[v], speed[material[v]],
                         normal)
                 else:
                     peak, imp, depth = ahead.peak[i, c], ahead.impulse[i, c], ahead.depth[i, c]
                     blocked, thick = ahead.blocked[i, c], ahead.thickness[i, c]
-                    squeezed = ahead.squeezed[i, c]
+                    squeezed, cos_a = ahead.squeezed[i, c], ahead.cosine[i, c]
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
                 i0 = strength.voxel_impulse[strength.material[v]] * thick / REFERENCE_THICKNESS
-                breaks = depth <= 2.0 * geometry.contact_radius[v] and pi_exceeded(
+                surface = depth <= 2.0 * geometry.contact_radius[v]
+                breaks = surface and pi_exceeded(
                     peak, imp, voxel_yield[v], i0, strength.pi_shape[strength.material[v]])
+                crushed = surface and not blocked and crushes(
+                    front, c, r - depth, cos_a, exposure, b, strength, strength.material[v],
+                    thick)
             else:
                 peak = peak_overpressure(table[front.burst[c]], r, charge_scale[c])
                 imp, blocked, thick, i0, squeezed = 0.0, False, thickness[v], 0.0, False
-                breaks = peak > voxel_yield[v]
+                breaks, crushed = peak > voxel_yield[v], False
             views.known[v, c] = True
             views.peak[v, c], views.impulse[v, c] = peak, imp
             views.blocked[v, c], views.thickness[v, c] = blocked, thick
             views.squeezed[v, c] = squeezed
             crossed[v] = True
-            if breaks and params.pressure_impulse and strength.shatter_pa[v] > 0.0 and not (
+            if breaks and not crushed and params.pressure_impulse and (
+                    strength.shatter_pa[v] > 0.0) and not (
                     pi_exceeded(peak, imp, strength.shatter_pa[v], i0,
                                 strength.pi_shape[strength.material[v]])):
                 # failed, not crushed: a voxel as large as the material's rubble comes off
                 # whole (the split frees it with the impulse its body held for it)
                 broken += _shatter(v, geometry, links, marks, b)
                 break
-            if breaks:
+            if breaks or crushed:
                 voxel_alive[v] = False
                 destroyed[v] = True
                 dirty[b] = True
@@ -605,7 +584,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
         k, c = len(order), len(front.position)
         ahead = AheadViews(np.zeros((k, c), dtype=bool), np.empty((k, c)), np.empty((k, c)),
                            np.empty((k, c)), np.zeros((k, c), dtype=bool), np.empty((k, c)),
-                           np.zeros((k, c), dtype=bool))
+                           np.zeros((k, c), dtype=bool), np.empty((k, c)))
         views_ahead(front, model.voxels, members, state.bodies, state.voxels.body, exposure,
                     order, ahead)
     hold_room(state, len(order))  # each voxel it dusts holds its impulse

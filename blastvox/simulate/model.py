@@ -83,7 +83,7 @@ class Strength(NamedTuple):
     """Pressure-impulse strength. Of each material (M,), indexed by material (N,) int32,
     each voxel's (the model's): link_impulse and voxel_impulse, Pa s, the impulse
     asymptotes for a 0.25 m element; pi_shape, K / (P0 I0) (see
-    :func:`blastvox.simulate.fracture.pi_exceeded`); crush, Pa, the material's
+    :func:`blastvox.simulate.criteria.pi_exceeded`); crush, Pa, the material's
     crush_pressure (0 for none; a voxel's crush pressure, below which it never turns
     to dust: :func:`crush_pressures`). Of each voxel (N,): shatter_pa, Pa: for a voxel
     that is a chunk of its own (or of a model without chunks: each voxel is the
