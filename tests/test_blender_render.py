@@ -184,7 +184,9 @@ def _detail(png: str) -> tuple[float, np.ndarray]:
 def test_fracture_faces_render_their_damage_texture(shattered_slab: SimCache, tmp_path: Path,
                                                     suffix: str) -> None:
     """Close to a shattered slab, its fracture faces show cracked concrete: the render
-    has more fine detail than with the flat damage colour, and the same mean colour."""
+    has more fine detail than with the flat damage colour, and the same mean colour. The
+    pieces cover at least a quarter of the frame (0.29 since the edge facing the charge,
+    0.5 m from it, crushes to dust; 0.3 and more before craters)."""
     f = 3
     got = {}
     for flat in (False, True):
@@ -193,7 +195,7 @@ def test_fracture_faces_render_their_damage_texture(shattered_slab: SimCache, tm
         export(shattered_slab, path, ExportOptions(damage_textures=not flat))
         report = render(path, path.parent / "frames", [f], size="160x90")
         assert report["camera"]["from_file"]
-        assert report["frames"][str(f)]["coverage"] > 0.3
+        assert report["frames"][str(f)]["coverage"] > 0.25
         got[flat] = _detail(report["frames"][str(f)]["png"])
     assert got[False][0] > 1.15 * got[True][0], got
     np.testing.assert_allclose(got[False][1], got[True][1], atol=0.03)
