@@ -375,7 +375,7 @@ def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
             split(run, n, t1, frame_next)
         if attempt == PUNCH_ROUNDS - 1 or run.punch is None or not punch_phase(
                 model, state, run.stress, run.punch, state.contacts.memory.rows,
-                *state.caches.fragment_rows, run.dt, rest_speed(s, run.dt), _up(run)):
+                *state.caches.fragment_rows, run.dt, rest_speed(s, run.dt), model.up):
             _sustain(run)
             return
         _restore(state.bodies, count, before)
@@ -392,12 +392,6 @@ def _sustain(run: Run) -> None:
         punch.sustained.add(*punch.last, float(exact.norm(run.gravity)) * run.dt)
         punch.last = None
     punch.sustained.close(run.state, run.stress, run.gravity, run.model.voxels.mass, run.dt)
-
-
-def _up(run: Run) -> np.ndarray:
-    """(3,) the unit vector against the run's gravity (zero without gravity)."""
-    g = float(exact.norm(run.gravity))
-    return -run.gravity / g if g > 0.0 else np.zeros(3)
 
 
 def _restore(bodies, count: int, before: tuple) -> None:

@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -55,6 +55,9 @@ from blastvox.geometry import exact
 from blastvox.jit import helper, kernel
 from blastvox.simulate.springs import LinkSprings, SpringTable, has_limits
 from blastvox.simulate.springs import link_springs as link_springs
+
+if TYPE_CHECKING:
+    from blastvox.simulate.contact.loads import SustainedLoads
 
 #: Poisson's ratio of the shear springs (concrete 0.2; the solve is not sensitive to it).
 POISSON = 0.2
@@ -603,7 +606,8 @@ def solve_body(model, state, stress: Stress, members: np.ndarray, links: np.ndar
                  bearing=bearing)
 
 
-def stress_phase(model, state, stress: Stress, gravity: np.ndarray, sustained=None) -> bool:
+def stress_phase(model, state, stress: Stress, gravity: np.ndarray,
+                 sustained: SustainedLoads | None = None) -> bool:
     """Phase: solve the founded bodies whose voxels, links or contact loads changed since
     their last solve, and mark the overloaded links broken (state.marks.broken, bodies
     dirty). ``sustained``: what resting pieces push into them

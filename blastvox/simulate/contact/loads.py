@@ -20,10 +20,11 @@ shears that end off and goes on, where an immovable side wall stopped it dead.
 Foundation voxels are anchored to the ground (their own yield decides them) and are
 never punched.
 
-What the contacts push in over time is also a static load on the founded body's load
-paths (:class:`SustainedLoads`): rubble heaped on a floor weighs on it, and the
-pieces of a cracked lintel wedged between its piers thrust them apart at its height,
-a moment at their bases that breaks them where the lintel's own weight did not.
+What resting pieces push in over time is also a static load on the founded body's
+load paths (:class:`SustainedLoads`): rubble heaped on a floor, or a block on a
+cantilever's tip, weighs on it. Only weight, bounded by the resting pieces' statics:
+the squeeze of a jammed piece and the thrust of wedged rubble are not determined by
+the contact solve, and are not loads.
 """
 
 from __future__ import annotations
@@ -61,6 +62,13 @@ def _lost(net, k, out) -> None:
         if f * g < 0.0:
             f = math.copysign(max(0.0, abs(f) - abs(g)), f)
         out[a] = -f
+
+
+@helper
+def _at_rest(bodies, k, slow) -> bool:
+    """Does body k move no faster than ``slow`` m/s?"""
+    return (bodies.lin[k, 0] ** 2 + bodies.lin[k, 1] ** 2 + bodies.lin[k, 2] ** 2
+            <= (slow * bodies.mass[k]) ** 2)
 
 
 @kernel
@@ -104,14 +112,12 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net, slow
     for r in range(end):  # each resting piece once: net[k, 6] is still 0 before the shares
         for side in range(2):
             k = rows.body[r, side]
-            if k < 0 or bodies.fixed[k] or net[k, 6] != 0.0 or (
-                    bodies.lin[k, 0] ** 2 + bodies.lin[k, 1] ** 2 + bodies.lin[k, 2] ** 2
-                    > (slow * bodies.mass[k]) ** 2):
+            if k < 0 or bodies.fixed[k] or net[k, 6] != 0.0 or not _at_rest(bodies, k, slow):
                 continue
             net[k, 6] = 1.0
             support[0] += bodies.mass[k]
             support[1] += net[k, 3] * up[0] + net[k, 4] * up[1] + net[k, 5] * up[2]
-    for r in range(end):
+    for r in range(end):  # the flags off: net[k, 6] sums the shares' weights below
         for side in range(2):
             k = rows.body[r, side]
             if k >= 0 and not bodies.fixed[k]:
@@ -139,9 +145,7 @@ def fixed_contact_impulses(rows, count, end, bodies, impulse, touched, net, slow
             if impulse[v, 0] == 0.0 and impulse[v, 1] == 0.0 and impulse[v, 2] == 0.0:
                 touched[n] = v
                 n += 1
-            rests = rows.approach[r] >= -slow and (
-                bodies.lin[k, 0] ** 2 + bodies.lin[k, 1] ** 2 + bodies.lin[k, 2] ** 2
-                <= (slow * bodies.mass[k]) ** 2)
+            rests = rows.approach[r] >= -slow and _at_rest(bodies, k, slow)
             for a in range(3):
                 impulse[v, a] += d[a] * w / net[k, 6]
                 if rests:
@@ -275,7 +279,8 @@ class Punch:
         self.version = -1
         self.punched = 0
         self.sustained = SustainedLoads(len(group))
-        self.last: tuple[np.ndarray, np.ndarray] | None = None  # the last phase's pushes
+        # the last phase's resting pushes: (voxels, impulses, support), see punch_phase
+        self.last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def of(cls, chunk: np.ndarray | None, count: int) -> Punch:
