@@ -40,6 +40,10 @@ link_yield                (L,) f8         Pa, overpressure at the midpoint that 
                                           (x the chunk_bond_scale inside a chunk)
 voxel_chunk               (N,) i4         optional: chunk of the voxel, 0..K-1 numbered by
                                           lowest voxel (absent: every voxel its own chunk)
+voxel_solid_box           (N, 2, 3) f8    optional: m, (lo, hi) of the solid the voxel holds
+                                          (a cube cell the surface crosses: the cell clipped
+                                          by the mesh; absent: its corners'); contacts and
+                                          the ground use it
 conform_voxels            (C,) i4         voxels with exact cell-and-mesh geometry
 conform_offsets           (C+1,) i8       triangle ranges per conform voxel
 conform_triangles         (T, 3, 3) f8    m, outward triangles of cell and mesh
@@ -122,7 +126,8 @@ _REQUIRED: dict[str, Spec] = {
 }
 
 #: Per-voxel arrays a file may lack (older models): name -> (dtype, shape).
-OPTIONAL_ARRAYS: dict[str, Spec] = {"voxel_chunk": (_I4, ("N",)), "voxel_part": (_I4, ("N",))}
+OPTIONAL_ARRAYS: dict[str, Spec] = {"voxel_chunk": (_I4, ("N",)), "voxel_part": (_I4, ("N",)),
+                                    "voxel_solid_box": (_F8, ("N", 2, 3))}
 #: The source look (blastvox.voxelize.look): all present or all absent. S surface
 #: triangles, B texture bytes, K1 = textures + 1.
 SURFACE_ARRAYS: dict[str, Spec] = {
@@ -345,6 +350,14 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     size = float(np.cbrt(np.median(a["voxel_volume"])))
     for key in ("vertices", "voxel_centroid", "link_midpoint"):
         _check_points(path, name(key), a[key], size)
+    if "voxel_solid_box" in a:
+        box = a["voxel_solid_box"]
+        _check_points(path, name("voxel_solid_box"), box.reshape(-1, 3), size)
+        inverted = (box[:, 1] < box[:, 0]).any(axis=1)
+        if inverted.any():
+            i = int(np.flatnonzero(inverted)[0])
+            fail(path, f"array '{name('voxel_solid_box')}' holds the box {box[i].tolist()} at "
+                       f"[{i}]; expected lo <= hi on every axis")
     _check_inertia(path, name("voxel_inertia"), a["voxel_inertia"])
     check_unit(path, name("link_direction"), a["link_direction"], 1e-6)
     # limits: >= 0; +inf means unbreakable / never burns

@@ -161,7 +161,8 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
                           supported=np.zeros(capacity, dtype=bool),
                           supported_next=np.zeros(capacity, dtype=bool),
                           hits=np.zeros((4096, 4)), points=np.zeros((64, 3)),
-                          vertex_stamp=np.full(len(sm.voxels.vertices), -1, dtype=np.int32)),
+                          vertex_stamp=np.full(len(sm.voxels.contact_vertices), -1,
+                                               dtype=np.int32)),
         scratch=Scratch.for_model(sm),
         shielding=sm.rest_grid._replace(count=sm.rest_grid.count.copy(),
                                         member=sm.rest_grid.member.copy()))

@@ -25,6 +25,7 @@ from blastvox.simulate.shielding import (
     Occupancy,
     build_occupancy,
     conform_boxes,
+    corner_boxes,
     solid_boxes,
     typical_edge,
 )
@@ -47,6 +48,11 @@ class VoxelGeometry(NamedTuple):
     conform_slot (N,) int32: row in the conform tables or -1; conform_area (C, 7, 3)
     vector areas (m^2, outward) and conform_centroid (C, 7, 3) m of each face.
     link_offsets (N+1,) int64, link_ids (2L,) int32: the links of each voxel (CSR).
+    box_half (N, 3) m and box_radius (N,) m: each voxel's contact box about its
+    centroid (:func:`voxel_boxes`), half extents along the rest axes and half
+    diagonal; contact_vertices (V', 3) m and contact_corners (N, 8) int32: the corners
+    the ground touches, the lattice's, or the contact box's where it is not the
+    voxel's cell (a cell the surface crosses, a conform cell).
     """
 
     vertices: np.ndarray
@@ -63,6 +69,10 @@ class VoxelGeometry(NamedTuple):
     conform_centroid: np.ndarray
     link_offsets: np.ndarray
     link_ids: np.ndarray
+    box_half: np.ndarray
+    box_radius: np.ndarray
+    contact_vertices: np.ndarray
+    contact_corners: np.ndarray
 
 
 class LinkGeometry(NamedTuple):
@@ -229,6 +239,8 @@ def build_model(model: VoxelModel) -> SimModel:
     grid_cell = grid_cell if grid_cell > 0.0 else 1.0
     link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)
     mass = np.ascontiguousarray(a["voxel_mass"], dtype=np.float64)
+    box_half, box_radius, contact_vertices, contact_corners = _contact_boxes(
+        a, vertices, corners, voxel_centroid)
     voxels = VoxelGeometry(
         vertices=vertices, corners=corners, mass=mass, centroid=voxel_centroid,
         inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
@@ -237,7 +249,8 @@ def build_model(model: VoxelModel) -> SimModel:
         contact_radius=contact_radius,
         density=mass / np.maximum((2.0 * contact_radius) ** 3, 1e-300),
         conform_slot=slot, conform_area=area, conform_centroid=centroid,
-        link_offsets=offsets, link_ids=link_ids)
+        link_offsets=offsets, link_ids=link_ids, box_half=box_half, box_radius=box_radius,
+        contact_vertices=contact_vertices, contact_corners=contact_corners)
     link_geometry = LinkGeometry(
         voxels=links, face=np.ascontiguousarray(a["link_face"], dtype=np.uint8),
         midpoint=link_midpoint,
@@ -259,6 +272,56 @@ def build_model(model: VoxelModel) -> SimModel:
         grid_cell=grid_cell,
         voxel_grid=dense_grid(voxel_centroid, grid_cell), rest_grid=rest_grid,
         thickness=thickness, member_axis=member_axis, wave_speed=wave_speeds(a))
+
+
+@kernel
+def voxel_boxes(lo, hi, volume):
+    """Contact boxes (half extents (N, 3) m, half diagonals (N,) m) of the voxels.
+
+    A voxel's box is the box of its solid at rest (lo, hi (N, 3) m: the model's
+    ``voxel_solid_box``, or its corners' box), scaled about the centroid down to the
+    solid's volume (N,) m^3 where that box holds more: the voxel itself for a lattice
+    cell, the solid it holds for a cell the surface crosses (a 0.25 m slab in 0.2 m
+    cubes is 0.25 m thick, not 0.4, and a block resting on it does not start 0.15 m
+    inside it), a box of the same volume and proportions for a jittered cell or a
+    conform one cut on a slant.
+    """
+    n = lo.shape[0]
+    half = np.empty((n, 3))
+    radius = np.empty(n)
+    for v in range(n):
+        for a in range(3):
+            half[v, a] = 0.5 * (hi[v, a] - lo[v, a])
+        box = 8.0 * half[v, 0] * half[v, 1] * half[v, 2]
+        if box > 0.0 and volume[v] < box * (1.0 - 1e-9):
+            scale = (volume[v] / box) ** (1.0 / 3.0)
+            for a in range(3):
+                half[v, a] *= scale
+        radius[v] = math.sqrt(half[v, 0] ** 2 + half[v, 1] ** 2 + half[v, 2] ** 2)
+    return half, radius
+
+
+def _contact_boxes(a: dict, vertices: np.ndarray, corners: np.ndarray,
+                   centroid: np.ndarray) -> tuple:
+    """The voxels' contact boxes and ground corners (see :class:`VoxelGeometry`): boxes
+    of the model's ``voxel_solid_box`` (or the corners' box, for older models) scaled
+    to the solid's volume (:func:`voxel_boxes`); where a voxel's solid box is not its
+    corners' box, its 8 box corners about its centroid are the ground's."""
+    lo, hi = corner_boxes(vertices, corners)
+    own = np.zeros(len(corners), dtype=bool)
+    if "voxel_solid_box" in a:
+        box = np.asarray(a["voxel_solid_box"], dtype=np.float64)
+        own = ((box[:, 0] != lo) | (box[:, 1] != hi)).any(axis=1)
+        lo, hi = np.ascontiguousarray(box[:, 0]), np.ascontiguousarray(box[:, 1])
+    half, radius = voxel_boxes(lo, hi, _solid_volume(a))
+    mine = np.flatnonzero(own)
+    signs = np.array([[(c >> k & 1) * 2.0 - 1.0 for k in range(3)] for c in range(8)])
+    extra = (centroid[mine, None, :] + signs[None] * half[mine, None, :]).reshape(-1, 3)
+    contact_corners = corners.copy()
+    contact_corners[mine] = len(vertices) + np.arange(8 * len(mine), dtype=np.int32
+                                                      ).reshape(-1, 8)
+    return (half, radius, np.ascontiguousarray(np.concatenate([vertices, extra])),
+            contact_corners)
 
 
 def _solid_volume(arrays: dict) -> np.ndarray:

@@ -22,7 +22,7 @@ import numpy as np
 import trimesh
 
 from blastvox.errors import MeshError
-from blastvox.geometry.voxel_faces import SURFACE_TAG
+from blastvox.geometry.voxel_faces import SURFACE_TAG, hex_triangles
 
 _BLOCK = 8  # cells per block edge for the two-level clip
 
@@ -90,14 +90,19 @@ def clipped_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarr
 
 
 def clip_volumes(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
-                 block_keys: np.ndarray,
-                 advance: Callable[[int], None] | None = None) -> np.ndarray:
-    """The volume (m^3) of each candidate cell inside ``solid``, (K,): arguments as for
-    :func:`clip_cells`, which this measures without keeping the clipped surfaces."""
+                 block_keys: np.ndarray, advance: Callable[[int], None] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The volume (m^3) of each candidate cell inside ``solid``, (K,), and the bounds of
+    that solid, (K, 2, 3) m (lo, hi; the cell's own corners' where nothing is inside):
+    arguments as for :func:`clip_cells`, which this measures without keeping the
+    clipped surfaces."""
     volume = np.zeros(len(corners))
+    bounds = np.stack([corners.min(axis=1), corners.max(axis=1)], axis=1)
     for k, clipped in clipped_cells(solid, corners, local_tris, block_keys, advance):
         volume[k] = clipped.volume()
-    return volume
+        box = clipped.bounding_box()
+        bounds[k, 0], bounds[k, 1] = box[:3], box[3:]
+    return volume, bounds
 
 
 def clip_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
@@ -153,3 +158,11 @@ def block_keys_for(ijk: np.ndarray) -> np.ndarray:
     """Block id (K,) of cells at lattice indices ``ijk`` (K, 3) for :func:`clip_cells`."""
     b = ijk // _BLOCK
     return (b[:, 0] * 1_000_003 + b[:, 1]) * 1_000_003 + b[:, 2]
+
+
+def local_hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:
+    """(K, 12, 3) corner numbers 0..7 of each hexahedron's triangles (shared split rule)."""
+    tris = hex_triangles(voxel_vertices)  # global ids
+    # map global ids back to corner numbers
+    match = tris[..., None] == voxel_vertices[:, None, None, :]
+    return np.argmax(match, axis=-1)

@@ -19,16 +19,21 @@ from blastvox import __version__
 from blastvox.bounds import MAX_COORDINATE_M, printable
 from blastvox.errors import MeshError
 from blastvox.geometry.frames import up_index
-from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG, hex_triangles
+from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG
 from blastvox.io.references import ReferencePolicy
 from blastvox.materials import MaterialLibrary, material_table, perturbed
 from blastvox.model import VoxelModel
 from blastvox.voxelize import budget, chunks
 from blastvox.voxelize import cells as cellsel
 from blastvox.voxelize.components import component_labels
-from blastvox.voxelize.conform import block_keys_for, clip_cells, solid_manifold
+from blastvox.voxelize.conform import (
+    block_keys_for,
+    clip_cells,
+    local_hex_triangles,
+    solid_manifold,
+)
 from blastvox.voxelize.diagnostics import warn_islands, warn_overlaps
-from blastvox.voxelize.fill import fill_volumes
+from blastvox.voxelize.fill import corner_bounds, cube_fill, solid_mass_frame, triangle_bounds
 from blastvox.voxelize.hashing import uniform_by_key
 from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
 from blastvox.voxelize.look import LookBuilder
@@ -159,6 +164,7 @@ class _Lattice:
     boundary: np.ndarray
     parts: list = field(default_factory=list)  # the input surfaces, for the look
     fill: np.ndarray | None = None  # (N,) m^3 of solid per cube voxel (fill.py), None: volume
+    solid_box: np.ndarray | None = None  # (N, 2, 3) m, the bounds of each voxel's solid
 
 
 def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
@@ -274,9 +280,15 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
             volume[conform_data[0]], centroid[conform_data[0]] = cv, cc
             inertia[conform_data[0]] = ci
         fill = None
+    solid_box = corner_bounds(positions, voxel_vertices)
+    if conform:
+        solid_box[conform_data[0]] = triangle_bounds(conform_data[2], conform_data[1])
     else:
-        fill = _cube_fill(closed, chosen, grid, positions, voxel_vertices, volume, keep,
-                          centroid, progress, request.origin)[keep]
+        cell_box = solid_box.copy()
+        fill = cube_fill(closed, chosen, grid.shape, (positions, voxel_vertices), volume, keep,
+                         centroid, solid_box, progress, request.origin)
+        solid_mass_frame(volume, solid_box, cell_box, centroid, inertia)
+        fill = fill[keep]
     if not keep.any():
         larger = " (a larger resolution)" if request.voxel_size is None else ""
         raise MeshError(f"{source}: no voxel lies inside the mesh at voxel size "
@@ -297,7 +309,8 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
                    centroid=centroid[keep], inertia=inertia[keep], conform_local=conform_local,
                    conform_offsets=conform_data[1], conform_triangles=conform_data[2],
                    conform_tags=conform_data[3], link_voxels=None, link_face=None,
-                   link_midpoint=None, link_area=None, boundary=None, parts=parts, fill=fill)
+                   link_midpoint=None, link_area=None, boundary=None, parts=parts, fill=fill,
+                   solid_box=solid_box[keep])
     _link(lat)
     if conform:
         _merge_slivers(lat, cell_volume[keep], settings.min_conform_fraction, source, warn)
@@ -374,43 +387,12 @@ def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progres
     candidates = np.flatnonzero(chosen.touched)
     progress.start(f"conform clip ({len(candidates):,} cells)", len(candidates))
     corners = positions[voxel_vertices[candidates]]
-    local_tris = _local_hex_triangles(voxel_vertices[candidates])
+    local_tris = local_hex_triangles(voxel_vertices[candidates])
     clipped = clip_cells(solid, corners, local_tris, block_keys_for(chosen.ijk[candidates]),
                          MIN_CLIP_FRACTION * hex_volume[candidates], progress.advance)
     keep = chosen.inside & ~chosen.touched
     keep[candidates[clipped.cells]] = True
     return keep, (candidates[clipped.cells], clipped.offsets, clipped.triangles, clipped.tags)
-
-
-def _cube_fill(solids, chosen, grid, positions, voxel_vertices, volume, keep, centroid,
-               progress, origin) -> np.ndarray:
-    """Each cell's volume of solid (m^3; see :mod:`blastvox.voxelize.fill`): the cells
-    the surface crosses clipped by the closed ``solids``, dropped ones given to the
-    nearest kept voxel. A surface that is not a closed manifold (holes, a soup: the
-    winding number still says what is inside) encloses no exact volume to clip: its
-    voxels weigh their cells."""
-    candidates = np.flatnonzero(chosen.touched)
-    if not solids or not candidates.size:
-        return volume.copy()
-    try:
-        solid = solid_manifold(solids[0].mesh, solids[0].label, origin)
-        for other in solids[1:]:
-            solid = solid + solid_manifold(other.mesh, other.label, origin)
-    except MeshError:
-        return volume.copy()
-    progress.start(f"fill ({len(candidates):,} cells)", len(candidates))
-    return fill_volumes(solid, candidates, positions[voxel_vertices[candidates]],
-                        _local_hex_triangles(voxel_vertices[candidates]),
-                        block_keys_for(chosen.ijk[candidates]), volume, keep, chosen.ijk,
-                        grid.shape, centroid, progress.advance)
-
-
-def _local_hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:
-    """(K, 12, 3) corner numbers 0..7 of each hexahedron's triangles (shared split rule)."""
-    tris = hex_triangles(voxel_vertices)  # global ids
-    # map global ids back to corner numbers
-    match = tris[..., None] == voxel_vertices[:, None, None, :]
-    return np.argmax(match, axis=-1)
 
 
 def _link(lat: _Lattice) -> None:
@@ -480,6 +462,9 @@ def _merge_slivers(lat: _Lattice, cell_volume: np.ndarray, fraction: float, sour
     lat.conform_triangles, lat.conform_tags = c.conform_triangles, c.conform_tags
     lat.link_voxels, lat.link_face = c.link_voxels, c.link_face
     lat.link_midpoint, lat.link_area = c.link_midpoint, c.link_area
+    lat.solid_box = corner_bounds(lat.positions, lat.voxel_vertices)
+    lat.solid_box[lat.conform_local] = triangle_bounds(lat.conform_triangles,
+                                                       lat.conform_offsets)
 
 
 def _boundary(lat: _Lattice) -> None:
@@ -506,7 +491,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         "voxel_volume", "voxel_centroid", "voxel_inertia", "voxel_boundary", "strength",
         "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
         "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side",
-        "link_bond", "anchored", "voxel_fill", "voxel_part")}
+        "link_bond", "anchored", "voxel_fill", "voxel_part", "voxel_solid_box")}
     parts: list[dict] = []  # meta["parts"]: every input part (node) of every object
     voxel_base = vertex_base = tri_base = 0
     look = LookBuilder()
@@ -549,6 +534,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         per["voxel_object"].append(object_ids)
         per["voxel_volume"].append(lat.volume)
         per["voxel_fill"].append(lat.volume if lat.fill is None else lat.fill)
+        per["voxel_solid_box"].append(lat.solid_box)
         per["voxel_centroid"].append(lat.centroid)
         per["voxel_inertia"].append(lat.inertia)
         per["voxel_boundary"].append(lat.boundary)
@@ -578,6 +564,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
         voxel_ijk=cat["voxel_ijk"].astype(np.int32).reshape(-1, 3),
         voxel_object=cat["voxel_object"].astype(np.int32),
         voxel_part=cat["voxel_part"].astype(np.int32),
+        voxel_solid_box=cat["voxel_solid_box"].astype(np.float64).reshape(-1, 2, 3),
         voxel_material=cat["material_name_idx"].astype(np.int32),
         voxel_volume=cat["voxel_volume"].astype(np.float64),
         voxel_centroid=cat["voxel_centroid"].reshape(-1, 3),
@@ -600,7 +587,7 @@ def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> 
     arrays["voxel_mass"] = fill * density
     arrays["voxel_inertia"] = (arrays["voxel_inertia"] * density[:, None, None]
                                * (fill / arrays["voxel_volume"])[:, None, None])
-    ground = _ground_height(settings.ground, arrays["vertices"], up)
+    ground = _ground_height(settings.ground, arrays["voxel_solid_box"], up)
     meta = {
         "tool_version": __version__, "up_axis": settings.up_axis, "ground_height": ground,
         "seed": settings.seed, "settings": settings.recorded, "objects": objects,
@@ -662,11 +649,14 @@ def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up
     return table
 
 
-def _ground_height(ground, vertices: np.ndarray, up: int) -> float | None:
+def _ground_height(ground, solid_box: np.ndarray, up: int) -> float | None:
+    """The ground plane's height (m along ``up``): as set, or "auto", the lowest point of
+    the voxels' solid (solid_box (N, 2, 3) m), not of their cells: a crate whose cells
+    reach below its mesh stands on the ground with the rest."""
     if ground is None or ground == "none":
         return None
     if ground == "auto":
-        return float(vertices[:, up].min())
+        return float(solid_box[:, 0, up].min())
     return float(ground)
 
 
@@ -680,10 +670,7 @@ def _foundations(arrays: dict, ground: float | None, up: int, strength: np.ndarr
         arrays["voxel_foundation"] = np.zeros(n, dtype=bool)
         arrays["voxel_foundation_yield"] = np.zeros(n)
         return
-    lowest = arrays["vertices"][arrays["voxel_vertices"], up].min(axis=1)
-    # a merged conform voxel (slivers) may reach below its anchor cell
-    owner = np.repeat(arrays["conform_voxels"], np.diff(arrays["conform_offsets"]))
-    np.minimum.at(lowest, owner, arrays["conform_triangles"][:, :, up].min(axis=1))
+    lowest = arrays["voxel_solid_box"][:, 0, up]  # where its solid reaches down to
     size = np.cbrt(np.maximum(arrays["voxel_volume"], 0.0))
     found = (lowest <= ground + 1e-3 * size) & anchored
     mat = arrays["voxel_material"]

@@ -2,9 +2,10 @@
 
 Broad phase: bounding spheres of bodies, then a spatial hash of the boundary
 voxels of bodies whose spheres overlap (:func:`static_hash` keeps resting
-bodies' voxels). Narrow phase: each voxel is a box (:func:`voxel_boxes`), and
-two boxes of different bodies that touch, or may touch within the step
-(speculative contacts), make one contact row: the separating axis of least
+bodies' voxels). Narrow phase: each voxel is a box
+(:func:`~blastvox.simulate.model.voxel_boxes`), and two boxes of different bodies
+that touch, or may touch within the step (speculative contacts), make one contact
+row: the separating axis of least
 penetration over the six face normals picks a reference face, the facing face
 of the other box is clipped to it (as Bullet's and ODE's box-box tests do),
 and the clipped points make a patch: a point at its centre, the separation of
@@ -66,37 +67,6 @@ class CollideParams(NamedTuple):
     cell: float
     reach: float
     slop: float
-
-
-@kernel
-def voxel_boxes(vertices, corners, contact_radius):
-    """Contact boxes (half extents (N, 3) m, half diagonals (N,) m) of the voxels.
-
-    A voxel's box is its corners' bounding box in the rest frame, scaled about the
-    centroid to the voxel's volume ((2 contact_radius)^3, m^3): the voxel itself
-    for a lattice cell, a box of the same volume and proportions for a jittered
-    or conform one (whose corners span more than its solid).
-    """
-    n = corners.shape[0]
-    half = np.empty((n, 3))
-    radius = np.empty(n)
-    for v in range(n):
-        for a in range(3):
-            lo = vertices[corners[v, 0], a]
-            hi = lo
-            for c in range(1, 8):
-                x = vertices[corners[v, c], a]
-                lo = min(lo, x)
-                hi = max(hi, x)
-            half[v, a] = 0.5 * (hi - lo)
-        box = 8.0 * half[v, 0] * half[v, 1] * half[v, 2]
-        volume = (2.0 * contact_radius[v]) ** 3
-        if box > 0.0 and volume < box * (1.0 - 1e-9):
-            scale = (volume / box) ** (1.0 / 3.0)
-            for a in range(3):
-                half[v, a] *= scale
-        radius[v] = math.sqrt(half[v, 0] ** 2 + half[v, 1] ** 2 + half[v, 2] ** 2)
-    return half, radius
 
 
 def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, memory) -> int:
@@ -380,8 +350,7 @@ def collide_phase(model, state, settings, dt: float) -> int:
     memory = state.contacts.memory
     if memory is None:
         v = model.voxels
-        memory = new_memory(state, voxel_size(v.contact_radius),
-                            *voxel_boxes(v.vertices, v.corners, v.contact_radius))
+        memory = new_memory(state, voxel_size(v.contact_radius), v.box_half, v.box_radius)
     reach = model.max_contact_radius  # half the largest voxel: the motion limit
     params = CollideParams(dt=dt, wake_speed=s.sleep_speed,
                            rest_speed=rest_speed(s, dt),

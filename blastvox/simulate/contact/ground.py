@@ -226,7 +226,7 @@ def ground_contacts(geometry, offsets, members, bodies, contacts, params, memory
     past the capacity are counted, not written (grow and call again).
     """
     dt, ground, up_axis = params.dt, params.ground, params.up_axis
-    vertices, voxel_vertices = geometry.vertices, geometry.corners
+    vertices, voxel_vertices = geometry.contact_vertices, geometry.contact_corners
     voxel_centroid = geometry.centroid
     voxel_radius, voxel_restitution = geometry.radius, geometry.restitution
     vertex_stamp, points = contacts.vertex_stamp, contacts.points
