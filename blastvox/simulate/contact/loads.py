@@ -314,7 +314,10 @@ def punch_phase(model, state, stress, punch: Punch, rows, count: int, end: int,
     if k == 0:
         return False
     touched = np.unique(punch.touched[:k])  # a voxel whose sum passed through zero repeats
-    pushed = punch.impulse[touched].copy()
+    # strikes punch; what rests weighs (SustainedLoads): a piece at rest pressed between
+    # two parts of a wall is squeezed by the soft push-out, J ~ overlap / dt, a force
+    # that grows as 1 / dt^2 and is not a load
+    pushed = punch.impulse[touched] - punch.resting[touched]
     punch.last = (touched, punch.resting[touched].copy(), support)
     punch.impulse[touched] = 0.0
     punch.resting[touched] = 0.0
