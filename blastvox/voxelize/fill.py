@@ -77,9 +77,10 @@ def _hand_on(fill: np.ndarray, bounds: np.ndarray, dropped: np.ndarray, keep: np
     to = kept[local[rows, faces]]
     np.add.at(fill, to, (fill[dropped] / np.maximum(count, 1))[rows])
     # a receiver's box reaches across the shared face to the far side of the solid it
-    # took; not from a gap cell between two parts (kept on both sides), whose solid
-    # is two slivers, one against each
-    alone = local[rows, faces ^ 1] < 0
+    # took, when it is the only one: the solid of a gap cell between two parts is two
+    # slivers, one against each, and a cell in a corner where two walls meet holds an
+    # L whose box, added to both, would make them overlap
+    alone = count[rows] == 1
     axis, below = faces // 2, faces % 2 == 0  # face f of the dropped cell: -x, +x, ...
     grow = alone & below  # the receiver lies below: its top moves up
     np.maximum.at(bounds[:, 1], (to[grow], axis[grow]), bounds[dropped[rows[grow]], 1,
