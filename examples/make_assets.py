@@ -2,8 +2,9 @@
 
     python examples/make_assets.py
 
-house/house.obj: a small house (Martins 2001 Fig. 9): 0.5 m brick walls with a
-door and a window, and a pitched roof, about 150 voxels at 0.5 m.
+house/house.obj: a small house (Martins 2001 Fig. 9): a 5 x 4 m cottage of 0.25 m
+brick walls with a door and four windows, gables and a pitched roof with a chimney,
+1,546 conform voxels at 0.25 m.
 building/building.glb: a three-storey building (Martins 2001 Fig. 10), a shell of
 0.3 m walls and floor slabs on a 20 x 11.5 m footprint with windows, a door and
 three inner columns, about 4,300 conform voxels at 0.5 m. glTF is Y-up: plan x is
@@ -40,14 +41,31 @@ def to_trimesh(solid: m3d.Manifold) -> trimesh.Trimesh:
 
 
 def house() -> trimesh.Trimesh:
-    """Z-up, metres: 4 x 3 m footprint, 2.5 m walls, 0.5 m thick, roof to 4 m."""
-    walls = box((4.0, 3.0, 2.5), (0, 0, 0)) - box((3.0, 2.0, 2.5), (0.5, 0.5, 0.0))
-    walls = walls - box((1.0, 0.6, 2.0), (1.5, -0.05, 0.0))  # door
-    walls = walls - box((0.6, 1.0, 1.0), (3.45, 1.0, 1.0))   # window
-    # roof: a prism over the 4 m side, from the wall top to the ridge
-    profile = m3d.CrossSection([[(0.0, 0.0), (3.0, 0.0), (1.5, 1.5)]])
-    roof = m3d.Manifold.extrude(profile, 4.0).rotate((90.0, 0.0, 90.0)).translate((0, 0, 2.5))
-    return to_trimesh(walls + roof)
+    """Z-up, metres: a 5 x 4 m cottage, 0.25 m brick walls 2.5 m high, a door and two
+    windows in the front wall (y = 0, facing -y), a window in each other wall, brick
+    gables on the side walls and a 0.25 m pitched roof (ridge along x at 4 m, 0.25 m
+    eaves all round) with a chimney. Every edge is on the 0.25 m lattice but the roof's."""
+    t = 0.25
+    walls = box((5.0, 4.0, 2.5), (0, 0, 0)) - box((5.0 - 2 * t, 4.0 - 2 * t, 2.5), (t, t, 0))
+    holes = [box((1.0, 0.5, 2.0), (2.0, -0.1, 0.0)),                          # door
+             box((1.0, 0.5, 1.0), (0.5, -0.1, 1.0)), box((1.0, 0.5, 1.0), (3.5, -0.1, 1.0)),
+             box((1.0, 0.5, 1.0), (2.0, 3.6, 1.0)),                          # back window
+             box((0.5, 1.0, 1.0), (-0.1, 1.5, 1.0)), box((0.5, 1.0, 1.0), (4.6, 1.5, 1.0))]
+    walls = walls - m3d.Manifold.batch_boolean(holes, m3d.OpType.Add)
+    # gables: the side walls' triangles from the wall top to the ridge
+    gable = m3d.CrossSection([[(0.0, 0.0), (4.0, 0.0), (2.0, 1.5)]])
+    gable = m3d.Manifold.extrude(gable, t).rotate((90.0, 0.0, 90.0)).translate((0, 0, 2.5))
+    gables = gable + gable.translate((5.0 - t, 0.0, 0.0))
+    # the roof: two slabs 0.25 m thick (0.3125 m plumb) on the gables' slopes, 0.25 m
+    # eaves front, back and at both ends; a chimney through its back slope
+    thick = t / 0.8  # plumb thickness: cos(36.87 deg) = 0.8
+    profile = m3d.CrossSection([[(-0.25, 2.3125), (2.0, 4.0), (4.25, 2.3125),
+                                 (4.25, 2.3125 + thick), (2.0, 4.0 + thick),
+                                 (-0.25, 2.3125 + thick)]])
+    roof = m3d.Manifold.extrude(profile, 5.5).rotate((90.0, 0.0, 90.0)).translate(
+        (-0.25, 0, 0))
+    chimney = box((0.5, 0.5, 1.5), (3.75, 2.75, 3.25))
+    return to_trimesh(walls + gables + roof + chimney)
 
 
 def plan_box(size, corner) -> m3d.Manifold:

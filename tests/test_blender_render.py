@@ -75,7 +75,7 @@ def test_house_renders_at_frame_0_and_mid_shot(house: tuple[SimCache, Path], suf
     export(cache, path, ExportOptions())
     frames = [0, mid_frame(cache)]
     report = render(path, tmp / suffix[1:], frames)
-    assert not report["camera"]["from_file"]  # the house scene has no camera
+    assert report["camera"]["from_file"]  # the house scene's camera, on its front
     for f in frames:
         got = report["frames"][str(f)]
         assert Path(got["png"]).stat().st_size > 0

@@ -37,7 +37,7 @@ def test_the_package_holds_the_layer_first_then_its_textures(house: SimCache,
     names = Sdf.ZipFile.Open(str(path)).GetFileNames()
     assert names[0] == "shot.usdc"
     assert sorted(names[1:]) == ["shot_textures/damage_brick.png",
-                                 "shot_textures/damage_plaster.png"]
+                                 "shot_textures/damage_roof_tiles.png"]  # the house's
     with zipfile.ZipFile(path) as archive:  # stored, not compressed, and dated 1980
         assert {i.compress_type for i in archive.infolist()} == {zipfile.ZIP_STORED}
         assert {i.date_time for i in archive.infolist()} == {(1980, 1, 1, 0, 0, 0)}

@@ -5,7 +5,8 @@ the project's::
 
     .venv-blender/bin/python tools/blender/render_check.py FILE OUT_DIR FRAME [FRAME ...]
         [--size WxH] [--samples N] [--motion-blur]
-        [--camera EX,EY,EZ:TX,TY,TZ] [--fire [--glow G]] [--opaque]
+        [--camera EX,EY,EZ:TX,TY,TZ] [--fire [--glow G]] [--opaque] [--denoise]
+        [--ground Z]
 
 What an artist does with a cache, in a script: FILE (.usd/.usda/.usdc or
 .gltf/.glb) is imported into an empty scene with the importer's defaults (as
@@ -23,7 +24,11 @@ material of a Volume prim: grey smoke whose density is the ``density`` grid);
 one material an artist adds for flames: a Principled Volume with Blackbody Intensity
 ``--glow`` (default 0.5: 1 is physical) reading
 ``temperature``, and dust a warm grey colour. ``--opaque`` renders the sky
-behind (for pictures) instead of a transparent film.
+behind (for pictures) instead of a transparent film; ``--denoise`` runs Cycles'
+denoiser (OpenImageDenoise) on each frame (for pictures: few samples, smooth volumes).
+``--ground Z`` adds what the exports leave out and an artist adds first: a ground, a
+400 m square at height Z (Blender's world, m; the shot's ground height, 0 for the
+examples) in a matte grey-brown, so that the rubble lies on something and casts shadows.
 Each FRAME is rendered with Cycles on the CPU (few samples, a tiny image, film
 transparent so that the alpha channel says what is covered) to ``OUT_DIR/frame_NNNN.png``.
 
@@ -119,6 +124,19 @@ def _place_camera(scene: bpy.types.Scene, eye: Vector, target: Vector) -> None:
     scene.camera = camera
 
 
+def _ground(scene: bpy.types.Scene, height: float) -> None:
+    """A 400 m matte square at ``height`` (Blender's Z)."""
+    bpy.ops.mesh.primitive_plane_add(size=400.0, location=(0.0, 0.0, height))
+    plane = bpy.context.active_object
+    plane.name = "render_check_ground"
+    material = bpy.data.materials.new("render_check_ground")
+    material.use_nodes = True
+    shader = material.node_tree.nodes["Principled BSDF"]
+    shader.inputs["Base Color"].default_value = (0.32, 0.30, 0.27, 1.0)
+    shader.inputs["Roughness"].default_value = 0.95
+    plane.data.materials.append(material)
+
+
 def _light(scene: bpy.types.Scene) -> None:
     sun = bpy.data.objects.new("render_check_sun", bpy.data.lights.new("sun", "SUN"))
     sun.data.energy = 3.0
@@ -186,7 +204,7 @@ def _render(scene: bpy.types.Scene, frame: int, out: Path) -> dict:
 
 def main(argv: list[str]) -> None:
     args, size, samples, blur, view = [], (96, 54), 4, False, None
-    fire, opaque, glow = False, False, GLOW
+    fire, opaque, glow, denoise, ground = False, False, GLOW, False, None
     it = iter(argv)
     for arg in it:
         if arg == "--size":
@@ -201,6 +219,10 @@ def main(argv: list[str]) -> None:
             glow = float(next(it))
         elif arg == "--opaque":
             opaque = True
+        elif arg == "--denoise":
+            denoise = True
+        elif arg == "--ground":
+            ground = float(next(it))
         elif arg == "--camera":
             view = [Vector(float(c) for c in point.split(",")) for point in next(it).split(":")]
         else:
@@ -220,10 +242,12 @@ def main(argv: list[str]) -> None:
         scene.frame_set(frames[0] if frames else 0)
         _add_camera(scene)
     _light(scene)
+    if ground is not None:
+        _ground(scene, ground)
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
-    scene.cycles.use_denoising = False
+    scene.cycles.use_denoising = denoise
     scene.render.film_transparent = not opaque
     # Cycles' motion blur, shutter open a whole frame: it blurs what moves between the
     # frame's sub-steps as the importers evaluate them (USD transform caches at
