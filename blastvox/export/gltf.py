@@ -64,6 +64,7 @@ from blastvox.export.gltf_buffer import (
     _f32,
     _floats,
 )
+from blastvox.export.gltf_keys import piece_channels
 from blastvox.export.gltf_meshes import TRIANGLES, _piece_meshes, _skin_groups
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import (
@@ -107,7 +108,9 @@ def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None 
                            damage_textures=options.damage_textures,
                            skinned=options.layout == "skinned",
                            fracture_faces=options.fracture_faces,
-                           particles=options.particles == "spheres")
+                           particles=options.particles == "spheres",
+                           key_tolerance_m=options.key_tolerance_m,
+                           key_tolerance_deg=options.key_tolerance_deg)
     if path.suffix.lower() == ".glb":
         with atomic_path(path) as tmp:
             tmp.write_bytes(glb_bytes(doc, blob))
@@ -139,7 +142,8 @@ def _json_bytes(doc: dict[str, Any]) -> bytes:
 
 def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = False,
                damage_textures: bool = True, skinned: bool = False,
-               fracture_faces: str = "rough", particles: bool = False
+               fracture_faces: str = "rough", particles: bool = False,
+               key_tolerance_m: float = 0.0, key_tolerance_deg: float = 0.0
                ) -> tuple[dict[str, Any], bytes]:
     """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
 
@@ -151,6 +155,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     not thousands.
     ``fracture_faces``: "rough" (rubble surfaces) or "voxel" (cell faces).
     ``particles``: also a node per particle (:mod:`blastvox.export.gltf_particles`).
+    ``key_tolerance_m``, ``key_tolerance_deg``: keyframe reduction of the pieces'
+    animation (:mod:`blastvox.export.gltf_keys`; m and degrees); 0 and 0 key every frame.
     """
     b = _Builder()
     mats, mat_index = _materials(cache)
@@ -204,14 +210,19 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     if n_frames:
         t_acc = b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR",
                            _floats([times.min()]), _floats([times.max()]))
-        tr_view = b.view(_f32(position.transpose(1, 0, 2)))
-        rot_view = b.view(_f32(rotation.transpose(1, 0, 2)))
+        if key_tolerance_m > 0 or key_tolerance_deg > 0:
+            piece_channels(b, channel, times, position, rotation, end, key_tolerance_m,
+                           key_tolerance_deg)
+        else:
+            tr_view = b.view(_f32(position.transpose(1, 0, 2)))
+            rot_view = b.view(_f32(rotation.transpose(1, 0, 2)))
+            for p in range(n_pieces):
+                channel(p, "translation", t_acc,
+                        b.accessor(tr_view, p * n_frames * 12, FLOAT, n_frames, "VEC3"))
+                channel(p, "rotation", t_acc,
+                        b.accessor(rot_view, p * n_frames * 16, FLOAT, n_frames, "VEC4"))
         steps = _step_accessors(b, times, end)
         for p in range(n_pieces):
-            channel(p, "translation", t_acc,
-                    b.accessor(tr_view, p * n_frames * 12, FLOAT, n_frames, "VEC3"))
-            channel(p, "rotation", t_acc,
-                    b.accessor(rot_view, p * n_frames * 16, FLOAT, n_frames, "VEC4"))
             if end[p] < n_frames:
                 step_in, step_out = steps[int(end[p])]
                 channel(p, "scale", step_in, step_out, "STEP")
