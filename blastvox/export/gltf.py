@@ -208,21 +208,30 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
         nodes.append(node)
 
     if n_frames:
-        t_acc = b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR",
-                           _floats([times.min()]), _floats([times.max()]))
+        made: list[int] = []
+
+        def frame_input() -> int:
+            """The accessor of every frame time, made once, where first used."""
+            if not made:
+                made.append(b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR",
+                                       _floats([times.min()]), _floats([times.max()])))
+            return made[0]
         if key_tolerance_m > 0 or key_tolerance_deg > 0:
-            piece_channels(b, channel, times, position, rotation, end, key_tolerance_m,
-                           key_tolerance_deg)
-        else:
+            steps = _step_accessors(b, times, end)
+            reduced = piece_channels(b, times, position, rotation, end, key_tolerance_m,
+                                     key_tolerance_deg)
+        else:  # every frame, the layout of the exports before keyframe reduction
+            t_acc = frame_input()
             tr_view = b.view(_f32(position.transpose(1, 0, 2)))
             rot_view = b.view(_f32(rotation.transpose(1, 0, 2)))
-            for p in range(n_pieces):
-                channel(p, "translation", t_acc,
-                        b.accessor(tr_view, p * n_frames * 12, FLOAT, n_frames, "VEC3"))
-                channel(p, "rotation", t_acc,
-                        b.accessor(rot_view, p * n_frames * 16, FLOAT, n_frames, "VEC4"))
-        steps = _step_accessors(b, times, end)
-        for p in range(n_pieces):
+            steps = _step_accessors(b, times, end)
+            reduced = [((t_acc, b.accessor(tr_view, p * n_frames * 12, FLOAT, n_frames,
+                                           "VEC3"), "LINEAR"),
+                        (t_acc, b.accessor(rot_view, p * n_frames * 16, FLOAT, n_frames,
+                                           "VEC4"), "LINEAR")) for p in range(n_pieces)]
+        for p, (translation, rotation_keys) in enumerate(reduced):
+            channel(p, "translation", *translation)
+            channel(p, "rotation", *rotation_keys)
             if end[p] < n_frames:
                 step_in, step_out = steps[int(end[p])]
                 channel(p, "scale", step_in, step_out, "STEP")
@@ -245,14 +254,15 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
                     "scale": _floats(scale[c, 0]) if n_frames else [0.0] * 3}
             nodes.append(node)
             if n_frames:
-                channel(len(nodes) - 1, "scale", t_acc,
+                channel(len(nodes) - 1, "scale", frame_input(),
                         b.accessor(sc_view, c * n_frames * 12, FLOAT, n_frames, "VEC3"))
 
-    cameras = _camera(cache, b, nodes, channel, t_acc if n_frames else None)
+    cameras = _camera(cache, b, nodes, channel, frame_input if n_frames else None)
     if particles:
         from blastvox.export.gltf_particles import add_particles
 
-        add_particles(cache, b, mats, meshes, nodes, channel, t_acc if n_frames else None,
+        add_particles(cache, b, mats, meshes, nodes, channel,
+                      frame_input() if n_frames else None,
                       _sphere_mesh)
 
     others = list(range(n_pieces, len(nodes)))  # shock fronts, camera, particles
@@ -314,7 +324,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
 
 def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[dict]:
     """The scene's camera (if any) as a perspective camera node whose translation is
-    animated with the baked shake; glTF cameras look down -Z with +Y up."""
+    animated with the baked shake; glTF cameras look down -Z with +Y up. ``t_acc``: a
+    callable giving the accessor of the frame times, or None (no frames)."""
     camera = cache.meta.get("camera")
     if not camera:
         return []
@@ -336,7 +347,7 @@ def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[d
                   "rotation": _floats(quat)})
     if t_acc is not None and np.abs(offset).max() > 0:
         view = b.view(_f32((position + offset).astype(np.float32)))
-        channel(len(nodes) - 1, "translation", t_acc,
+        channel(len(nodes) - 1, "translation", t_acc(),
                 b.accessor(view, 0, FLOAT, len(offset), "VEC3"))
     return [{"name": "camera", "type": "perspective", "perspective": {
         "yfov": float(2.0 * np.arctan(FILM_MM[1] / (2.0 * focal))),

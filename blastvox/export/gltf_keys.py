@@ -15,8 +15,6 @@ tolerances (both 0) every frame is keyed LINEAR, as :mod:`blastvox.export.gltf` 
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from blastvox.export.gltf_buffer import FLOAT, _Builder, _f32, _floats
@@ -62,16 +60,17 @@ def key_tangents(times: np.ndarray, position: np.ndarray, live: np.ndarray) -> n
     return out.astype(np.float32) + np.float32(0.0)
 
 
-def piece_channels(b: _Builder, channel: Callable, times: np.ndarray, position: np.ndarray,
+def piece_channels(b: _Builder, times: np.ndarray, position: np.ndarray,
                    rotation: np.ndarray, end: np.ndarray, tolerance_m: float,
-                   tolerance_deg: float) -> None:
-    """Add each piece's translation and rotation channel (``channel(node, path, input,
-    output, interpolation)``), keyframe-reduced: times (F,) float32 s, position (F, P, 3)
-    float32 m, rotation (F, P, 4) float32 (x, y, z, w), sign continuous, end (P,) each
-    piece's end frame (later frames are not keyed; it is scaled to 0 there)."""
+                   tolerance_deg: float) -> list[tuple[tuple, tuple]]:
+    """Each piece's translation and rotation sampler, keyframe-reduced: a list (P,) of
+    ((input, output, interpolation) of the translation, the same of the rotation),
+    accessors in ``b``. times (F,) float32 s, position (F, P, 3) float32 m, rotation
+    (F, P, 4) float32 (x, y, z, w), sign continuous, end (P,) each piece's end frame
+    (later frames are not keyed; it is scaled to 0 there)."""
     f_count, p_count = position.shape[:2]
     if not p_count or not f_count:
-        return
+        return []
     live = np.minimum(np.maximum(end, 1), f_count)
     t64 = times.astype(np.float64)
     pos = np.ascontiguousarray(position.transpose(1, 0, 2))            # (P, F, 3)
@@ -109,13 +108,15 @@ def piece_channels(b: _Builder, channel: Callable, times: np.ndarray, position: 
         else -1
     one_start = (np.cumsum(single) - 1).tolist()
     single, tr_count, rot_count = single.tolist(), tr_count.tolist(), rot_count.tolist()
+    out = []
     for p in range(p_count):
         if single[p]:
-            channel(p, "translation", inputs[set_of[p]],
-                    b.accessor(one_view, one_start[p] * 12, FLOAT, 1, "VEC3"))
+            translation = (inputs[set_of[p]],
+                           b.accessor(one_view, one_start[p] * 12, FLOAT, 1, "VEC3"), "LINEAR")
         else:
-            channel(p, "translation", inputs[set_of[p]],
-                    b.accessor(tr_view, tr_start[p] * 36, FLOAT, 3 * tr_count[p], "VEC3"),
-                    "CUBICSPLINE")
-        channel(p, "rotation", inputs[set_of[p_count + p]],
-                b.accessor(rot_view, rot_start[p] * 16, FLOAT, rot_count[p], "VEC4"))
+            translation = (inputs[set_of[p]], b.accessor(tr_view, tr_start[p] * 36, FLOAT,
+                                                         3 * tr_count[p], "VEC3"),
+                           "CUBICSPLINE")
+        out.append((translation, (inputs[set_of[p_count + p]], b.accessor(
+            rot_view, rot_start[p] * 16, FLOAT, rot_count[p], "VEC4"), "LINEAR")))
+    return out
