@@ -538,6 +538,9 @@ class Output(_Model):
     key_tolerance_deg: Annotated[float, Field(ge=0.0, le=90.0)] = Field(0.1, description=(
         "Keyframe reduction: a piece's rotation is keyed only where interpolating the "
         "kept keys would miss it by more than this angle (degrees)."))
+    velocity_primvars: bool = Field(True, description=(
+        "USD: each piece's time-sampled velocity and angularVelocity primvars (false: "
+        "left out, a smaller file and faster frame changes in Blender)."))
     damage_samples: bool = Field(False, description=(
         "USD: time-sample each piece's per-face damage primvar at every change (Blender "
         "then reads every mesh again at each frame change); false writes its final value "

@@ -291,3 +291,23 @@ def test_cli_key_tolerance(cache: SimCache, tmp_path: Path) -> None:
                              str(tmp_path / "bad.glb"), "--key-tolerance", "-1"],
                             capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 2 and "key-tolerance" in result.stderr
+
+
+def test_cli_velocity_primvars(cache: SimCache, tmp_path: Path) -> None:
+    sim = tmp_path / "sim.npz"
+    cache.save(sim)
+    for name, args in (("plain", []), ("lean", ["--no-velocity-primvars"])):
+        result = subprocess.run([sys.executable, "-m", "blastvox", "export", str(sim), "-o",
+                                 str(tmp_path / f"{name}.usdc"), "-q", *args],
+                                capture_output=True, text=True, cwd=ROOT)
+        assert result.returncode == 0, result.stderr
+    paths = piece_prim_paths(piece_objects(cache), piece_parts(cache))
+    stages = [Usd.Stage.Open(str(tmp_path / f"{n}.usdc")) for n in ("plain", "lean")]
+    plain, lean = (stage.GetPrimAtPath(paths[0]) for stage in stages)
+    assert plain.GetAttribute("primvars:blastvox:velocity").GetTimeSamples()
+    assert not lean.GetAttribute("primvars:blastvox:velocity")
+    assert not lean.GetAttribute("primvars:blastvox:angularVelocity")
+    # the transforms are the same
+    for f in range(FRAMES):
+        assert plain.GetAttribute("xformOp:translate").Get(f) == \
+            lean.GetAttribute("xformOp:translate").Get(f)

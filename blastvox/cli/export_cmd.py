@@ -76,6 +76,10 @@ def export(
         help="USD: time-sample the per-face damage primvar at every change (Blender then "
         "re-reads every mesh at each frame change), or write its final value and the "
         "frame each face is first damaged."),
+    velocity_primvars: bool = typer.Option(
+        True, "--velocity-primvars/--no-velocity-primvars",
+        help="USD: each piece's time-sampled velocity (m/s) and angularVelocity (deg/s) "
+        "primvars, or none (a smaller file, faster frame changes in Blender)."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),
 ) -> None:
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
@@ -103,7 +107,8 @@ def export(
                                            volume_voxel_m=volume_voxel,
                                            key_tolerance_m=key_tolerance,
                                            key_tolerance_deg=key_angle_tolerance,
-                                           damage_samples=damage_samples))
+                                           damage_samples=damage_samples,
+                                           velocity_primvars=velocity_primvars))
     if not quiet:
         err_console().print(f"{output}: {cache.piece_count:,} pieces, {cache.frame_count} "
                             f"frames, {output.stat().st_size / 1e6:.2f} MB "

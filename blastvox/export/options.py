@@ -41,7 +41,10 @@ class ExportOptions:
     damage_samples: USD: time-sample each piece's per-face ``primvars:damage`` at every
     change (Blender then gives every piece a MeshSequenceCache modifier, and a frame
     change re-reads every mesh); False (default) writes its final value and, per face,
-    ``primvars:blastvox:damageFrame`` (the first frame it is damaged, -1 never)."""
+    ``primvars:blastvox:damageFrame`` (the first frame it is damaged, -1 never).
+    velocity_primvars: USD: each piece Xform's time-sampled ``primvars:blastvox:velocity``
+    and ``angularVelocity`` (False: left out; 18,225 pieces: 16 MB less, and a Blender
+    frame change about a third faster)."""
 
     up_axis: str = "Y"
     layout: str = "xforms"
@@ -53,3 +56,4 @@ class ExportOptions:
     key_tolerance_m: float = KEY_TOLERANCE_M
     key_tolerance_deg: float = KEY_TOLERANCE_DEG
     damage_samples: bool = False
+    velocity_primvars: bool = True

@@ -221,7 +221,8 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
             _user_properties(xform, *properties)
             for key, type_name in (("primvars:blastvox:velocity", _T.Vector3f),
                                    ("primvars:blastvox:angularVelocity", _T.Vector3f)):
-                paths[key][p] = _attr(xform, key, type_name).path
+                if key in paths:
+                    paths[key][p] = _attr(xform, key, type_name).path
             end = int(w.end[p])
             if end < f_count:
                 _vanish(w.layer, _attr(xform, "visibility", _T.Token).path, end)
@@ -249,7 +250,6 @@ def _xform_samples(w, live: np.ndarray) -> dict[str, tuple[np.ndarray, object]]:
     pos, ori = w.animation_arrays()
     pos_n = np.rint(np.clip(pos, -NANO_LIMIT, NANO_LIMIT) * 1e9).astype(np.int64)
     ori_n = np.rint(ori.astype(np.float32) * 1e9).astype(np.int64)
-    linear, angular = velocities(w.anim)
     tol_m, tol_deg = float(w.options.key_tolerance_m), float(w.options.key_tolerance_deg)
     reduce = tol_m > 0 or tol_deg > 0
     times = np.arange(w.frames, dtype=np.float64)
@@ -264,9 +264,13 @@ def _xform_samples(w, live: np.ndarray) -> dict[str, tuple[np.ndarray, object]]:
                            count, tolerance, tolerance)
 
     out = {}
-    for key, v, scale, tol in (("primvars:blastvox:velocity", linear, 1e6, tol_m * fps),
-                               ("primvars:blastvox:angularVelocity", np.degrees(angular), 1e6,
-                                tol_deg * fps)):
+    wanted: tuple = ()
+    if w.options.velocity_primvars:
+        linear, angular = velocities(w.anim)
+        wanted = (("primvars:blastvox:velocity", linear, 1e6, tol_m * fps),
+                  ("primvars:blastvox:angularVelocity", np.degrees(angular), 1e6,
+                   tol_deg * fps))
+    for key, v, scale, tol in wanted:
         n = np.rint(np.clip(np.nan_to_num(v), -NANO_LIMIT, NANO_LIMIT) * scale).astype(np.int64)
         n = n.transpose(1, 0, 2)
         keep = keys(n / scale, n, tol)
