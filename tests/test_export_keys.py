@@ -1,7 +1,8 @@
 """Keyframe reduction (blastvox/export/keys.py): every frame of a reduced file, read back
 with pxr (USD interpolates itself) and with a glTF reader written here (LINEAR: lerp and
 slerp, CUBICSPLINE: Hermite, as the glTF specification defines them), is within the
-tolerance of the unreduced file's transform, and exact at the keys it keeps.
+tolerance of the unreduced file's transform, and exact at the keys it keeps (Blender 5.0
+imports CUBICSPLINE without its tangents, so the exports write LINEAR keys only).
 
 The cache is synthetic: pieces at rest before they break, flying ballistically and
 tumbling, one bouncing, all settled for the last frames, some vanishing part-way.
@@ -208,16 +209,9 @@ def test_gltf_reduced_keys_within_tolerance_at_every_frame(cache: SimCache, tmp_
     for slerp in (True, False):  # the specification's slerp, and Blender's F-curves
         reduced = _gltf_frames(tmp_path / "reduced.glb", cache, slerp)
         assert _usd_within(exact, reduced, end, KEY_TOLERANCE_M, KEY_TOLERANCE_DEG), slerp
-    assert reduced[2] < 0.5 * exact[2], (reduced[2], exact[2])
-    kinds = {s["interpolation"] for s in reduced[3]["animations"][0]["samplers"]}
-    assert "CUBICSPLINE" in kinds  # the arcs
-    # the flights are ballistic: cubic translations need few keys (rest, launch, bounce,
-    # landing, settled), far fewer than the frames
+    assert reduced[2] < 0.8 * exact[2], (reduced[2], exact[2])
     doc = reduced[3]
-    counts = [doc["accessors"][doc["animations"][0]["samplers"][c["sampler"]]["input"]]["count"]
-              for c in doc["animations"][0]["channels"]
-              if c["target"]["path"] == "translation" and c["target"]["node"] < 27]
-    assert max(counts) <= 12, counts
+    assert {s["interpolation"] for s in doc["animations"][0]["samplers"]} <= {"LINEAR", "STEP"}
     # a dropped key (here: every key of piece 1's rotation but its first and last) is caught
     data = (tmp_path / "reduced.glb").read_bytes()
     rot = next(c for c in doc["animations"][0]["channels"]
@@ -250,16 +244,14 @@ def test_reduction_is_deterministic(cache: SimCache, tmp_path: Path) -> None:
 
 def test_reduce_keys_keeps_what_linear_interpolation_needs() -> None:
     """A parabola sampled at 10 frames: linear keys every frame at a 0.1 mm tolerance
-    (it misses by g dt^2 / 2 if one is skipped), two keys with its exact derivative
-    (Hermite); a constant: one key; a steady spin by slerp: two keys."""
+    (it misses by g dt^2 / 2 if one is skipped), at 1 cm every other frame; a constant:
+    one key; a steady spin: its ends and a few keys between (the normalised lerp)."""
     t = np.arange(10) / 24.0
     arc = np.zeros((1, 10, 3))
     arc[0, :, 2] = 5.0 * t - 4.905 * t**2
     live = np.array([10])
     assert reduce_keys(t, arc, None, live, 1e-4, 0.1).sum() == 10
-    slope = np.zeros_like(arc)
-    slope[0, :, 2] = 5.0 - 9.81 * t
-    assert reduce_keys(t, arc, None, live, 1e-4, 0.1, slope).sum() == 2
+    assert reduce_keys(t, arc, None, live, 1e-2, 0.1).sum() == 6
     assert reduce_keys(t, np.ones((1, 10, 3)), None, live, 1e-4, 0.1).tolist() == [
         [True] + [False] * 9]
     half = 0.5 * np.radians(30.0) * np.arange(10)  # 30 degrees a frame about z
@@ -282,8 +274,6 @@ def test_cli_key_tolerance(cache: SimCache, tmp_path: Path) -> None:
         assert result.returncode == 0, result.stderr
     exact, _ = _read_glb(tmp_path / "exact.glb")
     default, _ = _read_glb(tmp_path / "default.glb")
-    interp = {s["interpolation"] for s in exact["animations"][0]["samplers"]}
-    assert "CUBICSPLINE" not in interp
     first = exact["animations"][0]["samplers"][0]
     assert exact["accessors"][first["input"]]["count"] == FRAMES
     assert len(default["accessors"]) != len(exact["accessors"])

@@ -65,8 +65,8 @@ def export(
     key_tolerance: float = typer.Option(
         1e-4, "--key-tolerance", metavar="M", min=0.0, max=1.0,
         help="Keyframe reduction: key a piece's translation only where interpolating the "
-        "kept keys would miss it by more than this, m (0.1 mm; glTF: cubic splines, USD: "
-        "linear). 0 with --key-angle-tolerance 0 keys every frame."),
+        "kept keys (linearly) would miss it by more than this, m (0.1 mm). 0 with "
+        "--key-angle-tolerance 0 keys every frame."),
     key_angle_tolerance: float = typer.Option(
         0.1, "--key-angle-tolerance", metavar="DEG", min=0.0, max=90.0,
         help="Keyframe reduction: key a piece's rotation only where interpolating the kept "

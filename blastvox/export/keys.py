@@ -30,8 +30,7 @@ __all__ = ["KEY_TOLERANCE_DEG", "KEY_TOLERANCE_M", "reduce_keys"]
 
 
 def reduce_keys(times: np.ndarray, position: np.ndarray | None, orientation: np.ndarray | None,
-                live: np.ndarray, tolerance_m: float, tolerance_deg: float,
-                tangent: np.ndarray | None = None) -> np.ndarray:
+                live: np.ndarray, tolerance_m: float, tolerance_deg: float) -> np.ndarray:
     """(P, F) bool: the frames each piece keeps as keys.
 
     times (F,): the key times as the reader interpolates them (USD: frame index; glTF:
@@ -44,28 +43,23 @@ def reduce_keys(times: np.ndarray, position: np.ndarray | None, orientation: np.
     Rotations are checked against slerp (the formats' rule) and against the normalised
     component-wise lerp (what Blender's quaternion F-curves do), and two keys of a span
     are never more than 180 degrees of quaternion apart (a dot product >= 0).
-    tangent (P, F, 3) per second, or None: translations are interpolated as a cubic
-    Hermite spline with these derivatives at the keys (glTF CUBICSPLINE) instead of
-    linearly; with exact derivatives a ballistic arc needs only its two ends.
     """
     p_count, f_count = live.shape[0], len(times)
     pos = (np.zeros((p_count, f_count, 3)) if position is None
            else np.ascontiguousarray(position, dtype=np.float64))
     ori = (np.zeros((p_count, f_count, 4)) if orientation is None
            else np.ascontiguousarray(orientation, dtype=np.float64))
-    tan = (np.zeros((p_count, 0, 3)) if tangent is None
-           else np.ascontiguousarray(tangent, dtype=np.float64))
     keep = np.zeros((p_count, f_count), dtype=np.bool_)
     # cos of half the tolerance angle: |q_interp . q_true| below it misses by more
     half = np.radians(float(tolerance_deg)) / 2.0
-    _reduce(np.ascontiguousarray(times, dtype=np.float64), pos, ori, tan,
+    _reduce(np.ascontiguousarray(times, dtype=np.float64), pos, ori,
             np.minimum(np.asarray(live, dtype=np.int64), f_count), float(tolerance_m),
             float(np.cos(half)) if orientation is not None else -2.0, keep)
     return keep
 
 
 @kernel
-def _reduce(times, pos, ori, tan, live, tol_m, cos_half, keep):  # pragma: no cover - numba
+def _reduce(times, pos, ori, live, tol_m, cos_half, keep):  # pragma: no cover - numba
     """Greedy key choice per piece (see :func:`reduce_keys`); fills ``keep`` (P, F)."""
     tol2 = tol_m * tol_m
     for p in range(pos.shape[0]):
@@ -82,18 +76,9 @@ def _reduce(times, pos, ori, tan, live, tol_m, cos_half, keep):  # pragma: no co
             for k in range(a + 1, b):
                 u = (times[k] - times[a]) / span if span > 0 else 0.0
                 d2 = 0.0
-                if tan.shape[1] > 0:  # cubic Hermite (glTF CUBICSPLINE)
-                    u2, u3 = u * u, u * u * u
-                    h00, h10 = 2 * u3 - 3 * u2 + 1, (u3 - 2 * u2 + u) * span
-                    h01, h11 = -2 * u3 + 3 * u2, (u3 - u2) * span
-                    for c in range(3):
-                        d = (h00 * pos[p, a, c] + h10 * tan[p, a, c] + h01 * pos[p, b, c]
-                             + h11 * tan[p, b, c] - pos[p, k, c])
-                        d2 += d * d
-                else:
-                    for c in range(3):
-                        d = pos[p, a, c] + u * (pos[p, b, c] - pos[p, a, c]) - pos[p, k, c]
-                        d2 += d * d
+                for c in range(3):
+                    d = pos[p, a, c] + u * (pos[p, b, c] - pos[p, a, c]) - pos[p, k, c]
+                    d2 += d * d
                 if d2 > tol2:
                     ok = False
                     break
@@ -110,8 +95,6 @@ def _reduce(times, pos, ori, tan, live, tol_m, cos_half, keep):  # pragma: no co
             same = True
             for c in range(3):
                 same = same and pos[p, a, c] == pos[p, n - 1, c]
-                if tan.shape[1] > 0:
-                    same = same and tan[p, a, c] == 0.0 and tan[p, n - 1, c] == 0.0
             for c in range(4):
                 same = same and ori[p, a, c] == ori[p, n - 1, c]
             if same:
