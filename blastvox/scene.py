@@ -531,6 +531,20 @@ class Output(_Model):
     volume_voxel_m: Annotated[float, Field(ge=0.001, le=100.0)] = Field(0.1, description=(
         "Cell size of the particle volumes (m): smaller is finer and costs about the "
         "cube of the ratio in time and disk."))
+    key_tolerance_m: Annotated[float, Field(ge=0.0, le=1.0)] = Field(1e-4, description=(
+        "Keyframe reduction: a piece's translation is keyed only where interpolating "
+        "the kept keys would miss it by more than this (m); 0 with key_tolerance_deg = 0 "
+        "keys every frame where it changes."))
+    key_tolerance_deg: Annotated[float, Field(ge=0.0, le=90.0)] = Field(0.1, description=(
+        "Keyframe reduction: a piece's rotation is keyed only where interpolating the "
+        "kept keys would miss it by more than this angle (degrees)."))
+    velocity_primvars: bool = Field(True, description=(
+        "USD: each piece's time-sampled velocity and angularVelocity primvars (false: "
+        "left out, a smaller file and faster frame changes in Blender)."))
+    damage_samples: bool = Field(False, description=(
+        "USD: time-sample each piece's per-face damage primvar at every change (Blender "
+        "then reads every mesh again at each frame change); false writes its final value "
+        "and the frame each face is first damaged."))
 
 
 class Wedge(_Model):

@@ -189,7 +189,11 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
                                               damage_textures=out.damage_textures,
                                               fracture_faces=out.fracture_faces,
                                               particles=out.particles,
-                                              volume_voxel_m=out.volume_voxel_m))
+                                              volume_voxel_m=out.volume_voxel_m,
+                                              key_tolerance_m=out.key_tolerance_m,
+                                              key_tolerance_deg=out.key_tolerance_deg,
+                                              damage_samples=out.damage_samples,
+                                              velocity_primvars=out.velocity_primvars))
             seconds["export"] = seconds.get("export", 0.0) + time.perf_counter() - started
             ran.append("export")
     if not ran:

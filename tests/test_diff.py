@@ -149,14 +149,24 @@ def perturb_gltf(path: Path, dest: Path, delta: float) -> tuple[str, int]:
         view = doc["bufferViews"][acc["bufferView"]]
         base = bin_start + view.get("byteOffset", 0) + acc.get("byteOffset", 0)
         values = np.frombuffer(bytes(data[base:base + acc["count"] * n * 4]), "<f4")
+        cubic = sampler["interpolation"] == "CUBICSPLINE"  # (in-tangent, value, out-tangent)
+        t_acc = doc["accessors"][sampler["input"]]
+        t_base = (bin_start + doc["bufferViews"][t_acc["bufferView"]].get("byteOffset", 0)
+                  + t_acc.get("byteOffset", 0))
+        times = np.frombuffer(bytes(data[t_base:t_base + t_acc["count"] * 4]), "<f4")
         for i in range(n, len(values)):
+            row = i // n
+            if cubic and row % 3 != 1:
+                continue
             old = values[i]
             new = np.float32(np.float64(old) + delta)
             if abs(float(new) - float(old) - delta) < 0.1 * delta:
                 data[base + 4 * i:base + 4 * i + 4] = struct.pack("<f", new)
                 target = copy if copy.suffix == ".glb" else copy.with_suffix(".bin")
                 target.write_bytes(bytes(data))
-                return f"animations[0].samplers[{s}].output", i // n
+                key = row // 3 if cubic else row  # reported as its frame: time x fps
+                fps = doc["scenes"][0]["extras"]["fps"]
+                return f"animations[0].samplers[{s}].output", round(float(times[key]) * fps)
     raise AssertionError("no float32 animation value that a change of delta moves by delta")
 
 

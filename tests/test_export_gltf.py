@@ -229,10 +229,13 @@ def test_material_colours(shot: tuple[SimCache, Path], glb: tuple[Path, Doc, byt
 
 # --- animation -------------------------------------------------------------------------------
 
-def test_moving_piece_keys_match_animation(shot: tuple[SimCache, Path],
-                                           glb: tuple[Path, Doc, bytes]) -> None:
+def test_moving_piece_keys_match_animation(shot: tuple[SimCache, Path], tmp_path: Path) -> None:
+    """Without keyframe reduction (tolerances 0) every frame is a LINEAR key
+    (tests/test_export_keys.py checks the reduced default)."""
     cache, _ = shot
-    _, doc, blob = glb
+    write_gltf(cache, tmp_path / "exact.glb", ExportOptions(key_tolerance_m=0.0,
+                                                             key_tolerance_deg=0.0))
+    doc, blob = read_glb((tmp_path / "exact.glb").read_bytes())
     anim = animation(cache, "Y")
     p = most_moved(cache)
     ch = channels(doc, p)

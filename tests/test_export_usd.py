@@ -135,9 +135,10 @@ def wall(tmp_path_factory) -> tuple[SimCache, Path]:
 
 def _write(cache: SimCache, path: Path, up: str = "Y", layout: str = "xforms",
            shock: bool = False, damage_textures: bool = True,
-           particles: str = "auto") -> Usd.Stage:
+           particles: str = "auto", damage_samples: bool = False) -> Usd.Stage:
     export(cache, path, ExportOptions(up_axis=up, layout=layout, shock=shock,
-                                      damage_textures=damage_textures, particles=particles))
+                                      damage_textures=damage_textures, particles=particles,
+                                      damage_samples=damage_samples))
     stage = Usd.Stage.Open(str(path))
     assert stage is not None
     return stage
@@ -297,8 +298,30 @@ def test_material_bindings(synthetic, tmp_path):
         assert np.allclose(values[np.asarray(subset.GetIndicesAttr().Get())], want, atol=1e-6)
 
 
-def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
+def test_damage_primvar_is_final_value_and_first_frame_by_default(synthetic, tmp_path):
+    """Without --damage-samples the per-face damage is constant (no mesh animation for
+    Blender to read per frame): its final value, and the frame each face is first hit."""
     stage = _write(synthetic, tmp_path / "shot.usdc")
+    meshes = piece_meshes(synthetic, "Y")
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(PIECE[1] + "/piece_00001"))
+    primvars = UsdGeom.PrimvarsAPI(mesh)
+    damage, first = primvars.GetPrimvar("damage"), primvars.GetPrimvar("blastvox:damageFrame")
+    assert damage.GetAttr().GetTimeSamples() == [] == first.GetAttr().GetTimeSamples()
+    assert first.GetInterpolation() == UsdGeom.Tokens.uniform
+    face_voxel = meshes.voxel[meshes.offsets[1]:meshes.offsets[2]]
+    v1 = np.flatnonzero(synthetic.voxel_piece == 1)
+    levels, frames = {v1[0]: 255, v1[1]: 64}, {v1[0]: 2, v1[1]: 5}
+    assert np.allclose(np.asarray(damage.Get()),
+                       [levels.get(v, 0) / 255.0 for v in face_voxel])
+    assert list(first.Get()) == [frames.get(v, -1) for v in face_voxel]
+    untouched = UsdGeom.PrimvarsAPI(UsdGeom.Mesh(
+        stage.GetPrimAtPath(PIECE[0] + "/piece_00000")))
+    assert np.all(np.asarray(untouched.GetPrimvar("damage").Get()) == 0.0)
+    assert not untouched.GetPrimvar("blastvox:damageFrame")
+
+
+def test_damage_primvar_steps_where_events_say(synthetic, tmp_path):
+    stage = _write(synthetic, tmp_path / "shot.usdc", damage_samples=True)
     meshes = piece_meshes(synthetic, "Y")
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath(PIECE[1] + "/piece_00001"))
     primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("damage")
@@ -569,7 +592,7 @@ def test_instancer_layout(synthetic, tmp_path, up):
     names = {s.GetPrim().GetName() for s in UsdGeom.Subset.GetGeomSubsets(
         UsdGeom.Mesh(proto), UsdGeom.Tokens.face, "materialBind")}
     assert "damage_brick" in names
-    assert UsdGeom.PrimvarsAPI(proto).GetPrimvar("damage").GetAttr().GetTimeSamples()
+    assert np.any(np.asarray(UsdGeom.PrimvarsAPI(proto).GetPrimvar("damage").Get()) > 0)
 
 
 def test_instancer_orientation_matches(synthetic, tmp_path):

@@ -91,6 +91,7 @@ UNITS: dict[str, str] = {
     "wedge.sample": "shots",
     "wedge.sample_seed": "-",
     "output.volume_voxel_m": "m",
+    "output.key_tolerance_m": "m", "output.key_tolerance_deg": "degrees",
 }
 
 #: Defaults that a model validator computes (the schema marks these keys required or unset).

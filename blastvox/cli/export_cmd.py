@@ -62,6 +62,24 @@ def export(
         "glTF: spheres writes a node per particle (at most 256 per system), else none."),
     volume_voxel: float = typer.Option(0.1, "--volume-voxel", metavar="M",
                                        help="Cell size of the particle volumes, m."),
+    key_tolerance: float = typer.Option(
+        1e-4, "--key-tolerance", metavar="M", min=0.0, max=1.0,
+        help="Keyframe reduction: key a piece's translation only where interpolating the "
+        "kept keys (linearly) would miss it by more than this, m (0.1 mm). 0 with "
+        "--key-angle-tolerance 0 keys every frame."),
+    key_angle_tolerance: float = typer.Option(
+        0.1, "--key-angle-tolerance", metavar="DEG", min=0.0, max=90.0,
+        help="Keyframe reduction: key a piece's rotation only where interpolating the kept "
+        "keys would miss it by more than this angle, degrees."),
+    damage_samples: bool = typer.Option(
+        False, "--damage-samples/--final-damage",
+        help="USD: time-sample the per-face damage primvar at every change (Blender then "
+        "re-reads every mesh at each frame change), or write its final value and the "
+        "frame each face is first damaged."),
+    velocity_primvars: bool = typer.Option(
+        True, "--velocity-primvars/--no-velocity-primvars",
+        help="USD: each piece's time-sampled velocity (m/s) and angularVelocity (deg/s) "
+        "primvars, or none (a smaller file, faster frame changes in Blender)."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="No summary."),
 ) -> None:
     """Bake per-piece meshes and transforms, damage faces, dust and cues into USD or glTF."""
@@ -86,7 +104,11 @@ def export(
                                            shock=shock, damage_textures=damage_textures,
                                            fracture_faces=fracture_faces.value,
                                            particles=particles.value,
-                                           volume_voxel_m=volume_voxel))
+                                           volume_voxel_m=volume_voxel,
+                                           key_tolerance_m=key_tolerance,
+                                           key_tolerance_deg=key_angle_tolerance,
+                                           damage_samples=damage_samples,
+                                           velocity_primvars=velocity_primvars))
     if not quiet:
         err_console().print(f"{output}: {cache.piece_count:,} pieces, {cache.frame_count} "
                             f"frames, {output.stat().st_size / 1e6:.2f} MB "

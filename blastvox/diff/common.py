@@ -91,11 +91,12 @@ class _Collector:
 
     def arrays(self, a: np.ndarray, b: np.ndarray, path: str, attribute: str | None = None,
                frame: float | int | None = None, frame_axis: bool = False,
-               key_size: int = 1) -> None:
+               key_size: int = 1, frames: np.ndarray | None = None) -> None:
         """Compare two arrays (shape, then values) and add at most one difference.
 
         ``frame_axis``: the first axis is the frame (reported as ``frame``);
-        ``key_size``: with ``frame_axis``, rows per key (glTF CUBICSPLINE: 3).
+        ``key_size``: with ``frame_axis``, rows per key (glTF CUBICSPLINE: 3);
+        ``frames``: the frame number of each key (default: its index).
         """
         a, b = np.asarray(a), np.asarray(b)
         if a.shape != b.shape:
@@ -122,6 +123,8 @@ class _Collector:
         note = f"[{', '.join(str(int(i)) for i in first)}]" if bad.ndim else ""
         if frame_axis and bad.ndim:
             frame = int(row) // key_size
+            if frames is not None and frame < len(frames):
+                frame = int(frames[frame])
             note = f"[{', '.join(str(int(i)) for i in first[1:])}]" if bad.ndim > 1 else ""
         if bad.ndim:
             what = "rows" if bad.ndim > 1 else "elements"

@@ -1,4 +1,5 @@
-"""``blastvox diff`` of glTF 2.0 files (.glb/.gltf): the JSON document and every accessor."""
+"""``blastvox diff`` of glTF 2.0 files (.glb/.gltf): the JSON document, every accessor, and
+the animations by their values at the frames (:mod:`blastvox.diff.gltf_anim`)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,11 @@ from blastvox.diff.common import (
     Difference,
     DiffError,
     _Collector,
+)
+from blastvox.diff.gltf_anim import (
+    animation_accessors,
+    diff_animations,
+    without_animation_keys,
 )
 from blastvox.errors import MeshError
 from blastvox.io.mesh_checks import check_gltf_nodes
@@ -244,14 +250,20 @@ def _diff_gltf(a: Path, b: Path, out: _Collector, policy: ReferencePolicy) -> No
     # decode first, so an unreadable file is an error (exit 2), not a difference
     acc_a = [_accessor(a, doc_a, buf_a, i) for i in range(len(_list(doc_a, "accessors")))]
     acc_b = [_accessor(b, doc_b, buf_b, i) for i in range(len(_list(doc_b, "accessors")))]
-    out.values(doc_a, doc_b, "", skip=_gltf_skip)
+    # animations by their values at the frames (their keys may differ): gltf_anim
+    anim_a, anim_b = animation_accessors(doc_a), animation_accessors(doc_b)
+    out.values(without_animation_keys(doc_a, anim_a), without_animation_keys(doc_b, anim_b),
+               "", skip=_gltf_skip)
     uses = _accessor_uses(doc_a)
-    for i in range(min(len(acc_a), len(acc_b))):
+    rest_a = [i for i in range(len(acc_a)) if i not in anim_a]
+    rest_b = [i for i in range(len(acc_b)) if i not in anim_b]
+    diff_animations(doc_a, doc_b, acc_a.__getitem__, acc_b.__getitem__, out)
+    for i, j in zip(rest_a, rest_b, strict=False):
         where, target, per_key = uses.get(i, (f"accessors[{i}]", None, None))
         attribute = f"accessors[{i}]" if where != f"accessors[{i}]" else None
         if attribute and target:
             attribute += f" ({target})"
-        out.arrays(acc_a[i], acc_b[i], where, attribute, frame_axis=per_key is not None,
+        out.arrays(acc_a[i], acc_b[j], where, attribute, frame_axis=per_key is not None,
                    key_size=per_key or 1)
     for i, (ia, ib) in enumerate(zip(_list(doc_a, "images"), _list(doc_b, "images"),
                                      strict=False)):

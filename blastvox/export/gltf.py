@@ -64,6 +64,7 @@ from blastvox.export.gltf_buffer import (
     _f32,
     _floats,
 )
+from blastvox.export.gltf_keys import piece_channels
 from blastvox.export.gltf_meshes import TRIANGLES, _piece_meshes, _skin_groups
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import (
@@ -107,7 +108,9 @@ def write_gltf(cache: SimCache, path: str | Path, options: ExportOptions | None 
                            damage_textures=options.damage_textures,
                            skinned=options.layout == "skinned",
                            fracture_faces=options.fracture_faces,
-                           particles=options.particles == "spheres")
+                           particles=options.particles == "spheres",
+                           key_tolerance_m=options.key_tolerance_m,
+                           key_tolerance_deg=options.key_tolerance_deg)
     if path.suffix.lower() == ".glb":
         with atomic_path(path) as tmp:
             tmp.write_bytes(glb_bytes(doc, blob))
@@ -139,7 +142,8 @@ def _json_bytes(doc: dict[str, Any]) -> bytes:
 
 def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = False,
                damage_textures: bool = True, skinned: bool = False,
-               fracture_faces: str = "rough", particles: bool = False
+               fracture_faces: str = "rough", particles: bool = False,
+               key_tolerance_m: float = 0.0, key_tolerance_deg: float = 0.0
                ) -> tuple[dict[str, Any], bytes]:
     """The glTF document (JSON-ready dict) and its binary buffer for ``cache``.
 
@@ -151,6 +155,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     not thousands.
     ``fracture_faces``: "rough" (rubble surfaces) or "voxel" (cell faces).
     ``particles``: also a node per particle (:mod:`blastvox.export.gltf_particles`).
+    ``key_tolerance_m``, ``key_tolerance_deg``: keyframe reduction of the pieces'
+    animation (:mod:`blastvox.export.gltf_keys`; m and degrees); 0 and 0 key every frame.
     """
     b = _Builder()
     mats, mat_index = _materials(cache)
@@ -202,16 +208,30 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
         nodes.append(node)
 
     if n_frames:
-        t_acc = b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR",
-                           _floats([times.min()]), _floats([times.max()]))
-        tr_view = b.view(_f32(position.transpose(1, 0, 2)))
-        rot_view = b.view(_f32(rotation.transpose(1, 0, 2)))
-        steps = _step_accessors(b, times, end)
-        for p in range(n_pieces):
-            channel(p, "translation", t_acc,
-                    b.accessor(tr_view, p * n_frames * 12, FLOAT, n_frames, "VEC3"))
-            channel(p, "rotation", t_acc,
-                    b.accessor(rot_view, p * n_frames * 16, FLOAT, n_frames, "VEC4"))
+        made: list[int] = []
+
+        def frame_input() -> int:
+            """The accessor of every frame time, made once, where first used."""
+            if not made:
+                made.append(b.accessor(b.view(_f32(times)), 0, FLOAT, n_frames, "SCALAR",
+                                       _floats([times.min()]), _floats([times.max()])))
+            return made[0]
+        if key_tolerance_m > 0 or key_tolerance_deg > 0:
+            steps = _step_accessors(b, times, end)
+            reduced = piece_channels(b, times, position, rotation, end, key_tolerance_m,
+                                     key_tolerance_deg)
+        else:  # every frame, the layout of the exports before keyframe reduction
+            t_acc = frame_input()
+            tr_view = b.view(_f32(position.transpose(1, 0, 2)))
+            rot_view = b.view(_f32(rotation.transpose(1, 0, 2)))
+            steps = _step_accessors(b, times, end)
+            reduced = [((t_acc, b.accessor(tr_view, p * n_frames * 12, FLOAT, n_frames,
+                                           "VEC3"), "LINEAR"),
+                        (t_acc, b.accessor(rot_view, p * n_frames * 16, FLOAT, n_frames,
+                                           "VEC4"), "LINEAR")) for p in range(n_pieces)]
+        for p, (translation, rotation_keys) in enumerate(reduced):
+            channel(p, "translation", *translation)
+            channel(p, "rotation", *rotation_keys)
             if end[p] < n_frames:
                 step_in, step_out = steps[int(end[p])]
                 channel(p, "scale", step_in, step_out, "STEP")
@@ -234,14 +254,15 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
                     "scale": _floats(scale[c, 0]) if n_frames else [0.0] * 3}
             nodes.append(node)
             if n_frames:
-                channel(len(nodes) - 1, "scale", t_acc,
+                channel(len(nodes) - 1, "scale", frame_input(),
                         b.accessor(sc_view, c * n_frames * 12, FLOAT, n_frames, "VEC3"))
 
-    cameras = _camera(cache, b, nodes, channel, t_acc if n_frames else None)
+    cameras = _camera(cache, b, nodes, channel, frame_input if n_frames else None)
     if particles:
         from blastvox.export.gltf_particles import add_particles
 
-        add_particles(cache, b, mats, meshes, nodes, channel, t_acc if n_frames else None,
+        add_particles(cache, b, mats, meshes, nodes, channel,
+                      frame_input() if n_frames else None,
                       _sphere_mesh)
 
     others = list(range(n_pieces, len(nodes)))  # shock fronts, camera, particles
@@ -303,7 +324,8 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
 
 def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[dict]:
     """The scene's camera (if any) as a perspective camera node whose translation is
-    animated with the baked shake; glTF cameras look down -Z with +Y up."""
+    animated with the baked shake; glTF cameras look down -Z with +Y up. ``t_acc``: a
+    callable giving the accessor of the frame times, or None (no frames)."""
     camera = cache.meta.get("camera")
     if not camera:
         return []
@@ -325,7 +347,7 @@ def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[d
                   "rotation": _floats(quat)})
     if t_acc is not None and np.abs(offset).max() > 0:
         view = b.view(_f32((position + offset).astype(np.float32)))
-        channel(len(nodes) - 1, "translation", t_acc,
+        channel(len(nodes) - 1, "translation", t_acc(),
                 b.accessor(view, 0, FLOAT, len(offset), "VEC3"))
     return [{"name": "camera", "type": "perspective", "perspective": {
         "yfov": float(2.0 * np.arctan(FILM_MM[1] / (2.0 * focal))),

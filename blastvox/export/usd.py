@@ -137,6 +137,7 @@ class _Writer:
         self.volume_out = volume_out
         self.volume_dir = volume_out.name if volume_out is not None else ""
         self.frames = cache.frame_count
+        self.fps = _fps(cache)
         self.pieces = cache.piece_count
         self.instancer = options.layout == "instancer"
         self.meshes = piece_meshes(cache, options.up_axis, options.fracture_faces)
@@ -268,6 +269,9 @@ class _Writer:
         frames, voxels, values = frames[order], voxels[order], values[order]
         has_faces = np.diff(m.offsets) > 0
         piece_of = c.voxel_piece.astype(np.int64)
+        if not self.options.damage_samples:
+            self._damage_final(frames, voxels, values, piece_of, has_faces)
+            return
         level = np.zeros(len(piece_of), dtype=np.float32)
         last: dict[int, tuple[int, np.ndarray]] = {}
         set_sample = self.layer.SetTimeSample
@@ -286,6 +290,33 @@ class _Writer:
                                Vt.FloatArray.FromNumpy(previous))
                 set_sample(self.damage_paths[p], float(f), Vt.FloatArray.FromNumpy(current))
                 last[p] = (f, current)
+
+    def _damage_final(self, frames: np.ndarray, voxels: np.ndarray, values: np.ndarray,
+                      piece_of: np.ndarray, has_faces: np.ndarray) -> None:
+        """Without damage samples: each damaged piece's ``primvars:damage`` default is its
+        final per-face value (the last event of each voxel, events in frame order), and
+        ``primvars:blastvox:damageFrame`` (int, uniform) the first frame each face's
+        damage is above 0 (-1: never). Constant values: Blender reads no mesh animation."""
+        m = self.meshes
+        level = np.zeros(len(piece_of), dtype=np.float32)
+        level[voxels] = values  # later events win (frame order, stable)
+        first = np.full(len(piece_of), -1, dtype=np.int64)
+        hit = values > 0
+        seen = np.unique(voxels[hit], return_index=True)
+        first[seen[0]] = frames[hit][seen[1]]
+        pieces = np.unique(piece_of[voxels])
+        for p in pieces[(pieces >= 0) & (pieces < self.pieces)].tolist():
+            if not has_faces[p]:
+                continue
+            face_voxel = m.voxel[int(m.offsets[p]):int(m.offsets[p + 1])]
+            path = self.damage_paths[p]
+            self.layer.GetAttributeAtPath(path).default = Vt.FloatArray.FromNumpy(
+                level[face_voxel])
+            mesh = self.layer.GetPrimAtPath(path.GetPrimPath())
+            spec = Sdf.AttributeSpec(mesh, "primvars:blastvox:damageFrame",
+                                     Sdf.ValueTypeNames.IntArray, Sdf.VariabilityVarying)
+            spec.SetInfo("interpolation", "uniform")
+            spec.default = Vt.IntArray.FromNumpy(first[face_voxel].astype(np.int32))
 
     def animation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         pos = _finite_hold(self.anim.position)

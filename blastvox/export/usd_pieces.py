@@ -27,6 +27,7 @@ from itertools import chain, repeat, starmap
 import numpy as np
 from pxr import Gf, Sdf, Vt
 
+from blastvox.export.keys import reduce_keys
 from blastvox.export.pieces import object_groups, velocities
 from blastvox.export.usd_specs import ROOT, points_extent, run_ends_pf, vec3f
 
@@ -220,7 +221,8 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
             _user_properties(xform, *properties)
             for key, type_name in (("primvars:blastvox:velocity", _T.Vector3f),
                                    ("primvars:blastvox:angularVelocity", _T.Vector3f)):
-                paths[key][p] = _attr(xform, key, type_name).path
+                if key in paths:
+                    paths[key][p] = _attr(xform, key, type_name).path
             end = int(w.end[p])
             if end < f_count:
                 _vanish(w.layer, _attr(xform, "visibility", _T.Token).path, end)
@@ -241,24 +243,45 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
 
 def _xform_samples(w, live: np.ndarray) -> dict[str, tuple[np.ndarray, object]]:
     """Per sampled Xform attribute: (which frames each piece keeps (P, F), its kept values
-    in piece-major order as a Vt array)."""
+    in piece-major order as a Vt array). With key tolerances (``w.options``) the frames
+    are chosen by :func:`blastvox.export.keys.reduce_keys` (USD interpolates linearly in
+    the time code, the frame index, and quaternions by slerp); the velocities with the
+    tolerances times the frame rate (an error of v_tol over a frame moves tol)."""
     pos, ori = w.animation_arrays()
     pos_n = np.rint(np.clip(pos, -NANO_LIMIT, NANO_LIMIT) * 1e9).astype(np.int64)
     ori_n = np.rint(ori.astype(np.float32) * 1e9).astype(np.int64)
-    linear, angular = velocities(w.anim)
+    tol_m, tol_deg = float(w.options.key_tolerance_m), float(w.options.key_tolerance_deg)
+    reduce = tol_m > 0 or tol_deg > 0
+    times = np.arange(w.frames, dtype=np.float64)
+    count = live.sum(axis=1)
+    fps = w.fps
+
+    def keys(values: np.ndarray, exact: np.ndarray, tolerance: float,
+             rotation: bool = False) -> np.ndarray:
+        if not reduce:
+            return run_ends_pf(exact, live)
+        return reduce_keys(times, None if rotation else values, values if rotation else None,
+                           count, tolerance, tolerance)
+
     out = {}
-    for key, v, scale in (("primvars:blastvox:velocity", linear, 1e6),
-                          ("primvars:blastvox:angularVelocity", np.degrees(angular), 1e6)):
+    wanted: tuple = ()
+    if w.options.velocity_primvars:
+        linear, angular = velocities(w.anim)
+        wanted = (("primvars:blastvox:velocity", linear, 1e6, tol_m * fps),
+                  ("primvars:blastvox:angularVelocity", np.degrees(angular), 1e6,
+                   tol_deg * fps))
+    for key, v, scale, tol in wanted:
         n = np.rint(np.clip(np.nan_to_num(v), -NANO_LIMIT, NANO_LIMIT) * scale).astype(np.int64)
         n = n.transpose(1, 0, 2)
-        keep = run_ends_pf(n, live)
+        keep = keys(n / scale, n, tol)
         out[key] = keep, vec3f(n[keep] / scale)
     o = ori_n.transpose(1, 0, 2)
-    keep = run_ends_pf(o, live)
-    quat = (o[keep] / 1e9).astype(np.float32)[:, [1, 2, 3, 0]]    # Gf: (i, j, k, real)
-    out["xformOp:orient"] = keep, Vt.QuatfArray.FromNumpy(np.ascontiguousarray(quat))
+    quat = (o / 1e9).astype(np.float32)
+    keep = keys(quat.astype(np.float64), o, tol_deg, rotation=True)
+    out["xformOp:orient"] = keep, Vt.QuatfArray.FromNumpy(
+        np.ascontiguousarray(quat[keep][:, [1, 2, 3, 0]]))    # Gf: (i, j, k, real)
     t = pos_n.transpose(1, 0, 2)
-    keep = run_ends_pf(t, live)
+    keep = keys(t / 1e9, t, tol_m)
     out["xformOp:translate"] = keep, Vt.Vec3dArray.FromNumpy(
         np.ascontiguousarray(t[keep] / 1e9))
     return out
