@@ -351,13 +351,7 @@ def check_model(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     for key in ("vertices", "voxel_centroid", "link_midpoint"):
         _check_points(path, name(key), a[key], size)
     if "voxel_solid_box" in a:
-        box = a["voxel_solid_box"]
-        _check_points(path, name("voxel_solid_box"), box.reshape(-1, 3), size)
-        inverted = (box[:, 1] < box[:, 0]).any(axis=1)
-        if inverted.any():
-            i = int(np.flatnonzero(inverted)[0])
-            fail(path, f"array '{name('voxel_solid_box')}' holds the box {box[i].tolist()} at "
-                       f"[{i}]; expected lo <= hi on every axis")
+        _check_solid_box(path, name("voxel_solid_box"), a["voxel_solid_box"], size)
     _check_inertia(path, name("voxel_inertia"), a["voxel_inertia"])
     check_unit(path, name("link_direction"), a["link_direction"], 1e-6)
     # limits: >= 0; +inf means unbreakable / never burns
@@ -525,6 +519,18 @@ def _check_points(path: str | os.PathLike, name: str, points: np.ndarray,
         fail(path, f"array '{name}' spans {span[axis]:.6g} m along {'xyz'[axis]}, more than "
                    f"{MAX_SPAN_VOXELS} times the median voxel size ({size:.6g} m), beyond "
                    "what the simulator's grids can hold")
+
+
+def _check_solid_box(path: str | os.PathLike, name: str, box: np.ndarray, size: float) -> None:
+    """Boxes (N, 2, 3) m, (lo, hi) per voxel: finite, within :data:`COORD_LIMIT_M`, lo <=
+    hi on every axis, and spanning what the simulator's grids hold (as points); a bad
+    box is named by its voxel."""
+    bad = ~(np.abs(box) <= COORD_LIMIT_M).all(axis=(1, 2)) | (box[:, 1] < box[:, 0]).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        fail(path, f"array '{name}' holds the box {box[i].tolist()} at [{i}]; expected finite "
+                   f"(lo, hi) within +-{COORD_LIMIT_M:g} m with lo <= hi on every axis")
+    _check_points(path, name, box.reshape(-1, 3), size)
 
 
 #: voxel_inertia must be symmetric to this fraction of the voxel's largest diagonal element

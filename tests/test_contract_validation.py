@@ -166,6 +166,11 @@ MODEL_CASES: list[tuple[str, Callable[[Arrays], None], tuple[str, ...]]] = [
     ("mass-absurd", _set("voxel_mass", 1, 1e308), ("'voxel_mass'", "1e+308 kg at [1]",
                                                    "100000 kg/m^3")),
     ("volume-zero", _set("voxel_volume", 0, 0.0), ("'voxel_volume'",)),
+    # the solid's box (contacts and the ground use it): named by its voxel
+    ("solid-box-inverted", _set("voxel_solid_box", (2, 0, 1), 1e3),
+     ("'voxel_solid_box' holds the box", "at [2]", "lo <= hi")),
+    ("solid-box-nan", _set("voxel_solid_box", (3, 1, 2), np.nan), ("'voxel_solid_box'", "at [3]")),
+    ("solid-box-far", _set("voxel_solid_box", (4, 1, 0), 1e12), ("'voxel_solid_box'", "at [4]")),
     ("link-yield-short", _replace("link_yield", lambda x: x[:-1]), ("'link_yield' has shape",
                                                                    "one per link")),
     ("link-yield-nan", _set("link_yield", 0, np.nan), ("'link_yield'", "nan")),
