@@ -70,9 +70,14 @@ def _reduce(times, pos, ori, live, tol_m, cos_half, keep):  # pragma: no cover -
         keep[p, n - 1] = True
         a = 0
         b = 2
+        flat = _same(pos, ori, p, 0, 1)  # frames a..b-1 equal: nothing to check inside
         while b < n:
             ok = True
             span = times[b] - times[a]
+            if flat and _same(pos, ori, p, a, b):
+                b += 1  # a piece lying still: O(1) a frame, not a check of every frame
+                continue
+            flat = False
             for k in range(a + 1, b):
                 u = (times[k] - times[a]) / span if span > 0 else 0.0
                 d2 = 0.0
@@ -91,14 +96,21 @@ def _reduce(times, pos, ori, live, tol_m, cos_half, keep):  # pragma: no cover -
                 keep[p, b - 1] = True
                 a = b - 1
                 b = a + 2
-        if n > 1 and a < n - 1:  # a reader holds the last key: drop a last one that repeats
-            same = True
-            for c in range(3):
-                same = same and pos[p, a, c] == pos[p, n - 1, c]
-            for c in range(4):
-                same = same and ori[p, a, c] == ori[p, n - 1, c]
-            if same:
-                keep[p, n - 1] = False
+                flat = b - 1 < n and _same(pos, ori, p, a, b - 1)
+        if n > 1 and a < n - 1 and _same(pos, ori, p, a, n - 1):
+            keep[p, n - 1] = False  # a reader holds the last key: drop a repeat of it
+
+
+@helper
+def _same(pos, ori, p, i, j) -> bool:  # pragma: no cover - numba
+    """Do frames i and j of piece p hold the same translation and rotation, bit for bit?"""
+    for c in range(3):
+        if pos[p, i, c] != pos[p, j, c]:
+            return False
+    for c in range(4):
+        if ori[p, i, c] != ori[p, j, c]:
+            return False
+    return True
 
 
 @helper

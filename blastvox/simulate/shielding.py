@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from blastvox.blast._numeric import cbrt
+from blastvox.geometry.boxes import corner_boxes, triangle_boxes
 from blastvox.jit import helper, kernel
 
 MAX_CELLS = 1 << 23   #: the grid's cell budget (16 MiB of int16 counts)
@@ -72,11 +73,9 @@ def conform_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.
     and shadow it."""
     lo, hi = corner_boxes(vertices, np.ascontiguousarray(corners[conform_voxels]))
     if len(conform_voxels):
-        tri_lo, tri_hi = conform_triangles.min(axis=1), conform_triangles.max(axis=1)
         starts = np.asarray(conform_offsets[:-1], dtype=np.int64)
         has = np.asarray(conform_offsets[1:], dtype=np.int64) > starts
-        lo[has] = np.minimum.reduceat(tri_lo, starts[has], axis=0)
-        hi[has] = np.maximum.reduceat(tri_hi, starts[has], axis=0)
+        lo[has], hi[has] = triangle_boxes(conform_triangles, starts[has])
     return lo, hi
 
 
@@ -105,26 +104,6 @@ def solid_box(grid, v, a):
         x = vertices[corners[v, k], a]
         lo = min(lo, x)
         hi = max(hi, x)
-    return lo, hi
-
-
-@kernel
-def corner_boxes(vertices, corners):
-    """(lo, hi) (N, 3) m: the box of each voxel's corners (vertices (V, 3) m, corners
-    (N, 8) rows of it); one pass, no (N, 8, 3) gather."""
-    n = corners.shape[0]
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
-    for v in range(n):
-        for a in range(3):
-            x = vertices[corners[v, 0], a]
-            lo[v, a] = x
-            hi[v, a] = x
-        for k in range(1, 8):
-            for a in range(3):
-                x = vertices[corners[v, k], a]
-                lo[v, a] = min(lo[v, a], x)
-                hi[v, a] = max(hi[v, a], x)
     return lo, hi
 
 

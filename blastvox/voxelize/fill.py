@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from blastvox.errors import MeshError
+from blastvox.geometry.boxes import corner_boxes, triangle_boxes
 from blastvox.voxelize.conform import (
     block_keys_for,
     clip_volumes,
@@ -98,24 +99,15 @@ def _hand_on(fill: np.ndarray, bounds: np.ndarray, dropped: np.ndarray, keep: np
 
 def corner_bounds(positions: np.ndarray, voxel_vertices: np.ndarray) -> np.ndarray:
     """(N, 2, 3) m: (lo, hi) of each cell's corners (positions (V, 3) m, voxel_vertices
-    (N, 8) rows of it), corner by corner (no (N, 8, 3) gather)."""
-    bounds = np.empty((len(voxel_vertices), 2, 3))
-    bounds[:, 0] = bounds[:, 1] = positions[voxel_vertices[:, 0]]
-    for c in range(1, 8):
-        corner = positions[voxel_vertices[:, c]]
-        np.minimum(bounds[:, 0], corner, out=bounds[:, 0])
-        np.maximum(bounds[:, 1], corner, out=bounds[:, 1])
-    return bounds
+    (N, 8) rows of it)."""
+    return np.stack(corner_boxes(positions, voxel_vertices), axis=1)
 
 
 def triangle_bounds(triangles: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """(C, 2, 3) m: (lo, hi) of each of C triangle sets (triangles (T, 3, 3) m; set c is
     offsets[c]:offsets[c+1], none empty): a conform voxel's solid."""
-    starts = np.asarray(offsets[:-1], dtype=np.int64)
-    if not len(starts):
-        return np.zeros((0, 2, 3))
-    return np.stack([np.minimum.reduceat(triangles.min(axis=1), starts, axis=0),
-                     np.maximum.reduceat(triangles.max(axis=1), starts, axis=0)], axis=1)
+    return np.stack(triangle_boxes(triangles, np.asarray(offsets[:-1], dtype=np.int64)),
+                    axis=1)
 
 
 def cube_fill(solids, chosen, shape: tuple[int, int, int], cells: tuple, volume: np.ndarray,

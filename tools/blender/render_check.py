@@ -227,6 +227,8 @@ def main(argv: list[str]) -> None:
             view = [Vector(float(c) for c in point.split(",")) for point in next(it).split(":")]
         else:
             args.append(arg)
+    if "-h" in args or "--help" in args or len(args) < 3:
+        sys.exit(__doc__)  # usage, not an IndexError
     path, out_dir, frames = Path(args[0]), Path(args[1]), [int(f) for f in args[2:]]
     out_dir.mkdir(parents=True, exist_ok=True)
     real_stdout = os.dup(1)

@@ -2,8 +2,9 @@
 carried by its links, and a chunk whose links cannot carry it is punched out.
 
 A founded body is an immovable (infinite-mass) body in the contact solve
-(:mod:`~blastvox.simulate.contact.solver`). What its contacts push into it in a step,
-J (N s) on a voxel, is a force F = J / dt on its support, as NVIDIA Blast's stress
+(:mod:`~blastvox.simulate.contact.solver`). What its contacts strike it with in a step
+(the pushes of resting pieces left out: :class:`SustainedLoads` carries those), J (N s)
+on a voxel, is a force F = J / max(dt, strike time) on its support, as NVIDIA Blast's stress
 solver turns the impulses applied to an actor into bond stress. The first link of
 that load path is the struck chunk's own boundary: its alive links to the rest of
 the body carry F in compression where they lie ahead of it (the link's outward
