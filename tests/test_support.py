@@ -76,3 +76,43 @@ def test_a_short_beam_stays_whole_on_its_support(tmp_path):
     assert cache.meta["broken_links"] == 0
     assert len(np.unique(cache.voxel_piece[beam])) == 1
 
+
+
+def _beam_on_a_block(tmp_path: Path, length: float):
+    """The beam of :func:`_beam_on_a_pier` laid on a free 1 x 0.5 x 0.5 m reinforced
+    concrete block that sits on the pier: the beam touches nothing founded."""
+    pier = trimesh.creation.box(extents=(1.0, 0.5, PIER_HEIGHT))
+    pier.apply_translation((0.0, 0.0, PIER_HEIGHT / 2))
+    block = trimesh.creation.box(extents=(1.0, 0.5, 0.5))
+    block.apply_translation((0.0, 0.0, PIER_HEIGHT + 0.25))
+    beam = trimesh.creation.box(extents=(length, 0.5, 0.25))
+    beam.apply_translation((0.0, 0.0, PIER_HEIGHT + 0.625))
+    requests = []
+    for name, mesh, material in (("pier", pier, "reinforced_concrete"),
+                                 ("block", block, "reinforced_concrete"),
+                                 ("beam", beam, "concrete")):
+        mesh.export(tmp_path / f"{name}.stl")
+        requests.append(ObjectRequest(mesh=tmp_path / f"{name}.stl", voxel_size=(0.25,) * 3,
+                                      material=material))
+    return voxelize(requests, VoxelizeSettings(up_axis="Z", ground="auto", library=LIBRARY))
+
+
+def test_a_beam_on_a_free_block_breaks_as_on_its_pier(tmp_path):
+    """Issue 34 ("the lintel hangs"): a piece held up by another free piece carries its
+    weight there as on a founded one. The 9 m beam laid on a free block on the pier
+    breaks over the block (its moment, w L^2 / 2 of a 4 m cantilever, is the same all
+    across the block) and its ends fall; before, a beam held up by free pieces was
+    never solved (a cracked lintel's middle hung on its neighbour's ledge), and the
+    3 m beam stays whole."""
+    for length, breaks in ((9.0, True), (3.0, False)):
+        model = _beam_on_a_block(tmp_path, length)
+        beam = model.voxel_object == 2
+        assert not model.voxel_foundation[model.voxel_object >= 1].any()
+        cache = simulate(model, SimSettings(fps=24.0, duration=0.5))
+        pieces = np.unique(cache.voxel_piece[beam])
+        if not breaks:
+            assert len(pieces) == 1
+            continue
+        assert len(pieces) >= 2  # it breaks over the block (hogging all across it)
+        drop = cache.piece_position[0, pieces, 2] - cache.piece_position[-1, pieces, 2]
+        assert (drop > 0.5).sum() >= 2, drop  # and both ends come down

@@ -20,6 +20,8 @@ from blastvox.simulate.stress import EVENT_BAND, Stress, break_links, links_amon
 #: A free body slower than this (m/s) is held up by what it touches: its weight is
 #: judged on its supports (:func:`support_phase`).
 RESTING_SPEED = 1.0
+#: A free body sits on another where their contact pushes it up within 60 degrees.
+SITS_COS = 0.5
 
 
 def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: int,
@@ -51,7 +53,14 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
     # symmetric body asymmetric
     pushed = (rows.impulse[:end] > 0.0) | (rows.gap[:end] <= 0.0)
     held = (body < 0) | bodies.fixed[np.maximum(body, 0)]  # ground or founded, per side
-    ends = [pushed & (body[:, k] >= 0) & ~held[:, k] & held[:, 1 - k] for k in range(2)]
+    # or a slow free body it sits on: a row that pushes it up (within 60 degrees)
+    up = -gravity / float(exact.norm(gravity))
+    lift = rows.frame[:end, 0] @ up  # the normal's push on side 1, along up
+    slow_body = np.linalg.norm(bodies.lin, axis=1) <= RESTING_SPEED * bodies.mass
+    under = [(body[:, 1 - k] >= 0) & slow_body[np.maximum(body[:, 1 - k], 0)]
+             & ((lift if k == 1 else -lift) >= SITS_COS) for k in range(2)]
+    ends = [pushed & (body[:, k] >= 0) & ~held[:, k] & (held[:, 1 - k] | under[k])
+            for k in range(2)]
     owner = np.concatenate([body[ends[0], 0], body[ends[1], 1]])
     support = np.concatenate([vox[ends[0], 0], vox[ends[1], 1]])
     point = np.concatenate([rows.point[:end][ends[0]], rows.point[:end][ends[1]]])
