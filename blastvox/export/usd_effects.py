@@ -51,8 +51,8 @@ SPRITE_SHELLS = (0.5, 0.36, 0.22)
 GLOW_LUMP = 0.3
 GLOW_LOOKS = {"fire": {"core": 1.2, "opacity": (0.1, 0.18, 0.25),
                        "shells": ((1.2, 0.2, 0.02), (2.0, 0.6, 0.08), (2.4, 1.1, 0.3))},
-              "fireball": {"core": 2.0, "opacity": (0.1, 0.18, 0.25),
-                           "shells": ((1.2, 0.25, 0.03), (2.0, 0.7, 0.1),
+              "fireball": {"core": 2.4, "opacity": (0.1, 0.18, 0.25),
+                           "shells": ((1.4, 0.3, 0.04), (2.0, 0.7, 0.1),
                                       (2.4, 1.3, 0.35))}}
 #: UsdGeomCamera measures lens and filmback in tenths of a scene unit; the stage is in
 #: metres (metersPerUnit 1), so 1 mm is 1 / MM_PER_TENTH_METRE of that unit.
