@@ -39,16 +39,16 @@ PARTICLE_LOOKS = {"dust": {"opacity": 0.13, "emissive": 0.0},
 #: Translucent shells draw a soft ball (denser towards its centre, fading to its rim),
 #: not a hard disc; three keep a centre ray under Blender's 8 transparent bounces.
 SPRITE_SHELLS = (0.5, 0.36, 0.22)
+#: how deep the glow's shells are dented (a share of their radius): billows, so that
+#: the shells' edges are not concentric circles
+GLOW_LUMP = 0.3
 #: the glow of fire and the fireball (``<system>_glow``): blobs of live particles
 #: (:func:`glow_blobs`), each ``core`` times its particles' diameter at birth, shrinking
 #: with the square of their temperature (the volumes' ``hot_k`` at birth to ``cool_k``
 #: at the end of life: blastvox.export.volumes.VOLUME_LOOKS), so that their light,
 #: about their area, follows T^4 as a blackbody's does. The sprite's shells, outside
-#: in, emit ``shells`` (linear RGB: a flame's red-orange rim to its yellow-white
-#: core, the colour times its strength) through ``opacity`` each.
-#: how deep the glow's shells are dented (a share of their radius): billows, so that
-#: the shells' edges are not concentric circles
-GLOW_LUMP = 0.3
+#: in, emit ``shells`` (linear RGB, above 1 to glow through the smoke: a flame's
+#: red-orange rim to its yellow core) through ``opacity`` each.
 GLOW_LOOKS = {"fire": {"core": 1.2, "opacity": (0.1, 0.18, 0.25),
                        "shells": ((1.2, 0.2, 0.02), (2.0, 0.6, 0.08), (2.4, 1.1, 0.3))},
               "fireball": {"core": 2.4, "opacity": (0.1, 0.18, 0.25),
@@ -67,8 +67,9 @@ FILMBACK_MM = (36.0, 20.25)
 
 def write_particles(w, shot: Sdf.PrimSpec) -> None:
     """One UsdGeomPointInstancer per particle system (dust, fire, smoke, fireball)
-    whose prototype, a sphere of diameter 1 bound to the system's material, is
-    instanced at each particle and scaled to its width. Positions come from the
+    whose prototype, a soft ball of diameter 1 bound to the system's material, is
+    instanced at each particle and scaled to its width (fire's and the fireball's: their
+    smoke, 1 - (T / hot_k)^2 of it, :func:`_cooled`, always alive only). Positions come from the
     cache's particle births evaluated in closed form (blastvox.particles), one time
     sample per frame, in the cheaper of two layouts (see :func:`_layout_of`):
 
@@ -83,7 +84,9 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
 
     Either way the instancer is invisible at a frame without live particles. With
     ``w.particle_mode`` "volumes" each system is a Volume of per-frame OpenVDB files
-    instead (:mod:`blastvox.export.usd_volumes`). An instancer, not UsdGeomPoints:
+    instead (:mod:`blastvox.export.usd_volumes`). Either way fire and the fireball
+    also get ``<system>_glow`` (:func:`_write_glow`): Blender imports no material
+    of a Volume, and it is the glow of a plain import. An instancer, not UsdGeomPoints:
     Blender 5.0 imports Points without their material (white balls), and an empty
     points array crashed its Cycles. Re-checked in bpy 5.0.1 (2026-11-30): a Points
     prim with widths and a bound UsdPreviewSurface imports as a POINTCLOUD object
@@ -169,7 +172,7 @@ def _live_frames(times: list, states: list) -> list:
 def _write_glow(w, scope: Sdf.PrimSpec, name: str, mine: np.ndarray, states: list, spec,
                 birth: np.ndarray, v0: np.ndarray, size: np.ndarray, g: np.ndarray) -> None:
     """Particles/<name>_glow: the emissive glow of fire or the fireball (GLOW_LOOKS), a
-    PointInstancer whose sprite is bound to Materials/particle_<name>_glow, one
+    PointInstancer whose sprite's shells are bound to Materials/particle_<name>_glow_<k>, one
     instance per blob of :func:`glow_blobs` at each frame (the alive-only layout:
     time-sampled positions, scales, velocities, ids, protoIndices and extent; a frame
     without a blob holds one of scale 0, the instancer invisible). Written beside the
@@ -296,11 +299,12 @@ def _sampled_frames(w, instancer: Sdf.PrimSpec, empty: list[bool]):
 
 def _particle_instancer(w, scope: Sdf.PrimSpec, name: str, hidden: bool,
                         glow: bool = False) -> Sdf.PrimSpec:
-    """Particles/<name> (or with ``glow`` Particles/<name>_glow) (PointInstancer) with
-    Prototypes/sprite, a soft ball of diameter 1 (SPRITE_SHELLS: concentric icospheres
-    of 80 faces, smooth normals) bound to Materials/particle_<name> (or
-    particle_<name>_glow), and if ``hidden`` Prototypes/hidden, an empty Xform
-    (prototype 1: nothing drawn)."""
+    """Particles/<name> (PointInstancer) with Prototypes/sprite, a soft ball of
+    diameter 1 (SPRITE_SHELLS: concentric icospheres of 80 faces, smooth normals) bound
+    to Materials/particle_<name>, and if ``hidden`` Prototypes/hidden, an empty Xform
+    (prototype 1: nothing drawn). With ``glow``, Particles/<name>_glow, whose shells
+    have 320 faces each, are dented (GLOW_LUMP) and are GeomSubsets ``shell_<k>``
+    bound to Materials/particle_<name>_glow_<k>."""
     import trimesh
 
     instancer = prim_spec(scope, f"{name}_glow" if glow else name, "PointInstancer")
@@ -399,6 +403,7 @@ def _particle_material(w, name: str) -> Sdf.Path:
     surface = attr_spec(material, "outputs:surface", _T.Token)
     surface.connectionPathList.explicitItems = [out.path]
     return material.path
+
 
 def _glow_material(w, name: str, shell: int) -> Sdf.Path:
     """/Shot/Materials/particle_<name>_glow_<shell>: a UsdPreviewSurface that emits the
