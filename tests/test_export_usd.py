@@ -442,7 +442,8 @@ def test_particles_have_their_materials(synthetic, tmp_path):
     instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/dust"))
     sprite = instancer.GetPrototypesRel().GetTargets()[0]
     ball = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath(sprite)).GetPointsAttr().Get())
-    assert np.allclose(np.linalg.norm(ball, axis=1), 0.5)  # diameter 1: scale = width
+    radii = sorted(set(np.round(np.linalg.norm(ball, axis=1), 4).tolist()))
+    assert radii == pytest.approx([0.22, 0.36, 0.5])  # soft: three shells, diameter 1
     material, _ = UsdShade.MaterialBindingAPI(
         stage.GetPrimAtPath(sprite)).ComputeBoundMaterial()
     assert material.GetPath() == "/Shot/Materials/particle_dust"

@@ -241,6 +241,93 @@ def test_usd_volume_files_read_by_openvdb(fiery, tmp_path):
     assert 700.0 <= min(temperature["values"]) <= max(temperature["values"]) <= 2200.0
 
 
+def _glow_shells(stage, system: str) -> list:
+    """The UsdPreviewSurface of each shell of ``system``'s glow sprite, outside in,
+    checking that every binding on the way targets a real prim."""
+    from pxr import UsdGeom
+
+    instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath(f"/Shot/Particles/{system}_glow"))
+    assert instancer, system
+    (sprite,) = instancer.GetPrototypesRel().GetTargets()
+    mesh = stage.GetPrimAtPath(sprite)
+    shaders = []
+    for k in range(3):
+        subset = stage.GetPrimAtPath(sprite.AppendChild(f"shell_{k}"))
+        assert subset.GetTypeName() == "GeomSubset"
+        (target,) = UsdShade.MaterialBindingAPI(subset).GetDirectBindingRel().GetTargets()
+        material = UsdShade.Material(stage.GetPrimAtPath(target))
+        assert material, target  # a real Material prim
+        shader = material.ComputeSurfaceSource()[0]
+        assert shader.GetIdAttr().Get() == "UsdPreviewSurface"
+        shaders.append(shader)
+    faces = sum(len(UsdGeom.Subset(stage.GetPrimAtPath(sprite.AppendChild(f"shell_{k}")))
+                    .GetIndicesAttr().Get()) for k in range(3))
+    assert faces == len(UsdGeom.Mesh(mesh).GetFaceVertexCountsAttr().Get())  # a partition
+    return shaders
+
+
+@pytest.mark.parametrize("name", ["shot.usda", "pack.usdz"])
+def test_fireball_glows_beside_its_volume(fiery, tmp_path, name):
+    """Blender's USD importer gives a Volume no material, so fire and the fireball also
+    get Particles/<system>_glow: an instancer of soft emissive shells (each a GeomSubset
+    bound to a real Material whose UsdPreviewSurface emits, translucent), brightest in
+    the core, fewer blobs than particles, shrinking as they cool; beside the Volume
+    (.usda) or the spheres (.usdz, where the fireball's spheres are its smoke, none at
+    birth, growing as it cools), still valid USD."""
+    from pxr import UsdGeom
+
+    out = tmp_path / name
+    export(fiery, out)
+    stage = Usd.Stage.Open(str(out))
+    shells = _glow_shells(stage, "fireball")
+    emit = [np.array(s.GetInput("emissiveColor").Get()) for s in shells]
+    assert all((e > 0).all() for e in emit)
+    assert emit[0].sum() < emit[1].sum() < emit[2].sum()  # a hot core, a cooler rim
+    assert all(0 < s.GetInput("opacity").Get() < 1 for s in shells)
+    body = stage.GetPrimAtPath("/Shot/Particles/fireball")
+    assert body.GetTypeName() == ("Volume" if name.endswith("usda") else "PointInstancer")
+    material, _ = UsdShade.MaterialBindingAPI(body).ComputeBoundMaterial() \
+        if body.IsA(UsdVol.Volume) else (None, None)
+    assert material is None or stage.GetPrimAtPath(material.GetPath())
+    glow = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/fireball_glow"))
+    assert glow.ComputeVisibility(0) == "invisible"  # born at frame 1
+    assert glow.ComputeVisibility(1) == "inherited"
+    assert 1 <= len(glow.GetPositionsAttr().Get(1)) < 10  # 10 particles, pooled
+    sizes = [np.asarray(glow.GetScalesAttr().Get(f))[:, 0] for f in range(1, F)]
+    assert all(len(v) == len(glow.GetPositionsAttr().Get(f)) == len(
+        glow.GetVelocitiesAttr().Get(f)) for f, v in zip(range(1, F), sizes, strict=True))
+    assert sizes[-1].max() < 2.4 * 0.8  # cooled: smaller than at birth (core 2.4 x 0.8 m)
+    if body.IsA(UsdGeom.PointInstancer):
+        smoke = UsdGeom.PointInstancer(body)
+        assert np.asarray(smoke.GetScalesAttr().Get(1)).max() < 0.1 * 0.8  # just born
+        assert np.asarray(smoke.GetScalesAttr().Get(F - 1)).max() > 0.5 * 0.8
+    assert validate_usd(out) == []
+
+
+def test_glow_blobs_pool_and_cool():
+    """Coincident particles are one blob as wide as one particle's glow; two far
+    groups are two; a particle's glow is core x size x (T / hot)^2, T cooling from
+    hot at birth to cool at the end of life; a fireball's smoke sphere takes the rest."""
+    from blastvox.export.usd_effects import _cooled, _heat, glow_blobs
+    from blastvox.particles import SYSTEMS
+
+    x = np.zeros((200, 3))
+    v = np.ones((200, 3))
+    centre, diameter, velocity = glow_blobs(x, v, np.full(200, 6.0))
+    assert centre.tolist() == [[0.0, 0.0, 0.0]] and diameter.tolist() == [6.0]
+    assert velocity.tolist() == [[1.0, 1.0, 1.0]]
+    x[100:] = [50.0, 0.0, 0.0]
+    centre, diameter, _ = glow_blobs(x, v, np.full(200, 2.0))
+    assert sorted(centre[:, 0].tolist()) == [0.0, 50.0] and diameter.tolist() == [2.0, 2.0]
+    assert [len(a) for a in glow_blobs(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))] \
+        == [0, 0, 0]
+    life = SYSTEMS["fireball"].lifetime
+    heat = _heat("fireball", SYSTEMS["fireball"])
+    assert heat(np.array([0.0, life, 2 * life])) == pytest.approx(
+        [1.0, (700.0 / 2200.0) ** 2, (700.0 / 2200.0) ** 2])
+    assert _cooled("fireball", SYSTEMS["fireball"])(np.array([0.0])) == pytest.approx([0.0])
+
+
 def test_spheres_on_request_and_in_usdz(fiery, tmp_path):
     export(fiery, tmp_path / "shot.usda", ExportOptions(particles="spheres"))
     stage = Usd.Stage.Open(str(tmp_path / "shot.usda"))

@@ -28,13 +28,23 @@ GLTF_PARTICLE_BUDGET = 256
 GLTF_MAX_ALPHA = 0.3
 
 
+#: each system's sphere: its colour (linear RGB) and look (alpha, emission). The USD
+#: export's spheres are soft shells with a glow of their own (usd_effects); a glTF
+#: sphere is one translucent ball, fire and the fireball emitting their colour.
+PARTICLE_COLORS = {"dust": (0.55, 0.50, 0.45), "fire": (1.0, 0.45, 0.05),
+                   "smoke": (0.25, 0.25, 0.25), "fireball": (1.0, 0.55, 0.1)}
+PARTICLE_LOOKS = {"dust": {"opacity": 0.35, "emissive": 0.0},
+                  "fire": {"opacity": 0.8, "emissive": 1.0},
+                  "smoke": {"opacity": 0.3, "emissive": 0.0},
+                  "fireball": {"opacity": 0.9, "emissive": 1.0}}
+
+
 def add_particles(cache, b: _Builder, mats: list, meshes: list, nodes: list, channel,
                   t_acc: int | None, sphere_mesh) -> list[int]:
     """Append the particle nodes (and their materials, meshes and channels) of ``cache``
     (Y-up glTF) and return their node indices. ``sphere_mesh(b, material)`` makes the
     unit sphere mesh; ``channel(node, path, input, output, interpolation)`` adds an
     animation channel; ``t_acc`` the frame times' accessor (None: no frames)."""
-    from blastvox.export.usd_effects import PARTICLE_COLORS, PARTICLE_LOOKS
     from blastvox.export.usd_specs import model_gravity
     from blastvox.geometry.frames import frame_change, up_vector
     from blastvox.particles import SYSTEM_NAMES, all_positions_at, ground_plane

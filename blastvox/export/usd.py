@@ -23,9 +23,16 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
         density, temperature (OpenVDBAsset)       volumes: per-frame .vdb files in
                                                   ``<stem>_volumes/`` (usd_volumes.py);
       Particles/<system> (PointInstancer)         or (options.particles "spheres", .usdz) a
-        Prototypes/sprite (Mesh)                  sphere of diameter 1 bound to
+        Prototypes/sprite (Mesh)                  soft ball (three translucent shells) of
+                                                  diameter 1 bound to
                                                   Materials/particle_<system>, scaled to
                                                   each particle's width
+      Particles/<system>_glow (PointInstancer)    fire and fireball, either way: emissive
+        Prototypes/sprite (Mesh)                  shells (GeomSubsets shell_0..2 bound to
+                                                  Materials/particle_<system>_glow_<k>)
+                                                  at blobs of hot particles, the glow
+                                                  Blender imports (it reads no material
+                                                  of a Volume)
       Camera                                      the scene camera, shake baked in; lens and
                                                   filmback in tenths of a metre (UsdGeomCamera)
       Effects/shock_<c> (Sphere)                  shock front of charge c, a guide prim

@@ -9,8 +9,10 @@ frame holding all of the system's grids (Blender reads one file per Volume objec
 finds the frame in the file name). The Volume's ``extent`` is time-sampled (the
 active voxels' box), ``visibility`` is "invisible" outside the frames that have
 files, and it is bound to ``Materials/particle_<system>``, the sprite's
-UsdPreviewSurface (the system's colour and emission, a hint for lighters: Blender's
-USD importer reads no material of a Volume, see docs/file-formats.md).
+UsdPreviewSurface (the system's colour, a hint for lighters: Blender's USD importer
+reads no material of a Volume, see docs/file-formats.md). Fire and the fireball glow
+on a plain import through ``Particles/<system>_glow``, an instancer of emissive
+shells written beside the Volume (:func:`blastvox.export.usd_effects._write_glow`).
 """
 
 from __future__ import annotations

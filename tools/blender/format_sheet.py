@@ -16,9 +16,11 @@ has a row per format and a column per frame, each
 cell labelled, saved as a PNG of ``--colors`` colours (small enough for docs;
 ``--reuse`` rebuilds it from the renders already in DIR). ``--fire`` gives
 the USD volumes that carry temperature (fire, fireball) the flame material an artist
-adds (render_check.py ``--fire``); a plain import renders them as grey smoke. What
-each format carries: .usdc the particles as volumes (``DIR/shot_volumes/``), .usdz
-as instanced spheres, .glb none (the pieces and the camera only). Prints the render
+adds and hides the exports' own glow (render_check.py ``--fire``); a plain import
+renders the volumes as grey smoke, fire and the fireball glowing through their
+``<system>_glow`` shells. What each format carries: .usdc the particles as volumes
+(``DIR/shot_volumes/``) and the glow, .usdz as instanced soft spheres and the glow,
+.glb none (the pieces and the camera only). Prints the render
 reports (coverage, luminance) as one JSON object.
 """
 

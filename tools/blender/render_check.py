@@ -19,13 +19,15 @@ the scene (the exports carry no lights). ``--camera`` puts a 35 mm camera at E
 looking at T instead (Blender's world: Z up, m), for a close look at the debris.
 Particle volumes (a USD export's ``<stem>_volumes/``, read where the file is) import
 as Volume objects with Blender's default volume material (its USD importer reads no
-material of a Volume prim: grey smoke whose density is the ``density`` grid);
-``--fire`` gives the volumes that hold a ``temperature`` grid (fire, fireball) the
-one material an artist adds for flames: a Principled Volume with Blackbody Intensity
-``--glow`` (default 0.5: 1 is physical) reading
-``temperature``, and dust a warm grey colour. ``--opaque`` renders the sky
-behind (for pictures) instead of a transparent film; ``--denoise`` runs Cycles'
-denoiser (OpenImageDenoise) on each frame (for pictures: few samples, smooth volumes).
+material of a Volume prim: grey smoke whose density is the ``density`` grid); a
+plain import shows fire and the fireball by their own glow (``<system>_glow``:
+emissive shells, which the importer does read). ``--fire`` gives the volumes that
+hold a ``temperature`` grid (fire, fireball) the one material an artist adds for
+flames: a Principled Volume with Blackbody Intensity ``--glow`` (default 0.5: 1 is
+physical) reading ``temperature``, and dust a warm grey colour, and hides the
+``_glow`` objects. ``--opaque`` renders the sky behind (for pictures) instead of a
+transparent film; ``--denoise`` runs Cycles' denoiser (OpenImageDenoise) on each
+frame (for pictures: few samples, smooth volumes).
 ``--ground Z`` adds what the exports leave out and an artist adds first: a ground, a
 400 m square at height Z (Blender's world, m; the shot's ground height, 0 for the
 examples) in a matte grey-brown, so that the rubble lies on something and casts shadows.
@@ -159,9 +161,13 @@ VOLUME_COLORS = {"dust": (0.55, 0.50, 0.45), "smoke": (0.25, 0.25, 0.25),
 
 def _volumes(scene: bpy.types.Scene, fire: bool, glow: float = 1.0) -> dict:
     """The imported Volume objects: their grids and materials; with ``fire`` a
-    Principled Volume each (Blackbody from ``temperature`` where the volume has it)."""
+    Principled Volume each (Blackbody from ``temperature`` where the volume has it)
+    and the exports' own glow of fire and the fireball (``<system>_glow``, emissive
+    shells) hidden, as an artist who shades the flame in the volume hides it."""
     out = {}
     for obj in scene.objects:
+        if fire and obj.name.split(".")[0].endswith("_glow"):
+            obj.hide_render = True
         if obj.type != "VOLUME":
             continue
         volume = obj.data
