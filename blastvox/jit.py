@@ -33,6 +33,44 @@ from blastvox import _kernel_cache
 KERNEL_CACHE = _kernel_cache.configure(Path(__file__).resolve().parent)
 
 
+def _quick_flag_compare() -> None:
+    """Make numba's comparison of compiler flags (``TargetConfig``) cheap, with the same
+    results. Typing any overloaded call (``np.empty``, ``min``, ...) looks its
+    implementation up in a dict keyed on the compile's flags, whose hash is the same
+    for every flags object (the sorted option names), so each lookup compares flags
+    with ``==``, which built two dicts of every option's value through properties:
+    about 100,000 comparisons to compile the contact solver, 5-8 % of its compile.
+    Here the hash is the same number, computed once per class, and ``==`` compares
+    only the options either side set (the others are both the default)."""
+    from numba.core.targetconfig import TargetConfig
+    if getattr(TargetConfig, "_blastvox_quick", False) or not hasattr(TargetConfig, "values"):
+        return
+    full_eq, hashes = TargetConfig.__eq__, {}
+
+    def __hash__(self):
+        cls = type(self)
+        if cls not in hashes:
+            hashes[cls] = hash(tuple(sorted(self.values())))
+        return hashes[cls]
+
+    def __eq__(self, other):
+        if type(self) is not type(other):
+            return full_eq(self, other)
+        mine, theirs, options = self._values, other._values, self.options
+        for name in mine.keys() | theirs.keys():
+            default = options[name].default
+            a, b = mine.get(name, default), theirs.get(name, default)
+            if a is not b and not a == b:  # as dict equality compares values
+                return False
+        return True
+
+    TargetConfig.__hash__, TargetConfig.__eq__ = __hash__, __eq__
+    TargetConfig._blastvox_quick = True
+
+
+_quick_flag_compare()
+
+
 class KernelDispatcher(CPUDispatcher):
     """numba's dispatcher, compiling one version per argument *type* for calls from
     compiled code: a constant argument (``pick_four(points, 0, out)``) is typed as an
