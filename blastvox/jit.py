@@ -11,7 +11,9 @@ called only from other compiled functions (:func:`helper`): numba then builds no
 CPython wrapper for it, the code that unboxes each argument from a Python
 object. That wrapper is never used for a helper, yet costs about 60 ms plus
 15 ms per array argument to compile, on every first run: without it the
-kernels of a first run compile about 7 % faster.
+kernels of a first run compile about 7 % faster. Nor does a helper get machine code
+or a cache file of its own (:func:`_link_only_helpers`): its code reaches the
+machine only inside the kernels that call it, and their cache files hold it.
 
 numba itself would crash if such a function were called from Python, so a
 helper raises a TypeError instead; its ``py_func`` is the plain Python function.
@@ -119,11 +121,45 @@ def parallel_kernel(func: Callable) -> Callable:
 
 
 def helper(func: Callable) -> Callable:
-    """``@nb.njit(cache=True)`` for a function called only from compiled code."""
+    """``@nb.njit`` for a function called only from compiled code: not cached on disk, and
+    compiled to LLVM IR only (see :func:`_link_only_helpers`)."""
     if nb.config.DISABLE_JIT:
         return func
-    dispatcher = HelperDispatcher(py_func=func, locals={}, targetoptions={
+    return HelperDispatcher(py_func=func, locals={}, targetoptions={
         "nopython": True, "boundscheck": None, "no_cpython_wrapper": True,
         "no_cfunc_wrapper": True})
-    dispatcher.enable_caching()
-    return dispatcher
+
+
+def _link_only_helpers() -> None:
+    """No machine code for a helper: numba links a callee's LLVM IR into each caller's
+    module and compiles the caller whole, so the helper's own machine code (and its
+    cache file, which held it) was never run, yet cost 8 % of the contact solver's
+    first compile. A kernel's cache file holds all of its helpers' code, so a warm run
+    never loads a helper. While the innermost compile is a helper's, numba's JIT
+    library skips its codegen step (``_finalize_specific``): the helper's library is
+    still optimised and linked into its callers; its (never called) entry point is null."""
+    from numba.core import codegen, event
+
+    if getattr(codegen.JITCodeLibrary, "_blastvox_link_only", False):
+        return
+    compiling: list[bool] = []
+
+    class _Track(event.Listener):
+        def on_start(self, ev):
+            compiling.append(isinstance(ev.data.get("dispatcher"), HelperDispatcher))
+
+        def on_end(self, ev):
+            compiling.pop()
+
+    machine_code = codegen.JITCodeLibrary._finalize_specific
+
+    def _finalize_specific(self):
+        if not (compiling and compiling[-1]):
+            machine_code(self)
+
+    event.register("numba:compile", _Track())
+    codegen.JITCodeLibrary._finalize_specific = _finalize_specific
+    codegen.JITCodeLibrary._blastvox_link_only = True
+
+
+_link_only_helpers()
