@@ -130,6 +130,10 @@ def helper(func: Callable) -> Callable:
         "no_cfunc_wrapper": True})
 
 
+#: the name numba gives the library of a parallel loop's body (numba.parfors.parfor_lowering)
+_LOOP_BODY = "__numba_parfor_gufunc_"
+
+
 def _link_only_helpers() -> None:
     """No machine code for a helper: numba links a callee's LLVM IR into each caller's
     module and compiles the caller whole, so the helper's own machine code (and its
@@ -137,7 +141,9 @@ def _link_only_helpers() -> None:
     first compile. A kernel's cache file holds all of its helpers' code, so a warm run
     never loads a helper. While the innermost compile is a helper's, numba's JIT
     library skips its codegen step (``_finalize_specific``): the helper's library is
-    still optimised and linked into its callers; its (never called) entry point is null."""
+    still optimised and linked into its callers; its (never called) entry point is null.
+    The same for the body of a parallel kernel's ``prange`` loop, which numba compiles as
+    a function of its own (``__numba_parfor_gufunc_*``) only to link it into the kernel."""
     from numba.core import codegen, event
 
     if getattr(codegen.JITCodeLibrary, "_blastvox_link_only", False):
@@ -154,7 +160,7 @@ def _link_only_helpers() -> None:
     machine_code = codegen.JITCodeLibrary._finalize_specific
 
     def _finalize_specific(self):
-        if not (compiling and compiling[-1]):
+        if not (compiling and compiling[-1]) and not self.name.startswith(_LOOP_BODY):
             machine_code(self)
 
     event.register("numba:compile", _Track())
