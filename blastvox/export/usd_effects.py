@@ -68,10 +68,10 @@ FILMBACK_MM = (36.0, 20.25)
 def write_particles(w, shot: Sdf.PrimSpec) -> None:
     """One UsdGeomPointInstancer per particle system (dust, fire, smoke, fireball)
     whose prototype, a soft ball of diameter 1 bound to the system's material, is
-    instanced at each particle and scaled to its width (fire's and the fireball's: their
-    smoke, 1 - (T / hot_k)^2 of it, :func:`_cooled`, always alive only). Positions come from the
-    cache's particle births evaluated in closed form (blastvox.particles), one time
-    sample per frame, in the cheaper of two layouts (see :func:`_layout_of`):
+    instanced at each particle and scaled to its width (for fire and the fireball, their
+    smoke's share of it, 1 - (T / hot_k)^2: :func:`_cooled`, in the alive-only layout).
+    Positions come from the cache's particle births evaluated in closed form
+    (blastvox.particles), one time sample per frame, in the cheaper of two layouts (see :func:`_layout_of`):
 
     * **fixed**: every particle of the system at every frame (a constant count,
       ids and scales written once), an unborn or dead one at its birth or death
@@ -163,6 +163,14 @@ def _cooled(name: str, spec):
     return lambda age: 1.0 - heat(age)
 
 
+def _velocity(spec, v0: np.ndarray, age: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """(n, 3) m/s: particles born at v0 (n, 3) m/s, ``age`` (n,) s old, slowed by their
+    system's drag (spec.drag, 1/s) and pulled by spec.gravity_scale times g (3,) m/s^2:
+    the derivative of blastvox.particles' closed form."""
+    decay = np.exp(-spec.drag * age)[:, None]
+    return v0 * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
+
+
 def _live_frames(times: list, states: list) -> list:
     """(time s, alive indices, (n, 3) positions m) of each frame's live particles."""
     return [(t, np.flatnonzero(alive), x[alive])
@@ -184,8 +192,7 @@ def _write_glow(w, scope: Sdf.PrimSpec, name: str, mine: np.ndarray, states: lis
     blobs = []
     for t, (alive, x) in zip(times, states, strict=True):
         age = t - birth[mine][alive]
-        decay = np.exp(-spec.drag * age)[:, None]
-        vel = v0[mine][alive] * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
+        vel = _velocity(spec, v0[mine][alive], age, g)
         blobs.append(glow_blobs(x[alive], vel, GLOW_LOOKS[name]["core"] * sizes[alive]
                                 * heat(age)))
     instancer = _particle_instancer(w, scope, name, hidden=False, glow=True)
@@ -368,8 +375,7 @@ def _instance_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, frames: list
             ids = np.array([-1], dtype=np.int64)
         else:
             age = t - birth[mine][alive]
-            decay = np.exp(-spec.drag * age)[:, None]
-            vel = v0[mine][alive] * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
+            vel = _velocity(spec, v0[mine][alive], age, g)
             w = size[mine][alive] * (1.0 if grow is None else grow(age))
             ids = mine[alive].astype(np.int64)
         box = np.stack([(x - w[:, None] / 2).min(axis=0), (x + w[:, None] / 2).max(axis=0)])

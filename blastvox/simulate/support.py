@@ -55,8 +55,8 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
     held = (body < 0) | bodies.fixed[np.maximum(body, 0)]  # ground or founded, per side
     # or a slow free body it sits on: a row that pushes it up (within 60 degrees)
     up = -gravity / float(exact.norm(gravity))
-    lift = rows.frame[:end, 0] @ up  # the normal's push on side 1, along up
-    slow_body = np.linalg.norm(bodies.lin, axis=1) <= RESTING_SPEED * bodies.mass
+    lift = exact.dot(rows.frame[:end, 0], up)  # the normal's push on side 1, along up
+    slow_body = exact.norm(bodies.lin) <= RESTING_SPEED * bodies.mass
     under = [(body[:, 1 - k] >= 0) & slow_body[np.maximum(body[:, 1 - k], 0)]
              & ((lift if k == 1 else -lift) >= SITS_COS) for k in range(2)]
     ends = [pushed & (body[:, k] >= 0) & ~held[:, k] & (held[:, 1 - k] | under[k])
