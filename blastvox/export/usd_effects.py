@@ -71,7 +71,8 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
     instanced at each particle and scaled to its width (for fire and the fireball, their
     smoke's share of it, 1 - (T / hot_k)^2: :func:`_cooled`, in the alive-only layout).
     Positions come from the cache's particle births evaluated in closed form
-    (blastvox.particles), one time sample per frame, in the cheaper of two layouts (see :func:`_layout_of`):
+    (blastvox.particles), one time sample per frame, in the cheaper of two layouts
+    (see :func:`_layout_of`):
 
     * **fixed**: every particle of the system at every frame (a constant count,
       ids and scales written once), an unborn or dead one at its birth or death
