@@ -9,6 +9,7 @@ concurrently, so the session starts by compiling them once, in-process.
 from __future__ import annotations
 
 import signal
+import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -17,6 +18,14 @@ import pytest
 import blastvox  # noqa: F401  before numpy: the same numpy loops on every CPU (its docstring)
 
 DATA = Path(__file__).parent / "data"
+
+# Tests start blastvox subprocesses from threads (test_cli_voxelize's and
+# test_cli_simulate's pools) in a worker whose numba kernels keep OpenMP threads. With
+# CPython 3.11's vfork (the GIL held across it, gh-104372) two CI runs failed a spawn
+# with "OSError: [Errno 14] Bad address" on the interpreter's path, one test each; fork
+# is the fallback CPython itself documents for vfork trouble.
+if hasattr(subprocess, "_USE_VFORK"):
+    subprocess._USE_VFORK = False
 
 
 @pytest.fixture(scope="session")
