@@ -128,6 +128,8 @@ def _fractal(rng: np.random.Generator, size: int, base: int, octaves: int,
 def _voronoi(rng: np.random.Generator, size: int, cells: int) -> tuple[np.ndarray, np.ndarray]:
     """Periodic Voronoi of about ``cells`` random sites: the distance to the nearest cell edge
     (size, size, in tile units) and each pixel's cell index."""
+    from blastvox.geometry import fixed  # libm's hypot, whatever numpy dispatched to
+
     n = max(1, round(np.sqrt(cells)))  # sites jittered on an n x n grid: no sliver cells
     grid = np.stack(np.meshgrid(np.arange(n), np.arange(n), indexing="ij"), -1).reshape(-1, 2)
     sites = (grid + 0.15 + 0.7 * rng.random((n * n, 2))) / n
@@ -139,7 +141,7 @@ def _voronoi(rng: np.random.Generator, size: int, cells: int) -> tuple[np.ndarra
     second = np.full((size, size), np.inf)
     index = np.zeros((size, size), dtype=np.int64)
     for k, (sy, sx) in enumerate(images):
-        d = np.hypot(py - sy, px - sx)
+        d = fixed.hypot(py - sy, px - sx)
         closer = d < first
         second = np.where(closer, first, np.minimum(second, d))
         index = np.where(closer, k // 9, index)  # image k of site k // 9

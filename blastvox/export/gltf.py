@@ -499,7 +499,7 @@ def bench_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0,
                          VoxelizeSettings(up_axis="Z", ground=None))
     ijk = model.arrays["voxel_ijk"].astype(np.int64)
     block = (ijk[:, 0] // 2) * (k * k) + (ijk[:, 1] // 2) * k + ijk[:, 2] // 2
-    piece = (block * pieces // k ** 3).astype(np.int32)
+    piece = (block * pieces // (k * k * k)).astype(np.int32)
     mass = np.bincount(piece, weights=model.arrays["voxel_mass"], minlength=pieces)
     pivot = np.stack([np.bincount(piece, weights=model.arrays["voxel_mass"]
                                   * model.arrays["voxel_centroid"][:, i], minlength=pieces)

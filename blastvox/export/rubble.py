@@ -325,7 +325,7 @@ def _taubin(points: np.ndarray, corner: np.ndarray, normal: np.ndarray,
     moved = points
     for _ in range(SMOOTHING_PASSES):
         for factor in (TAUBIN_LAMBDA, TAUBIN_MU):
-            moved = moved + factor * (mean @ moved - moved)
+            moved = moved + factor * (mean @ moved - moved)  # sparse: rows in order
             moved = points + _constrained(moved - points, normal, limit)
     return moved
 

@@ -27,10 +27,11 @@ import numpy as np
 
 from blastvox.jit import kernel
 
-__all__ = ["arccos", "arctan2", "cbrt", "cos", "exp", "expm1", "log2", "power", "sin"]
+__all__ = ["arccos", "arctan2", "cbrt", "cos", "exp", "expm1", "hypot", "log2", "power",
+           "sin"]
 
 _CBRT, _SIN, _COS, _EXP, _EXPM1, _LOG2, _ACOS = range(7)
-_ATAN2, _POW = range(2)
+_ATAN2, _POW, _HYPOT = range(3)
 
 
 @kernel
@@ -63,10 +64,13 @@ def _unary(code, x, out) -> None:  # pragma: no cover - numba
 
 @kernel
 def _binary(code, a, b, out) -> None:  # pragma: no cover - numba
-    """out[i] = f(a[i], b[i]) from libm: atan2 or pow, by ``code``."""
+    """out[i] = f(a[i], b[i]) from libm: atan2, hypot or pow, by ``code``."""
     if code == _ATAN2:
         for i in range(a.shape[0]):
             out[i] = math.atan2(a[i], b[i])
+    elif code == _HYPOT:
+        for i in range(a.shape[0]):
+            out[i] = math.hypot(a[i], b[i])
     else:
         for i in range(a.shape[0]):
             out[i] = a[i] ** b[i]
@@ -125,6 +129,11 @@ def _apply2(code: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def arctan2(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     """atan2(y, x) (the broadcast shape of y and x), rad in [-pi, pi], float64, libm's."""
     return _apply2(_ATAN2, y, x)
+
+
+def hypot(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """sqrt(x^2 + y^2) (the broadcast shape of x and y), float64, libm's hypot."""
+    return _apply2(_HYPOT, x, y)
 
 
 def power(x: np.ndarray, y: np.ndarray) -> np.ndarray:
