@@ -142,8 +142,10 @@ def _billow(unit: np.ndarray, k: int) -> np.ndarray:
     """A smooth bump in [-1, 1] over the unit directions ``unit`` (n, 3), shell k's."""
     a = np.array([[0.8, 0.5, 0.3], [-0.4, 0.9, 0.2], [0.3, -0.2, 0.93]])[k % 3]
     b = np.array([[0.1, -0.7, 0.7], [0.9, 0.1, -0.4], [-0.6, 0.6, 0.5]])[k % 3]
-    return (fixed.sin(3.0 * exact.dot(unit, a) + 1.3 * k)
-            * fixed.cos(2.0 * exact.dot(unit, b) + 0.7 * k))
+    # (3 unit) . a, unit's float32 scaled first, as ``3.0 * unit @ a`` did (through BLAS,
+    # whose FMA kernels, Haswell's or SkylakeX's, round otherwise than a CPU's without)
+    return (fixed.sin(exact.dot(3.0 * unit, a) + 1.3 * k)
+            * fixed.cos(exact.dot(2.0 * unit, b) + 0.7 * k))
 
 
 def _heat(name: str, spec):
