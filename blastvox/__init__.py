@@ -10,7 +10,11 @@ trigonometric functions round differently from the AVX2 ones, and a shot's
 chaotic fracture turns one ulp into different pieces. The simulator does not rely
 on it: its inputs' cube roots, powers and the cues' transcendentals go through
 libm (:mod:`blastvox.blast._numeric`), so ``simulate()`` gives the CLI's bytes
-after numpy, scipy or trimesh were imported first (``tests/test_golden.py``).
+after numpy, scipy or trimesh were imported first (``tests/test_golden.py``). Nor does
+the export: its transcendental functions go through libm as well
+(:mod:`blastvox.geometry.fixed`), its sums and products through
+:mod:`blastvox.geometry.exact`, so ``export()`` after numpy gives the CLI's bytes
+(``tests/test_export_dispatch.py``).
 
 It also pins OpenBLAS's kernels to its Haswell ones (``OPENBLAS_CORETYPE``, unless
 set) on an x86-64 CPU that has AVX2 and FMA, for the BLAS libraries loaded after it:

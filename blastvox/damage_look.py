@@ -86,8 +86,13 @@ def damage_image(pattern: str, color, size: int = TEXTURE_SIZE) -> np.ndarray:
 
 
 def _to_srgb8(linear: np.ndarray) -> np.ndarray:
+    """8-bit sRGB of linear values (..., 3) in [0, 1]; the power is libm's, as every
+    transcendental of the texture (:mod:`blastvox.geometry.fixed`): numpy's rounds as
+    the CPU it dispatched to, and one ulp moves a pixel across a rounding step."""
+    from blastvox.geometry import fixed
+
     c = np.clip(linear, 0.0, 1.0)
-    srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+    srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * fixed.power(c, 1 / 2.4) - 0.055)
     return np.rint(srgb * 255.0).astype(np.uint8)
 
 
@@ -123,6 +128,8 @@ def _fractal(rng: np.random.Generator, size: int, base: int, octaves: int,
 def _voronoi(rng: np.random.Generator, size: int, cells: int) -> tuple[np.ndarray, np.ndarray]:
     """Periodic Voronoi of about ``cells`` random sites: the distance to the nearest cell edge
     (size, size, in tile units) and each pixel's cell index."""
+    from blastvox.geometry import fixed  # libm's hypot, whatever numpy dispatched to
+
     n = max(1, round(np.sqrt(cells)))  # sites jittered on an n x n grid: no sliver cells
     grid = np.stack(np.meshgrid(np.arange(n), np.arange(n), indexing="ij"), -1).reshape(-1, 2)
     sites = (grid + 0.15 + 0.7 * rng.random((n * n, 2))) / n
@@ -134,7 +141,7 @@ def _voronoi(rng: np.random.Generator, size: int, cells: int) -> tuple[np.ndarra
     second = np.full((size, size), np.inf)
     index = np.zeros((size, size), dtype=np.int64)
     for k, (sy, sx) in enumerate(images):
-        d = np.hypot(py - sy, px - sx)
+        d = fixed.hypot(py - sy, px - sx)
         closer = d < first
         second = np.where(closer, first, np.minimum(second, d))
         index = np.where(closer, k // 9, index)  # image k of site k // 9
@@ -147,8 +154,10 @@ def _cracks(rng: np.random.Generator, size: int, cells: int, width: float,
     """A darkening factor (size, size) along the edges of a periodic Voronoi: 1 - depth on
     a crack, 1 away from it; edges wobble with noise."""
     edge, _ = _voronoi(rng, size, cells)
+    from blastvox.geometry import fixed
+
     edge = edge + 0.004 * _fractal(rng, size, 8, 3)
-    return 1.0 - depth * np.exp(-(np.maximum(edge, 0.0) / width) ** 2)
+    return 1.0 - depth * fixed.exp(-(np.maximum(edge, 0.0) / width) ** 2)
 
 
 def _cell_shades(rng: np.random.Generator, size: int, cells: int, spread: float) -> np.ndarray:
@@ -186,9 +195,11 @@ def _wood(rng, size):
 
 
 def _glass(rng, size):
+    from blastvox.geometry import fixed
+
     edge, index = _voronoi(rng, size, 12)
     facets = 1.0 + 0.12 * (rng.random(int(index.max()) + 1) * 2 - 1)[index]
-    lines = 1.0 + 1.2 * np.exp(-(edge / 0.003) ** 2)
+    lines = 1.0 + 1.2 * fixed.exp(-(edge / 0.003) ** 2)
     return facets * lines, np.zeros((size, size))
 
 

@@ -90,7 +90,9 @@ def all_positions_at(birth: np.ndarray, position: np.ndarray, velocity: np.ndarr
     s = np.clip(age, 0.0, lifetime)[:, None]
     k = np.array([SYSTEMS[n].drag for n in SYSTEM_NAMES])[system][:, None]
     g = np.array([SYSTEMS[n].gravity_scale for n in SYSTEM_NAMES])[system][:, None]
-    decay = -np.expm1(-k * s) / k  # (1 - e^-ks) / k
+    from blastvox.geometry import fixed  # libm's: numpy's rounds as its CPU dispatch
+
+    decay = -fixed.expm1(-k * s) / k  # (1 - e^-ks) / k
     accel = g * np.asarray(gravity)[None, :]
     x = position + velocity * decay + accel * (s - decay) / k
     if ground is not None:

@@ -42,6 +42,7 @@ the same bytes (stable order, no timestamps, ``asset.generator`` = "blastvox
 from __future__ import annotations
 
 import json
+import math
 import struct
 import time
 from contextlib import ExitStack
@@ -75,7 +76,7 @@ from blastvox.export.pieces import (
     piece_parts,
 )
 from blastvox.export.uv import texture_names
-from blastvox.geometry import quaternion
+from blastvox.geometry import exact, fixed, quaternion
 from blastvox.geometry.frames import frame_change, up_vector
 from blastvox.io.atomic import atomic_path
 
@@ -244,7 +245,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
             "roughnessFactor": 1.0}, "alphaMode": "BLEND"})
         meshes.append(_sphere_mesh(b, len(mats) - 1))
         change = frame_change(cache.model.meta.get("up_axis", "Y"), "Y")
-        centres = np.asarray(cache.charge_position, dtype=np.float64) @ change.T
+        centres = exact.turn(change, np.asarray(cache.charge_position, dtype=np.float64))
         radius = np.asarray(cache.shock_radius, dtype=np.float32).reshape(n_frames, n_charges)
         scale = np.repeat(radius.T[:, :, None], 3, axis=2)  # (C, F, 3)
         sc_view = b.view(_f32(scale)) if n_frames else -1
@@ -330,15 +331,15 @@ def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[d
     if not camera:
         return []
     change = frame_change(cache.model.meta.get("up_axis", "Y"), "Y")
-    position = np.asarray(camera["position"], dtype=np.float64) @ change.T
-    target = np.asarray(camera["look_at"], dtype=np.float64) @ change.T
-    offset = np.asarray(cache.arrays.get("camera_offset", np.zeros((cache.frame_count, 3))),
-                        dtype=np.float64) @ change.T
-    back = (position - target) / np.linalg.norm(position - target)
+    position = exact.turn(change, np.asarray(camera["position"], dtype=np.float64))
+    target = exact.turn(change, np.asarray(camera["look_at"], dtype=np.float64))
+    offset = exact.turn(change, np.asarray(
+        cache.arrays.get("camera_offset", np.zeros((cache.frame_count, 3))), dtype=np.float64))
+    back = (position - target) / exact.length(position - target)
     right = np.cross(up_vector("Y"), back)
-    if np.linalg.norm(right) < 1e-9:
+    if exact.length(right) < 1e-9:
         right = np.array([1.0, 0.0, 0.0])
-    right /= np.linalg.norm(right)
+    right /= exact.length(right)
     up = np.cross(back, right)
     rot = np.stack([right, up, back], axis=1)  # columns: camera axes in the world
     quat = quaternion.from_matrix(rot)[[1, 2, 3, 0]]  # glTF order (x, y, z, w)
@@ -350,7 +351,7 @@ def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[d
         channel(len(nodes) - 1, "translation", t_acc(),
                 b.accessor(view, 0, FLOAT, len(offset), "VEC3"))
     return [{"name": "camera", "type": "perspective", "perspective": {
-        "yfov": float(2.0 * np.arctan(FILM_MM[1] / (2.0 * focal))),
+        "yfov": 2.0 * math.atan(FILM_MM[1] / (2.0 * focal)),  # libm's, not numpy's
         "aspectRatio": FILM_MM[0] / FILM_MM[1],
         "znear": 0.1, "zfar": 10000.0}}]
 
@@ -451,10 +452,10 @@ def _sphere_mesh(b: _Builder, material: int) -> dict[str, Any]:
     rings, segs = SPHERE_RINGS, SPHERE_SEGMENTS
     theta = np.linspace(0.0, np.pi, rings + 1)
     phi = np.linspace(0.0, 2.0 * np.pi, segs + 1)
-    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
-    pos = np.stack([st * np.cos(phi), np.broadcast_to(ct, (rings + 1, segs + 1)),
-                    -st * np.sin(phi)], axis=-1).reshape(-1, 3)
-    pos = pos / np.linalg.norm(pos, axis=1, keepdims=True)
+    st, ct = fixed.sin(theta)[:, None], fixed.cos(theta)[:, None]
+    pos = np.stack([st * fixed.cos(phi), np.broadcast_to(ct, (rings + 1, segs + 1)),
+                    -st * fixed.sin(phi)], axis=-1).reshape(-1, 3)
+    pos = pos / exact.length(pos, keepdims=True)
     pos = pos.astype(np.float32)
     i, j = np.meshgrid(np.arange(rings), np.arange(segs), indexing="ij")
     a = i * (segs + 1) + j
@@ -489,7 +490,7 @@ def bench_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0,
     from blastvox.voxelize.pipeline import ObjectRequest, VoxelizeSettings, voxelize
 
     voxel = 0.25
-    k = max(1, int(np.ceil(round(pieces ** (1.0 / 3.0), 9))))
+    k = max(1, int(np.ceil(round(math.cbrt(pieces), 9))))
     side = 2 * k * voxel
     with tempfile.TemporaryDirectory() as tmp:
         mesh = Path(tmp) / "block.stl"
@@ -497,8 +498,8 @@ def bench_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0,
         model = voxelize([ObjectRequest(mesh=mesh, voxel_size=(voxel,) * 3, material="brick")],
                          VoxelizeSettings(up_axis="Z", ground=None))
     ijk = model.arrays["voxel_ijk"].astype(np.int64)
-    block = (ijk // 2) @ np.array([k * k, k, 1])
-    piece = (block * pieces // k ** 3).astype(np.int32)
+    block = (ijk[:, 0] // 2) * (k * k) + (ijk[:, 1] // 2) * k + ijk[:, 2] // 2
+    piece = (block * pieces // (k * k * k)).astype(np.int32)
     mass = np.bincount(piece, weights=model.arrays["voxel_mass"], minlength=pieces)
     pivot = np.stack([np.bincount(piece, weights=model.arrays["voxel_mass"]
                                   * model.arrays["voxel_centroid"][:, i], minlength=pieces)
@@ -511,10 +512,10 @@ def bench_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0,
     position = (pivot[None] + t[:, None, None] * velocity[None]
                 + 0.5 * t[:, None, None] ** 2 * gravity)
     axis = rng.normal(size=(pieces, 3))
-    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    axis /= exact.length(axis, keepdims=True)
     half = 0.5 * rng.uniform(0.0, 20.0, pieces)[None] * t[:, None]  # (F, P) half angles
-    orientation = np.concatenate([np.cos(half)[..., None],
-                                  np.sin(half)[..., None] * axis[None]], axis=-1)
+    orientation = np.concatenate([fixed.cos(half)[..., None],
+                                  fixed.sin(half)[..., None] * axis[None]], axis=-1)
     end = np.full(pieces, frames, dtype=np.int32)
     gone = rng.random(pieces) < 0.1
     end[gone] = rng.integers(1, max(frames, 2), gone.sum())

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from blastvox.export.gltf_buffer import FLOAT, _Builder, _f32, _floats
+from blastvox.geometry import exact
 
 #: particles per system in a .glb at most (a node each)
 GLTF_PARTICLE_BUDGET = 256
@@ -53,9 +54,9 @@ def add_particles(cache, b: _Builder, mats: list, meshes: list, nodes: list, cha
     if system is None or not len(system) or t_acc is None:
         return []
     change = frame_change(cache.model.meta.get("up_axis", "Y"), "Y")
-    g = change @ model_gravity(cache)
-    x0 = cache.particle_position.astype(np.float64) @ change.T
-    v0 = cache.particle_velocity.astype(np.float64) @ change.T
+    g = exact.turn(change, model_gravity(cache))
+    x0 = exact.turn(change, cache.particle_position.astype(np.float64))
+    v0 = exact.turn(change, cache.particle_velocity.astype(np.float64))
     ground = ground_plane(cache.meta.get("ground_height"),
                           up_vector(cache.model.meta.get("up_axis", "Y")), change)
     birth = cache.particle_birth.astype(np.float64)

@@ -21,6 +21,8 @@ equal values only (:func:`blastvox.export.usd_specs.run_ends_pf`), the exact exp
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from blastvox.export.options import KEY_TOLERANCE_DEG, KEY_TOLERANCE_M
@@ -50,11 +52,12 @@ def reduce_keys(times: np.ndarray, position: np.ndarray | None, orientation: np.
     ori = (np.zeros((p_count, f_count, 4)) if orientation is None
            else np.ascontiguousarray(orientation, dtype=np.float64))
     keep = np.zeros((p_count, f_count), dtype=np.bool_)
-    # cos of half the tolerance angle: |q_interp . q_true| below it misses by more
-    half = np.radians(float(tolerance_deg)) / 2.0
+    # cos of half the tolerance angle: |q_interp . q_true| below it misses by more (libm's
+    # cosine: numpy's would round as the CPU it dispatched to, blastvox.geometry.fixed)
+    half = math.radians(float(tolerance_deg)) / 2.0
     _reduce(np.ascontiguousarray(times, dtype=np.float64), pos, ori,
             np.minimum(np.asarray(live, dtype=np.int64), f_count), float(tolerance_m),
-            float(np.cos(half)) if orientation is not None else -2.0, keep)
+            math.cos(half) if orientation is not None else -2.0, keep)
     return keep
 
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from blastvox.cache import SimCache
 from blastvox.export.rubble import roughen
-from blastvox.geometry import quaternion
+from blastvox.geometry import exact, fixed, quaternion
 from blastvox.geometry.frames import frame_change
 from blastvox.geometry.transforms import change_frame
 from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG, face_triangles
@@ -196,19 +196,19 @@ def piece_meshes(cache: SimCache, export_up: str, fracture_faces: str = "rough")
     all_damage = np.concatenate([hex_damage, con_damage[keep]])
 
     if fracture_faces == "rough":
-        edge = float(np.median(np.cbrt(a["voxel_volume"]))) if n else 0.0
-        exact = np.concatenate([np.zeros(len(hex_tris), dtype=bool), on_surface[keep]])
+        edge = float(np.median(fixed.cbrt(a["voxel_volume"]))) if n else 0.0
+        as_meshed = np.concatenate([np.zeros(len(hex_tris), dtype=bool), on_surface[keep]])
         all_tris = roughen(all_tris, all_damage, edge, int(cache.model.meta.get("seed") or 0),
-                           exact)
+                           as_meshed)
     tri_piece = piece[all_voxel]
     order = np.lexsort((np.arange(len(tri_piece)), tri_piece))  # stable by piece
     all_tris, all_voxel, all_damage, tri_piece = (all_tris[order], all_voxel[order],
                                                   all_damage[order], tri_piece[order])
     pivot = cache.piece_pivot[tri_piece]
     change = frame_change(cache.model.meta.get("up_axis", "Y"), export_up)
-    local = (all_tris - pivot[:, None, :]) @ change.T
+    local = exact.turn(change, all_tris - pivot[:, None, :])
     normal = np.cross(local[:, 1] - local[:, 0], local[:, 2] - local[:, 0])
-    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    length = exact.length(normal, keepdims=True)
     normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
     # a triangle whose corners meet in the files' float32 draws nothing, and importers
     # drop it (Blender's USD import does), which would shift every per-corner value

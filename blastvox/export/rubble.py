@@ -42,6 +42,8 @@ import scipy.sparse
 import scipy.sparse.csgraph
 from scipy.spatial import cKDTree
 
+from blastvox.geometry import exact as products
+
 __all__ = ["ROUGHNESS", "SMOOTHING_PASSES", "roughen"]
 
 #: Largest displacement of a fracture corner by the noise field (voxel edges): enough to
@@ -187,14 +189,14 @@ def _sliding(points: np.ndarray, outside: np.ndarray, outside_corner: np.ndarray
     mean = np.zeros((count, 3))
     for axis in range(3):  # sums in that order: the same bytes whatever the input's order
         mean[:, axis] = np.bincount(point, weights=unit[tri, axis], minlength=count)
-    length = np.linalg.norm(mean, axis=1, keepdims=True)
+    length = products.length(mean, keepdims=True)
     mean = np.divide(mean, length, out=np.zeros_like(mean), where=length > 0)
     first = np.zeros((count, 3))
     first[point[head]] = unit[tri[head]]
     spread = np.zeros(count)
-    np.maximum.at(spread, point, 1.0 - np.einsum("ij,ij->i", unit[tri], first[point]))
+    np.maximum.at(spread, point, 1.0 - products.lane_dot(unit[tri], first[point]))
     tilt = np.zeros(count)
-    np.maximum.at(tilt, point, 1.0 - np.einsum("ij,ij->i", unit[tri], mean[point]))
+    np.maximum.at(tilt, point, 1.0 - products.lane_dot(unit[tri], mean[point]))
     any_exact = np.zeros(count, dtype=bool)
     any_exact[point[exact[tri]]] = True
     on = np.zeros(count, dtype=bool)
@@ -235,8 +237,8 @@ def _folded(triangles: np.ndarray, rest: np.ndarray, sliver: np.ndarray) -> np.n
     is under :data:`FOLD`; a sliver (``sliver`` (T,)), whose side is rounding noise, only
     when it turns over and grows to more than twice its rest area (when it would show)."""
     now = _doubled_normals(triangles)
-    dot = np.einsum("ij,ij->i", now, rest)
-    size_now, size_rest = np.linalg.norm(now, axis=1), np.linalg.norm(rest, axis=1)
+    dot = products.lane_dot(now, rest)
+    size_now, size_rest = products.length(now), products.length(rest)
     turned = dot < FOLD * size_now * size_rest
     return np.where(sliver, (dot < 0.0) & (size_now > 2.0 * size_rest), turned & (size_rest > 0))
 
@@ -249,16 +251,16 @@ def _doubled_normals(triangles: np.ndarray) -> np.ndarray:
 def _slivers(triangles: np.ndarray) -> np.ndarray:
     """(T,) bool: triangles (T, 3, 3) whose height is under :data:`SLIVER` of their
     longest side (degenerate ones included)."""
-    doubled = np.linalg.norm(np.cross(triangles[:, 1] - triangles[:, 0],
-                                      triangles[:, 2] - triangles[:, 0]), axis=1)
-    longest = np.max(np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2), axis=1)
+    doubled = products.length(np.cross(triangles[:, 1] - triangles[:, 0],
+                                       triangles[:, 2] - triangles[:, 0]))
+    longest = np.max(products.length(triangles - np.roll(triangles, 1, axis=1)), axis=1)
     return ~(doubled > SLIVER * longest * longest)
 
 
 def _unit_normals(triangles: np.ndarray) -> np.ndarray:
     """Unit normals (T, 3) of triangles (T, 3, 3); 0 for a degenerate one."""
     face = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    length = np.linalg.norm(face, axis=1, keepdims=True)
+    length = products.length(face, keepdims=True)
     return np.divide(face, length, out=np.zeros_like(face), where=length > 0)
 
 
@@ -298,8 +300,8 @@ def _unfolded(points: np.ndarray, offset: np.ndarray, corner: np.ndarray,
 def _constrained(offset: np.ndarray, normal: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """``offset`` (P, 3) with its component along ``normal`` (P, 3) removed and its
     length cut to ``limit`` (P,)."""
-    offset = offset - normal * np.einsum("ij,ij->i", offset, normal)[:, None]
-    length = np.linalg.norm(offset, axis=1)
+    offset = offset - normal * products.lane_dot(offset, normal)[:, None]
+    length = products.length(offset)
     scale = np.minimum(1.0, np.divide(limit, length, out=np.ones_like(length),
                                       where=length > limit))
     return offset * scale[:, None]
@@ -323,7 +325,7 @@ def _taubin(points: np.ndarray, corner: np.ndarray, normal: np.ndarray,
     moved = points
     for _ in range(SMOOTHING_PASSES):
         for factor in (TAUBIN_LAMBDA, TAUBIN_MU):
-            moved = moved + factor * (mean @ moved - moved)
+            moved = moved + factor * (mean @ moved - moved)  # sparse: rows in order
             moved = points + _constrained(moved - points, normal, limit)
     return moved
 

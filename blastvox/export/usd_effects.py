@@ -20,6 +20,7 @@ from blastvox.export.usd_specs import (
     vec3f,
     xform_order,
 )
+from blastvox.geometry import exact, fixed
 from blastvox.geometry.frames import up_vector
 
 _T = Sdf.ValueTypeNames
@@ -100,9 +101,9 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
     if system is None or len(system) == 0 or w.frames == 0:
         return
     scope = prim_spec(shot, "Particles", "Xform")
-    g = w.change @ model_gravity(c)
-    x0 = c.particle_position.astype(np.float64) @ w.change.T
-    v0 = c.particle_velocity.astype(np.float64) @ w.change.T
+    g = exact.turn(w.change, model_gravity(c))
+    x0 = exact.turn(w.change, c.particle_position.astype(np.float64))
+    v0 = exact.turn(w.change, c.particle_velocity.astype(np.float64))
     birth = c.particle_birth.astype(np.float64)
     size = c.particle_size.astype(np.float32)
     times = c.frame_time.astype(np.float64).tolist()
@@ -141,7 +142,10 @@ def _billow(unit: np.ndarray, k: int) -> np.ndarray:
     """A smooth bump in [-1, 1] over the unit directions ``unit`` (n, 3), shell k's."""
     a = np.array([[0.8, 0.5, 0.3], [-0.4, 0.9, 0.2], [0.3, -0.2, 0.93]])[k % 3]
     b = np.array([[0.1, -0.7, 0.7], [0.9, 0.1, -0.4], [-0.6, 0.6, 0.5]])[k % 3]
-    return np.sin(3.0 * unit @ a + 1.3 * k) * np.cos(2.0 * unit @ b + 0.7 * k)
+    # (3 unit) . a, unit's float32 scaled first, as ``3.0 * unit @ a`` did (through BLAS,
+    # whose FMA kernels, Haswell's or SkylakeX's, round otherwise than a CPU's without)
+    return (fixed.sin(exact.dot(3.0 * unit, a) + 1.3 * k)
+            * fixed.cos(exact.dot(2.0 * unit, b) + 0.7 * k))
 
 
 def _heat(name: str, spec):
@@ -168,7 +172,7 @@ def _velocity(spec, v0: np.ndarray, age: np.ndarray, g: np.ndarray) -> np.ndarra
     """(n, 3) m/s: particles born at v0 (n, 3) m/s, ``age`` (n,) s old, slowed by their
     system's drag (spec.drag, 1/s) and pulled by spec.gravity_scale times g (3,) m/s^2:
     the derivative of blastvox.particles' closed form."""
-    decay = np.exp(-spec.drag * age)[:, None]
+    decay = fixed.exp(-spec.drag * age)[:, None]
     return v0 * decay + spec.gravity_scale * g * (1 - decay) / spec.drag
 
 
@@ -445,17 +449,17 @@ def write_camera(w, shot: Sdf.PrimSpec) -> None:
     camera = w.cache.meta.get("camera")
     if not camera:
         return
-    position = np.asarray(camera["position"], dtype=np.float64) @ w.change.T
-    target = np.asarray(camera["look_at"], dtype=np.float64) @ w.change.T
-    offset = np.asarray(w.cache.arrays.get("camera_offset", np.zeros((w.frames, 3))),
-                        dtype=np.float64) @ w.change.T
+    position = exact.turn(w.change, np.asarray(camera["position"], dtype=np.float64))
+    target = exact.turn(w.change, np.asarray(camera["look_at"], dtype=np.float64))
+    offset = exact.turn(w.change, np.asarray(
+        w.cache.arrays.get("camera_offset", np.zeros((w.frames, 3))), dtype=np.float64))
     up = up_vector(w.options.up_axis)
     back = position - target
-    back /= np.linalg.norm(back)
+    back /= exact.length(back)
     right = np.cross(up, back)
-    if np.linalg.norm(right) < 1e-9:  # looking straight along up
+    if exact.length(right) < 1e-9:  # looking straight along up
         right = np.cross(np.roll(up, 1), back)
-    right /= np.linalg.norm(right)
+    right /= exact.length(right)
     true_up = np.cross(back, right)
     # USD cameras look down -Z with +Y up; in USD's row-vector convention the
     # rows of the local-to-world matrix are the camera's axes in the world
@@ -490,7 +494,7 @@ def write_shock(w, shot: Sdf.PrimSpec) -> None:
         return
     opacity_all = c.arrays.get("shock_opacity")
     scope = prim_spec(shot, "Effects", "Xform")
-    centres = c.charge_position.astype(np.float64) @ w.change.T
+    centres = exact.turn(w.change, c.charge_position.astype(np.float64))
     set_sample = w.layer.SetTimeSample
     for k in range(radius_all.shape[1]):
         radius = np.nan_to_num(radius_all[:, k], nan=0.0, posinf=0.0, neginf=0.0)

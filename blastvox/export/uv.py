@@ -36,6 +36,7 @@ from trimesh.triangles import area, closest_point, points_to_barycentric
 from blastvox.cache import SimCache
 from blastvox.export.names import identifier, unique
 from blastvox.export.pieces import PieceMeshes
+from blastvox.geometry import exact, fixed
 
 #: How far (in voxel edges) a face's centroid may lie from the source surface and still
 #: take its texture. A cube cell is kept when its centre is inside, so the steps of a
@@ -82,7 +83,7 @@ def face_uvs(cache: SimCache, meshes: PieceMeshes) -> FaceUVs:
     outside = np.flatnonzero(~meshes.damage)
     usable = _usable(a["surface_triangles"]) if "surface_triangles" in a else np.zeros(0, int)
     if usable.size and outside.size:
-        edge = np.cbrt(a["voxel_volume"][meshes.voxel[outside]])
+        edge = fixed.cbrt(a["voxel_volume"][meshes.voxel[outside]])
         parts = "voxel_part" in a and "surface_part" in a  # a face maps onto its own part
         nearest, _ = nearest_triangles(
             a["surface_triangles"][usable], rest[outside].mean(axis=1), REACH * edge,
@@ -91,7 +92,7 @@ def face_uvs(cache: SimCache, meshes: PieceMeshes) -> FaceUVs:
         near = nearest >= 0
         faces, source = outside[near], usable[nearest[near]]
         bary = _barycentric(a["surface_triangles"][source], rest[faces])
-        mapped = np.einsum("tcj,tjd->tcd", bary, a["surface_uv"][source].astype(np.float64))
+        mapped = exact.mix(bary, a["surface_uv"][source])
         # a texture coordinate a float32 holds (the source's own UVs may be anything)
         textured = (a["surface_texture"][source] >= 0) & (
             np.abs(mapped) < MAX_UV).all(axis=(1, 2))
@@ -138,8 +139,8 @@ def nearest_triangles(triangles: np.ndarray, points: np.ndarray, reach: np.ndarr
                                                  triangle_group if groups else None,
                                                  point_group if groups else None))
     bound = bound * (1.0 + 1e-9) + 1e-12  # keep the candidate that set it (rounding)
-    radius = np.linalg.norm(triangles - centroid[:, None, :], axis=2).max(axis=1)
-    size_class = np.ceil(np.log2(np.maximum(radius, 1e-9))).astype(np.int64)
+    radius = exact.length(triangles - centroid[:, None, :]).max(axis=1)
+    size_class = np.ceil(fixed.log2(np.maximum(radius, 1e-9))).astype(np.int64)
     point_tree = cKDTree(points)
     pairs = []
     for k in np.unique(size_class):
@@ -155,8 +156,7 @@ def nearest_triangles(triangles: np.ndarray, points: np.ndarray, reach: np.ndarr
     if groups:
         same = point_group[point] == triangle_group[triangle]
         point, triangle = point[same], triangle[same]
-    gap = np.linalg.norm(closest_point(triangles[triangle], points[point]) - points[point],
-                         axis=1)
+    gap = exact.length(closest_point(triangles[triangle], points[point]) - points[point])
     within = gap <= reach[point]
     point, triangle, gap = point[within], triangle[within], gap[within]
     order = np.lexsort((triangle, gap, point))
@@ -186,7 +186,7 @@ def _nearest_candidate(triangles: np.ndarray, centroid: np.ndarray, points: np.n
         _, nearest = cKDTree(centroid[own]).query(points[mine], k=k)
         candidates = own[np.asarray(nearest).reshape(len(mine), k)].ravel()
         at = np.repeat(points[mine], k, axis=0)
-        gap = np.linalg.norm(closest_point(triangles[candidates], at) - at, axis=1)
+        gap = exact.length(closest_point(triangles[candidates], at) - at)
         bound[mine] = gap.reshape(-1, k).min(axis=1)
     return bound
 
@@ -194,7 +194,7 @@ def _nearest_candidate(triangles: np.ndarray, centroid: np.ndarray, points: np.n
 def _usable(triangles: np.ndarray) -> np.ndarray:
     """Indices of the (S, 3, 3) source triangles that are not slivers (see SLIVER) and
     have finite corners."""
-    edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2)
+    edges = exact.length(triangles - np.roll(triangles, 1, axis=1))
     longest = edges.max(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):  # height = 2 area / base
         ok = 2.0 * area(triangles) / longest > SLIVER * longest
@@ -221,8 +221,8 @@ def _smooth_normals(bary: np.ndarray, source_normals: np.ndarray, change: np.nda
     # clamped to the source triangle: a corner just past its edge (a face of a cell that
     # straddles two source triangles) takes the edge's normal, not an extrapolation
     inside = np.maximum(bary, 0.0)
-    mixed = np.einsum("tcj,tjd->tcd", inside, source_normals.astype(np.float64)) @ change.T
-    length = np.linalg.norm(mixed, axis=2, keepdims=True)
+    mixed = exact.turn(change, exact.mix(inside, source_normals))
+    length = exact.length(mixed, keepdims=True)
     unit = np.divide(mixed, length, out=np.zeros_like(mixed), where=length > 1e-6)
-    keep = (length[..., 0] > 1e-6) & (np.einsum("tcj,tcj->tc", unit, flat) > 0.0)
+    keep = (length[..., 0] > 1e-6) & (exact.lane_dot(unit, flat) > 0.0)
     return np.where(keep[..., None], unit, flat)

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from blastvox.geometry import exact
 from blastvox.jit import kernel
 
 #: Default crease angle, degrees (Blender's auto smooth default).
@@ -34,7 +35,7 @@ def corner_normals(vertices: np.ndarray, faces: np.ndarray,
     corner_point = point.ravel()[faces].ravel()                    # (3F,)
     tri = vertices[faces]
     scaled = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # 2 x area x normal
-    length = np.linalg.norm(scaled, axis=1)
+    length = exact.length(scaled)
     unit = np.divide(scaled, length[:, None], out=np.zeros_like(scaled),
                      where=length[:, None] > 0)
     order = np.argsort(corner_point, kind="stable")

@@ -20,13 +20,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from blastvox.geometry import exact
+
 _CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def normalize(q: np.ndarray) -> np.ndarray:
     """Quaternions (..., 4) scaled to unit length, as float64 (..., 4)."""
     q = np.asarray(q, dtype=np.float64)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return q / exact.length(q, keepdims=True)
 
 
 def to_matrix(q: np.ndarray) -> np.ndarray:
@@ -75,7 +77,7 @@ def from_matrix(m: np.ndarray) -> np.ndarray:
     qb[r, 1 + j] = (b[r, j, i] + b[r, i, j]) / s
     qb[r, 1 + k] = (b[r, k, i] + b[r, i, k]) / s
     q[~pos] = qb
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    q /= exact.length(q, keepdims=True)
     return q.reshape(*shape, 4)
 
 
@@ -94,8 +96,10 @@ def rotation_vector(q: np.ndarray) -> np.ndarray:
     """Rotation vectors (..., 3), axis times angle in rad (angle in [0, pi]), of unit
     quaternions q (..., 4) (w, x, y, z); q and -q give the same vector."""
     q = np.where(q[..., :1] < 0, -q, q)
-    sine = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(sine, q[..., :1])
+    sine = exact.length(q[..., 1:], keepdims=True)
+    from blastvox.geometry import fixed  # numba: not loaded by the preview
+
+    angle = 2.0 * fixed.arctan2(sine, q[..., :1])
     # angle / sine -> 2 as the rotation vanishes (and stays finite at sine == 0)
     scale = np.where(sine > 1e-12, angle / np.maximum(sine, 1e-300), 2.0)
     return q[..., 1:] * scale
@@ -124,7 +128,7 @@ def sign_continuous(q: np.ndarray) -> np.ndarray:
     if len(q) < 2:
         return q
     keys = q.reshape(len(q), -1, 4)
-    dots = np.einsum("fpi,fpi->fp", keys[1:], keys[:-1])
+    dots = exact.lane_dot(keys[1:], keys[:-1])
     sign = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
     out = keys.copy()
     out[1:] *= sign[..., None]

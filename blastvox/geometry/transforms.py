@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from blastvox.geometry import quaternion
+from blastvox.geometry import exact, quaternion
 
 
 def rest_to_world(x_rest: np.ndarray, position: np.ndarray, orientation: np.ndarray,
@@ -54,9 +54,9 @@ def change_frame(position: np.ndarray, orientation: np.ndarray,
     (..., 3) and orientation' = q_C q q_C^-1 (..., 4), renormalised.
     """
     qc = quaternion.from_matrix(change)
-    position = np.asarray(position).astype(np.float64) @ change.T
+    position = exact.turn(change, np.asarray(position).astype(np.float64))
     orientation = quaternion.multiply(
         quaternion.multiply(qc, np.asarray(orientation).astype(np.float64)),
         quaternion.conjugate(qc))
-    orientation /= np.linalg.norm(orientation, axis=-1, keepdims=True)
+    orientation /= exact.length(orientation, keepdims=True)
     return position, orientation
