@@ -397,16 +397,17 @@ def test_failed_export_leaves_no_volumes(fiery, tmp_path, monkeypatch):
 
 
 def test_cli_run_writes_volumes(tmp_path):
-    """`blastvox run` on the house example (copied, its volumes at 0.4 m cells to stay
-    fast): the .usda's dust and fireball read their .vdb files."""
+    """`blastvox run` on the house example (copied, its volumes at 0.4 m cells and its
+    first 0.5 s to stay fast): the .usda's dust and fireball read their .vdb files."""
     scene_dir = tmp_path / "house"
     shutil.copytree(ROOT / "examples" / "house", scene_dir)
     scene = scene_dir / "scene.toml"
     text = scene.read_text().replace("../../out/house/", "out/")
     text = re.sub(r"\nvolume_voxel_m = .*", "", text)  # the example's own cell size
+    text = text.replace("duration = 3.0", "duration = 0.5")  # dust and fireball by then
     text = text.replace('export = ["out/shot.usda", "out/shot.glb"]',
                         'export = "out/shot.usda"\nvolume_voxel_m = 0.4')
-    assert "volume_voxel_m = 0.4" in text
+    assert "volume_voxel_m = 0.4" in text and "duration = 0.5" in text
     scene.write_text(text)
     result = subprocess.run([sys.executable, "-m", "blastvox", "run", str(scene), "-q"],
                             capture_output=True, text=True, timeout=600, cwd=tmp_path)

@@ -39,6 +39,21 @@ def _bake(tmp_path: Path, shot: str) -> Path:
     return where / "out"
 
 
+@pytest.fixture(scope="module")
+def house_bake(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The house example baked once for this module (:func:`_bake`): its goldens test
+    reads it, and the determinism tests simulate its model their own ways and compare
+    with the golden cache's bytes. (The model must be ``run``'s: ``voxelize --scene``
+    records the scene's settings in full, and the cache holds the model's meta.)"""
+    return _bake(tmp_path_factory.mktemp("golden"), "house")
+
+
+@pytest.fixture
+def house(house_bake: Path) -> tuple[str, str]:
+    """(model path, scene path) of the baked house."""
+    return str(house_bake / "model.npz"), str(house_bake.parent / "scene.toml")
+
+
 def _meta(cache: SimCache) -> dict:
     """The cache's and its model's meta, less the absolute mesh paths, which name the
     checkout (issue 18)."""
@@ -53,8 +68,9 @@ def _arrays(cache: SimCache) -> dict[str, np.ndarray]:
 
 
 @pytest.mark.parametrize("shot", ["house", "building", "logo"])
-def test_shot_matches_its_goldens(tmp_path: Path, shot: str) -> None:
-    out = _bake(tmp_path, shot)
+def test_shot_matches_its_goldens(tmp_path: Path, shot: str,
+                                  request: pytest.FixtureRequest) -> None:
+    out = request.getfixturevalue("house_bake") if shot == "house" else _bake(tmp_path, shot)
     if shot == "house":  # the export layer too, as a shot CI diffs it
         diff = subprocess.run([*BLASTVOX, "diff", str(out / "shot.glb"),
                                str(GOLDEN / "house.glb"), "--atol", "1e-4"],
@@ -93,23 +109,19 @@ def test_blastvox_keeps_numpy_off_its_avx512_loops() -> None:
     assert "AVX512" not in enabled and "X86_V4" not in enabled, enabled
 
 
-def test_the_library_after_numpy_scipy_and_trimesh_gives_the_cli_s_bytes(tmp_path):
+def test_the_library_after_numpy_scipy_and_trimesh_gives_the_cli_s_bytes(tmp_path, house):
     """Issue 37: a process that imported numpy (with scipy and trimesh) before blastvox
     kept numpy's AVX-512 loops, whose cube root and powers round differently: the papers'
     building had 748 pieces at 1 s against the CLI's 586. The simulator's inputs no
     longer go through numpy's dispatched loops (blastvox.blast._numeric), so the house
-    simulated through the CLI's own entry point after those imports is the CLI's bytes.
-    (On a CPU without AVX-512 both orders run the same loops; the test still holds.)"""
-    where = _bake(tmp_path, "house") / "model.npz"
-    plain = tmp_path / "plain.npz"
+    simulated through the CLI's own entry point after those imports is the CLI's bytes
+    (the golden cache). (On a CPU without AVX-512 both orders run the same loops; the
+    test still holds.)"""
+    model, scene = house
     first = tmp_path / "first.npz"
-    scene = str(ROOT / "examples" / "house" / "scene.toml")
-    run = subprocess.run([*BLASTVOX, "simulate", str(where), "--scene", scene, "-o",
-                          str(plain), "-q"], capture_output=True, text=True, timeout=900)
-    assert run.returncode == 0, run.stderr
     code = ("import numpy, scipy.sparse, trimesh, sys\n"
             "from blastvox.cli.entry import run\n"
-            f"sys.exit(run(['simulate', {str(where)!r}, '--scene', {scene!r}, '-o', "
+            f"sys.exit(run(['simulate', {model!r}, '--scene', {scene!r}, '-o', "
             f"{str(first)!r}, '-q']))\n")
     # OPENBLAS_CORETYPE as the CLI sets it: trimesh loads scipy's BLAS before blastvox
     # could pin its kernels (that case warns: test_simulate_warns_when_scipy_s_blas_...)
@@ -119,10 +131,10 @@ def test_the_library_after_numpy_scipy_and_trimesh_gives_the_cli_s_bytes(tmp_pat
                                            **({"OPENBLAS_CORETYPE": "Haswell"}
                                               if _avx512() else {})})
     assert run.returncode == 0, run.stderr
-    assert first.read_bytes() == plain.read_bytes()
+    assert first.read_bytes() == (GOLDEN / "house.sim.npz").read_bytes()
 
 
-def test_one_thread_and_two_give_the_same_bytes(tmp_path):
+def test_one_thread_and_two_give_the_same_bytes(tmp_path, house):
     """Kernels that run on every core (numba's parallel loops: the wave's element views,
     blastvox.simulate.fracture.views_ahead, and the contact solve's islands,
     blastvox.simulate.contact.solver) write each iteration's own outputs and reduce
@@ -131,18 +143,14 @@ def test_one_thread_and_two_give_the_same_bytes(tmp_path):
     too, and its rubble piles up on the ground."""
     import os
 
-    model = _bake(tmp_path, "house") / "model.npz"
-    scene = str(ROOT / "examples" / "house" / "scene.toml")
-    caches = []
+    model, scene = house
     for threads in ("1", "2"):
         out = tmp_path / f"threads{threads}.npz"
-        run = subprocess.run([*BLASTVOX, "simulate", str(model), "--scene", scene, "-o",
+        run = subprocess.run([*BLASTVOX, "simulate", model, "--scene", scene, "-o",
                               str(out), "-q"], capture_output=True, text=True, timeout=900,
                              env={**os.environ, "NUMBA_NUM_THREADS": threads})
         assert run.returncode == 0, run.stderr
-        caches.append(out.read_bytes())
-    assert caches[0] == caches[1]
-    assert caches[0] == (GOLDEN / "house.sim.npz").read_bytes()
+        assert out.read_bytes() == (GOLDEN / "house.sim.npz").read_bytes(), threads
 
 
 def _avx512() -> bool:
@@ -174,31 +182,27 @@ def test_blastvox_sets_its_thread_and_blas_defaults_and_leaves_a_users_alone():
 
 
 @pytest.mark.skipif(not _avx512(), reason="OpenBLAS picks other kernels only on AVX-512")
-def test_the_shot_does_not_depend_on_the_blas_kernels_numpy_picked(tmp_path):
+def test_the_shot_does_not_depend_on_the_blas_kernels_numpy_picked(tmp_path, house):
     """The goldens differed between two AVX-512 EPYC hosts: numpy's and scipy's OpenBLAS
     picked their SkylakeX kernels on one, Haswell or Zen ones on the other, and ``@``,
     np.dot and the stress solver's sparse LU (SuperLU calls BLAS) rounded differently.
     Here numpy is loaded with SkylakeX kernels before blastvox: the shot is still the
-    CLI's bytes (the simulator's products do not go through numpy's BLAS,
-    blastvox.geometry.exact; blastvox pins the kernels of the scipy BLAS loaded after
-    it)."""
+    CLI's bytes, the golden cache's (the simulator's products do not go through numpy's
+    BLAS, blastvox.geometry.exact; blastvox pins the kernels of the scipy BLAS loaded
+    after it)."""
     import os
 
-    where = _bake(tmp_path, "house") / "model.npz"
-    scene = str(ROOT / "examples" / "house" / "scene.toml")
-    plain, first = tmp_path / "plain.npz", tmp_path / "numpy_first.npz"
-    run = subprocess.run([*BLASTVOX, "simulate", str(where), "--scene", scene, "-o",
-                          str(plain), "-q"], capture_output=True, text=True, timeout=900)
-    assert run.returncode == 0, run.stderr
+    model, scene = house
+    first = tmp_path / "numpy_first.npz"
     code = ("import os, sys, numpy, numpy.linalg\n"
             "del os.environ['OPENBLAS_CORETYPE']\n"
             "from blastvox.cli.entry import run\n"
-            f"sys.exit(run(['simulate', {str(where)!r}, '--scene', {scene!r}, '-o', "
+            f"sys.exit(run(['simulate', {model!r}, '--scene', {scene!r}, '-o', "
             f"{str(first)!r}, '-q']))\n")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=900, env={**os.environ, "OPENBLAS_CORETYPE": "SkylakeX"})
     assert run.returncode == 0, run.stderr
-    assert first.read_bytes() == plain.read_bytes()
+    assert first.read_bytes() == (GOLDEN / "house.sim.npz").read_bytes()
 
 
 def test_simulate_warns_when_scipy_s_blas_came_first():
