@@ -25,7 +25,9 @@ light. Its glow is ``core`` times its diameter (GLOW_LOOKS in usd_effects) times
 sqrt((T^4 - 798^4) / (hot_k^4 - 798^4)): its area, about its visible light, follows
 a blackbody's T^4, and it is nothing when the gas stops glowing, so a glow never
 vanishes at full size. Fire's particles, born all the time, also grow in over
-``rise`` seconds instead of appearing at full size.
+``rise`` seconds instead of appearing at full size. The same law with a hotter floor
+(GLOW_LOOKS' ``hot_core_k``: 1,500 K for the fireball, reached at half its duration)
+sizes each blob's yellow core, which so shrinks away before its red rim.
 
 **Pooling that keeps identities.** Many coincident translucent shells render as an
 opaque wall (a renderer stops after a few transparent surfaces: Blender's Cycles
