@@ -359,7 +359,7 @@ def test_glow_is_coherent_from_frame_to_frame():
     """Two 50 kg fireballs (the simulator's burst: 200 particles each, 0.3 s apart, 20 m
     apart) and a fire of flames born every frame: from frame to frame at 24 fps a blob
     keeps its id, its centre moves less than the particles can (22 m/s: 0.92 m), its
-    width changes by less than 15 % of its largest (a fire blob, whose flames grow in
+    width changes by less than 20 % of its largest (a fire blob, whose flames grow in
     over 0.2 s, 35 %), a fire blob is small when it appears and every blob is small
     when it goes; no blob pops."""
     from blastvox.export.glow import glow_blobs, glow_groups, glow_share
@@ -414,7 +414,7 @@ def test_glow_is_coherent_from_frame_to_frame():
             if name == "fire":
                 for k in after.keys() - before.keys():  # new: it fades in
                     assert after[k][1] < 0.5 * largest[k], (name, k)
-        assert max(steps) < (0.35 if name == "fire" else 0.15), (name, max(steps))
+        assert max(steps) < (0.35 if name == "fire" else 0.2), (name, max(steps))
 
 
 def test_spheres_on_request_and_in_usdz(fiery, tmp_path):

@@ -41,9 +41,9 @@ GLOW_LUMP = 0.3
 GLOW_LOOKS = {"fire": {"core": 1.2, "rise": 0.2, "window": 0.25, "reach": 4.0,
                        "hot_core_k": 1200.0,
                        "rim": ((1.2, 0.25, 0.03), 0.15), "hot": ((1.6, 0.7, 0.15), 0.25)},
-              "fireball": {"core": 2.4, "rise": 0.0, "window": 0.25, "reach": 2.0,
+              "fireball": {"core": 1.0, "rise": 0.0, "window": 0.25, "reach": 2.0,
                            "hot_core_k": 1500.0,
-                           "rim": ((1.2, 0.25, 0.03), 0.15),
+                           "rim": ((1.2, 0.25, 0.03), 0.12),
                            "hot": ((1.6, 0.8, 0.2), 0.25)}}
 #: a hot core's diameter while all its blob's gas is above hot_core_k: a share of the blob's
 HOT_SHARE = 0.6
