@@ -21,7 +21,7 @@ for 50 kg, 0.74 s for 20 kg), never longer than the particles.
 **How bright.** A particle's gas cools linearly over the glow's duration from the
 volumes' ``hot_k`` (blastvox.export.volumes.VOLUME_LOOKS: 2,200 K for the fireball,
 1,600 K for fire) to the Draper point, 798 K, below which hot matter gives no visible
-light. Its glow is ``core`` times its diameter (GLOW_LOOKS in usd_effects) times
+light. Its glow is ``core`` times its diameter (GLOW_LOOKS in usd_glow) times
 sqrt((T^4 - 798^4) / (hot_k^4 - 798^4)): its area, about its visible light, follows
 a blackbody's T^4, and it is nothing when the gas stops glowing, so a glow never
 vanishes at full size. Fire's particles, born all the time, also grow in over

@@ -36,8 +36,8 @@ GLOW_LUMP = 0.3
 #: which shrinks away first as the gas cools. Each emits its colour (linear RGB, above
 #: 1 to glow through the smoke: a flame's red rim, its yellow core) through its
 #: ``opacity``: a ray through a blob's centre crosses four translucent surfaces,
-#: keeping (1 - rim)^2 (1 - hot)^2 of what is behind it (0.35 for the fireball while
-#: its core is hot, 0.72 once it is gone), and Blender's Cycles stops after 8.
+#: keeping (1 - rim)^2 (1 - hot)^2 of what is behind it (0.44 for the fireball while
+#: its core is hot, 0.77 once it is gone), and Blender's Cycles stops after 8.
 GLOW_LOOKS = {"fire": {"core": 1.2, "rise": 0.2, "window": 0.25, "reach": 4.0,
                        "hot_core_k": 1200.0,
                        "rim": ((1.2, 0.25, 0.03), 0.15), "hot": ((1.6, 0.7, 0.15), 0.25)},
