@@ -84,10 +84,10 @@ def test_house_renders_at_frame_0_and_mid_shot(house: tuple[SimCache, Path], suf
         r, g, b = got["rgb"]
         if suffix == ".usdc" and f == 0:
             # the fireball, born at the blast, is a volume (Blender's default volume
-            # material: grey smoke) inside its glow (Particles/fireball_glow, emissive
-            # shells) between the camera and the house: the frame glows orange
+            # material: grey smoke, thin) inside its glow (Particles/fireball_glow,
+            # translucent emissive balls) at the door: the house seen through a warm glow
             assert report["volumes"]["fireball"]["grids"] == ["density", "temperature"]
-            assert r > 1.3 * b and r > 0.3, (f, got)
+            assert r > 1.15 * b and r > 0.3, (f, got)
             continue
         assert r > b * 1.1, (f, got)  # brick walls: red over blue, not a white sphere
 

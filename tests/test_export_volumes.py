@@ -30,6 +30,7 @@ from blastvox.export.usd_validate import validate_usd  # noqa: E402
 from blastvox.export.vdb import FloatGrid, vdb_bytes, write_vdb  # noqa: E402
 from blastvox.export.volumes import (  # noqa: E402
     KERNEL_TAU,
+    VOLUME_LOOKS,
     cross_section,
     frame_grids,
     splat,
@@ -237,53 +238,52 @@ def test_usd_volume_files_read_by_openvdb(fiery, tmp_path):
     assert density["voxel_size"] == pytest.approx([h] * 3)
     assert density["ijk"] == temperature["ijk"] and density["active"] > 100
     assert np.sum(density["values"]) * h**3 == pytest.approx(
-        30 * cross_section(np.array([0.8]), 0.8)[0], rel=1e-4)  # all 30 born by frame 3
+        30 * cross_section(np.array([0.8]), VOLUME_LOOKS["fireball"].tau)[0],
+        rel=1e-4)  # all 30 born by frame 3
     assert 700.0 <= min(temperature["values"]) <= max(temperature["values"]) <= 2200.0
 
 
-def _glow_shells(stage, system: str) -> list:
-    """The UsdPreviewSurface of each shell of ``system``'s glow sprite, outside in,
-    checking that every binding on the way targets a real prim."""
+def _glow_parts(stage, system: str) -> list:
+    """The UsdPreviewSurface of each prototype of ``system``'s glow (its rim, its hot
+    core), checking that every binding on the way targets a real prim."""
     from pxr import UsdGeom
 
     instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath(f"/Shot/Particles/{system}_glow"))
     assert instancer, system
-    (sprite,) = instancer.GetPrototypesRel().GetTargets()
-    mesh = stage.GetPrimAtPath(sprite)
     shaders = []
-    for k in range(3):
-        subset = stage.GetPrimAtPath(sprite.AppendChild(f"shell_{k}"))
-        assert subset.GetTypeName() == "GeomSubset"
-        (target,) = UsdShade.MaterialBindingAPI(subset).GetDirectBindingRel().GetTargets()
+    for k, path in enumerate(instancer.GetPrototypesRel().GetTargets()):
+        assert path.name == ("rim", "hot")[k]
+        mesh = stage.GetPrimAtPath(path)
+        assert mesh.GetTypeName() == "Mesh"
+        (target,) = UsdShade.MaterialBindingAPI(mesh).GetDirectBindingRel().GetTargets()
         material = UsdShade.Material(stage.GetPrimAtPath(target))
         assert material, target  # a real Material prim
         shader = material.ComputeSurfaceSource()[0]
         assert shader.GetIdAttr().Get() == "UsdPreviewSurface"
         shaders.append(shader)
-    faces = sum(len(UsdGeom.Subset(stage.GetPrimAtPath(sprite.AppendChild(f"shell_{k}")))
-                    .GetIndicesAttr().Get()) for k in range(3))
-    assert faces == len(UsdGeom.Mesh(mesh).GetFaceVertexCountsAttr().Get())  # a partition
+    assert len(shaders) == 2
     return shaders
 
 
 @pytest.mark.parametrize("name", ["shot.usda", "pack.usdz"])
 def test_fireball_glows_beside_its_volume(fiery, tmp_path, name):
     """Blender's USD importer gives a Volume no material, so fire and the fireball also
-    get Particles/<system>_glow: an instancer of soft emissive shells (each a GeomSubset
-    bound to a real Material whose UsdPreviewSurface emits, translucent), brightest in
-    the core, fewer blobs than particles, shrinking as they cool; beside the Volume
-    (.usda) or the spheres (.usdz, where the fireball's spheres are its smoke, none at
-    birth, growing as it cools), still valid USD."""
+    get Particles/<system>_glow: an instancer of emissive balls (a rim and a hotter
+    core, each bound to a real Material whose UsdPreviewSurface emits, translucent),
+    fewer blobs than particles, each blob's id its group's from frame to frame,
+    shrinking as they cool to nothing; beside the Volume (.usda) or the spheres (.usdz,
+    where the fireball's spheres are its smoke, none at birth, growing as it cools),
+    still valid USD."""
     from pxr import UsdGeom
 
     out = tmp_path / name
     export(fiery, out)
     stage = Usd.Stage.Open(str(out))
-    shells = _glow_shells(stage, "fireball")
-    emit = [np.array(s.GetInput("emissiveColor").Get()) for s in shells]
+    parts = _glow_parts(stage, "fireball")
+    emit = [np.array(s.GetInput("emissiveColor").Get()) for s in parts]
     assert all((e > 0).all() for e in emit)
-    assert emit[0].sum() < emit[1].sum() < emit[2].sum()  # a hot core, a cooler rim
-    assert all(0 < s.GetInput("opacity").Get() < 1 for s in shells)
+    assert emit[0].sum() < emit[1].sum()  # a hot core, a cooler rim
+    assert all(0 < s.GetInput("opacity").Get() < 0.5 for s in parts)
     body = stage.GetPrimAtPath("/Shot/Particles/fireball")
     assert body.GetTypeName() == ("Volume" if name.endswith("usda") else "PointInstancer")
     material, _ = UsdShade.MaterialBindingAPI(body).ComputeBoundMaterial() \
@@ -292,40 +292,129 @@ def test_fireball_glows_beside_its_volume(fiery, tmp_path, name):
     glow = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Shot/Particles/fireball_glow"))
     assert glow.ComputeVisibility(0) == "invisible"  # born at frame 1
     assert glow.ComputeVisibility(1) == "inherited"
-    assert 1 <= len(glow.GetPositionsAttr().Get(1)) < 10  # 10 particles, pooled
-    sizes = [np.asarray(glow.GetScalesAttr().Get(f))[:, 0] for f in range(1, F)]
-    assert all(len(v) == len(glow.GetPositionsAttr().Get(f)) == len(
-        glow.GetVelocitiesAttr().Get(f)) for f, v in zip(range(1, F), sizes, strict=True))
-    assert sizes[-1].max() < 2.4 * 0.8  # cooled: smaller than at birth (core 2.4 x 0.8 m)
+    ids = [np.asarray(glow.GetIdsAttr().Get(f)) for f in range(F)]
+    assert 1 <= len(ids[1]) < 10  # 10 particles, pooled: a rim and a core per blob
+    protos = [np.asarray(glow.GetProtoIndicesAttr().Get(f)) for f in range(F)]
+    assert all(((p == ids[f] % 2) | (ids[f] < 0)).all() for f, p in enumerate(protos))
+    sizes = [np.asarray(glow.GetScalesAttr().Get(f))[:, 0] for f in range(F)]
+    assert all(len(v) == len(ids[f]) == len(glow.GetPositionsAttr().Get(f)) == len(
+        glow.GetVelocitiesAttr().Get(f)) for f, v in enumerate(sizes))
+    assert sizes[1].max() <= 2.4 * 0.8 * 1.5  # the glow of a few close particles
+    assert sizes[-1].max() == 0.0  # a 1 kg fireball glows 0.26 s: cooled to nothing
     if body.IsA(UsdGeom.PointInstancer):
         smoke = UsdGeom.PointInstancer(body)
         assert np.asarray(smoke.GetScalesAttr().Get(1)).max() < 0.1 * 0.8  # just born
         assert np.asarray(smoke.GetScalesAttr().Get(F - 1)).max() > 0.5 * 0.8
+        assert len(smoke.GetIdsAttr().Get(F - 1)) <= 30 // 4 + 1  # one in four
     assert validate_usd(out) == []
 
 
-def test_glow_blobs_pool_and_cool():
-    """Coincident particles are one blob as wide as one particle's glow; two far
-    groups are two; a particle's glow is core x size x (T / hot)^2, T cooling from
-    hot at birth to cool at the end of life; a fireball's smoke sphere takes the rest."""
-    from blastvox.export.usd_effects import _cooled, _heat, glow_blobs
+def test_glow_groups_and_blobs():
+    """Particles born together in one place are one group for life, those born far or
+    late another; a group's blob is as wide as its members' glow when they coincide,
+    centred on them; a particle's glow shrinks as it cools, to nothing at its duration
+    (the fireball's: the measured one, 0.258 W^0.349 s)."""
+    from blastvox.export.glow import (
+        DRAPER_K,
+        fireball_diameter,
+        fireball_duration,
+        glow_blobs,
+        glow_groups,
+        glow_share,
+    )
+    from blastvox.export.usd_glow import glow_duration
     from blastvox.particles import SYSTEMS
 
-    x = np.zeros((200, 3))
-    v = np.ones((200, 3))
-    centre, diameter, velocity = glow_blobs(x, v, np.full(200, 6.0))
-    assert centre.tolist() == [[0.0, 0.0, 0.0]] and diameter.tolist() == [6.0]
+    birth = np.array([0.0, 0.0, 0.1, 0.0, 0.5])
+    x0 = np.array([[0.0, 0, 0], [0.5, 0, 0], [0.2, 0, 0], [9.0, 0, 0], [0.0, 0, 0]])
+    assert glow_groups(birth, x0, window=0.25, reach=1.0).tolist() == [0, 0, 0, 1, 2]
+    group = np.zeros(200, dtype=np.int64)
+    x, v = np.zeros((200, 3)), np.ones((200, 3))
+    ids, centre, diameter, core, velocity = glow_blobs(
+        group, x, v, np.full(200, 6.0), np.full(200, 3.0), np.array([1200.0]))
+    assert ids.tolist() == [0] and centre.tolist() == [[0.0, 0.0, 0.0]]
+    assert diameter.tolist() == [6.0] and core.tolist() == [3.0]
     assert velocity.tolist() == [[1.0, 1.0, 1.0]]
-    x[100:] = [50.0, 0.0, 0.0]
-    centre, diameter, _ = glow_blobs(x, v, np.full(200, 2.0))
-    assert sorted(centre[:, 0].tolist()) == [0.0, 50.0] and diameter.tolist() == [2.0, 2.0]
-    assert [len(a) for a in glow_blobs(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))] \
-        == [0, 0, 0]
-    life = SYSTEMS["fireball"].lifetime
-    heat = _heat("fireball", SYSTEMS["fireball"])
-    assert heat(np.array([0.0, life, 2 * life])) == pytest.approx(
-        [1.0, (700.0 / 2200.0) ** 2, (700.0 / 2200.0) ** 2])
-    assert _cooled("fireball", SYSTEMS["fireball"])(np.array([0.0])) == pytest.approx([0.0])
+    group[100:], x[100:] = 1, [50.0, 0.0, 0.0]
+    ids, centre, diameter, _, _ = glow_blobs(group, x, v, np.full(200, 2.0),
+                                             np.zeros(200), np.array([400.0, 400.0]))
+    assert ids.tolist() == [0, 1] and centre[:, 0].tolist() == [0.0, 50.0]
+    assert diameter.tolist() == [2.0, 2.0]
+    assert [len(a) for a in glow_blobs(group, x, v, np.zeros(200), np.zeros(200),
+                                       np.ones(2))] == [0, 0, 0, 0, 0]
+    assert fireball_duration(50.0) == pytest.approx(1.01, abs=0.01)
+    assert fireball_diameter(50.0) == pytest.approx(13.5, abs=0.1)
+    spec = SYSTEMS["fireball"]
+    duration = glow_duration("fireball", spec, np.array([spec.size * 50 ** (1 / 3)]))
+    assert duration == pytest.approx(fireball_duration(50.0))
+    share = glow_share(np.array([-0.1, 0.0, 0.5, 1.0, 2.0]), np.full(5, 1.0), 2200.0)
+    assert share[[0, 1, 3, 4]].tolist() == [0.0, 1.0, 0.0, 0.0] and 0.3 < share[2] < 0.6
+    core = glow_share(np.array([0.0, 0.49, 0.51]), np.ones(3), 2200.0, floor_k=1500.0)
+    assert core[0] == 1.0 and core[1] > 0 and core[2] == 0.0  # 1500 K at 0.4993 s
+    assert glow_share(np.array([0.05]), np.ones(1), 1600.0, rise=0.2)[0] < 0.5
+    assert DRAPER_K == 798.0
+
+
+def test_glow_is_coherent_from_frame_to_frame():
+    """Two 50 kg fireballs (the simulator's burst: 200 particles each, 0.3 s apart, 20 m
+    apart) and a fire of flames born every frame: from frame to frame at 24 fps a blob
+    keeps its id, its centre moves less than the particles can (22 m/s: 0.92 m), its
+    width changes by less than 20 % of its largest (a fire blob, whose flames grow in
+    over 0.2 s, 35 %), a fire blob is small when it appears and every blob is small
+    when it goes; no blob pops."""
+    from blastvox.export.glow import glow_blobs, glow_groups, glow_share
+    from blastvox.export.usd_effects import _velocity
+    from blastvox.export.usd_glow import GLOW_LOOKS, glow_duration
+    from blastvox.export.volumes import VOLUME_LOOKS
+    from blastvox.particles import SYSTEM_NAMES, SYSTEMS, all_positions_at
+
+    rng = np.random.default_rng(5)
+    g = np.array([0.0, -9.81, 0.0])
+    bursts = {}
+    scale = 50.0 ** (1 / 3)
+    direction = rng.normal(size=(400, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    bursts["fireball"] = (np.repeat([0.0, 0.3], 200),
+                          0.15 * scale * direction + np.repeat([[0, 1, 0], [20, 1, 0]], 200, 0),
+                          direction * (6 * scale * rng.uniform(0.6, 1.0, 400))[:, None],
+                          np.full(400, SYSTEMS["fireball"].size * scale))
+    bursts["fire"] = (np.repeat(np.arange(24) / 24, 10), rng.uniform(0, 2, (240, 3)),
+                      rng.normal(0, 0.3, (240, 3)) + [0, 0.5, 0], np.full(240, 0.25))
+    for name, (birth, x0, v0, size) in bursts.items():
+        spec, look = SYSTEMS[name], GLOW_LOOKS[name]
+        full = look["core"] * size
+        duration = glow_duration(name, spec, size)
+        group = glow_groups(birth, x0, look["window"], look["reach"] * float(np.median(size)))
+        totals = np.bincount(group, full)
+        system = np.full(len(birth), SYSTEM_NAMES.index(name), dtype=np.uint8)
+        frames = []
+        for f in range(48):
+            t = f / 24
+            alive, x = all_positions_at(birth, x0, v0, system, t, g)
+            age = t - birth[alive]
+            glow = full[alive] * glow_share(age, duration[alive], VOLUME_LOOKS[name].hot_k,
+                                            look["rise"])
+            ids, centre, diameter, _, _ = glow_blobs(
+                group[alive], x[alive], _velocity(spec, v0[alive], age, g), glow, glow,
+                totals)
+            frames.append(dict(zip(ids.tolist(), zip(centre, diameter, strict=True),
+                                   strict=True)))
+        largest = {}
+        for blobs in frames:
+            for k, (_, d) in blobs.items():
+                largest[k] = max(largest.get(k, 0.0), d)
+        assert len(largest) < len(birth) / 4  # pooled
+        steps = []
+        for before, after in zip(frames, frames[1:], strict=False):
+            for k in before.keys() & after.keys():
+                assert np.linalg.norm(after[k][0] - before[k][0]) < 0.92, (name, k)
+                steps.append(abs(after[k][1] - before[k][1]) / largest[k])
+            for k in before.keys() - after.keys():  # gone: it faded out first
+                assert before[k][1] < 0.2 * largest[k], (name, k)
+            if name == "fire":
+                for k in after.keys() - before.keys():  # new: it fades in
+                    assert after[k][1] < 0.5 * largest[k], (name, k)
+        assert max(steps) < (0.35 if name == "fire" else 0.2), (name, max(steps))
 
 
 def test_spheres_on_request_and_in_usdz(fiery, tmp_path):

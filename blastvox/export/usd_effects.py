@@ -35,26 +35,16 @@ PARTICLE_COLORS = {"dust": (0.55, 0.50, 0.45), "fire": (0.35, 0.27, 0.2),
 PARTICLE_LOOKS = {"dust": {"opacity": 0.13, "emissive": 0.0},
                   "fire": {"opacity": 0.08, "emissive": 0.0},
                   "smoke": {"opacity": 0.11, "emissive": 0.0},
-                  "fireball": {"opacity": 0.12, "emissive": 0.0}}
+                  "fireball": {"opacity": 0.1, "emissive": 0.0}}
+#: spheres: one particle in this many of a system is drawn (a fixed subset, every n-th
+#: in the cache's order), the rest left to the glow. The fireball's 200 particles, born
+#: together, overlap so much that a ray crossed more than Cycles' 8 transparent
+#: surfaces (3 shells, 2 surfaces each, a sphere) and stopped, drawing black.
+SPHERE_EVERY = {"fireball": 4}
 #: the sprite: concentric icosphere shells, their radii (m) in a sprite of diameter 1.
 #: Translucent shells draw a soft ball (denser towards its centre, fading to its rim),
 #: not a hard disc; three keep a centre ray under Blender's 8 transparent bounces.
 SPRITE_SHELLS = (0.5, 0.36, 0.22)
-#: how deep the glow's shells are dented (a share of their radius): billows, so that
-#: the shells' edges are not concentric circles
-GLOW_LUMP = 0.3
-#: the glow of fire and the fireball (``<system>_glow``): blobs of live particles
-#: (:func:`glow_blobs`), each ``core`` times its particles' diameter at birth, shrinking
-#: with the square of their temperature (the volumes' ``hot_k`` at birth to ``cool_k``
-#: at the end of life: blastvox.export.volumes.VOLUME_LOOKS), so that their light,
-#: about their area, follows T^4 as a blackbody's does. The sprite's shells, outside
-#: in, emit ``shells`` (linear RGB, above 1 to glow through the smoke: a flame's
-#: red-orange rim to its yellow core) through ``opacity`` each.
-GLOW_LOOKS = {"fire": {"core": 1.2, "opacity": (0.1, 0.18, 0.25),
-                       "shells": ((1.2, 0.2, 0.02), (2.0, 0.6, 0.08), (2.4, 1.1, 0.3))},
-              "fireball": {"core": 2.4, "opacity": (0.1, 0.18, 0.25),
-                           "shells": ((1.4, 0.3, 0.04), (2.0, 0.7, 0.1),
-                                      (2.4, 1.3, 0.35))}}
 #: UsdGeomCamera measures lens and filmback in tenths of a scene unit; the stage is in
 #: metres (metersPerUnit 1), so 1 mm is 1 / MM_PER_TENTH_METRE of that unit.
 MM_PER_TENTH_METRE = 100.0
@@ -87,13 +77,14 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
     Either way the instancer is invisible at a frame without live particles. With
     ``w.particle_mode`` "volumes" each system is a Volume of per-frame OpenVDB files
     instead (:mod:`blastvox.export.usd_volumes`). Either way fire and the fireball
-    also get ``<system>_glow`` (:func:`_write_glow`): Blender imports no material
-    of a Volume, and it is the glow of a plain import. An instancer, not UsdGeomPoints:
-    Blender 5.0 imports Points without their material (white balls), and an empty
+    also get ``<system>_glow`` (:func:`blastvox.export.usd_glow.write_glow`): Blender
+    imports no material of a Volume, and it is the glow of a plain import. An instancer,
+    not UsdGeomPoints: Blender 5.0 imports Points without their material (white balls), and an empty
     points array crashed its Cycles. Re-checked in bpy 5.0.1 (2026-11-30): a Points
     prim with widths and a bound UsdPreviewSurface imports as a POINTCLOUD object
     with no material slot, and rendering its frame with an empty points sample
     killed the process (SIGSEGV, exit 139)."""
+    from blastvox.export.usd_glow import GLOW_LOOKS, write_glow
     from blastvox.particles import SYSTEM_NAMES, SYSTEMS, all_positions_at, ground_plane
 
     c = w.cache
@@ -117,7 +108,7 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
                                    np.full(len(mine), index, dtype=np.uint8), t, g, ground)
                   for t in times]
         if name in GLOW_LOOKS:
-            _write_glow(w, scope, name, mine, states, SYSTEMS[name], birth, v0, size, g)
+            write_glow(w, scope, name, mine, states, SYSTEMS[name], birth, v0, size, g)
         if w.particle_mode == "volumes":
             from blastvox.export.usd_volumes import write_volume
 
@@ -128,6 +119,8 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
         # fire and the fireball as spheres are their smoke, growing as they cool (from
         # nothing at birth, when the glow is the whole flame): the alive-only layout
         smoke = _cooled(name, SYSTEMS[name]) if name in GLOW_LOOKS else None
+        every = SPHERE_EVERY.get(name, 1)
+        mine, states = mine[::every], [(alive[::every], x[::every]) for alive, x in states]
         fixed = smoke is None and _layout_of(
             len(mine), [int(alive.sum()) for alive, _ in states]) == "fixed"
         instancer = _particle_instancer(w, scope, name, hidden=fixed)
@@ -136,16 +129,6 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
             continue
         _instance_samples(w, instancer, mine, _live_frames(times, states), SYSTEMS[name],
                           birth, v0, size, g, smoke)
-
-
-def _billow(unit: np.ndarray, k: int) -> np.ndarray:
-    """A smooth bump in [-1, 1] over the unit directions ``unit`` (n, 3), shell k's."""
-    a = np.array([[0.8, 0.5, 0.3], [-0.4, 0.9, 0.2], [0.3, -0.2, 0.93]])[k % 3]
-    b = np.array([[0.1, -0.7, 0.7], [0.9, 0.1, -0.4], [-0.6, 0.6, 0.5]])[k % 3]
-    # (3 unit) . a, unit's float32 scaled first, as ``3.0 * unit @ a`` did (through BLAS,
-    # whose FMA kernels, Haswell's or SkylakeX's, round otherwise than a CPU's without)
-    return (fixed.sin(exact.dot(3.0 * unit, a) + 1.3 * k)
-            * fixed.cos(exact.dot(2.0 * unit, b) + 0.7 * k))
 
 
 def _heat(name: str, spec):
@@ -163,7 +146,7 @@ def _heat(name: str, spec):
 
 def _cooled(name: str, spec):
     """``age (s) -> 1 - (T / hot_k)^2``: the share of a fire or fireball particle's
-    size that its smoke sphere takes (the glow, :func:`glow_blobs`, takes the rest)."""
+    size that its smoke sphere takes (the glow, :mod:`blastvox.export.usd_glow`, the rest)."""
     heat = _heat(name, spec)
     return lambda age: 1.0 - heat(age)
 
@@ -180,81 +163,6 @@ def _live_frames(times: list, states: list) -> list:
     """(time s, alive indices, (n, 3) positions m) of each frame's live particles."""
     return [(t, np.flatnonzero(alive), x[alive])
             for t, (alive, x) in zip(times, states, strict=True)]
-
-
-def _write_glow(w, scope: Sdf.PrimSpec, name: str, mine: np.ndarray, states: list, spec,
-                birth: np.ndarray, v0: np.ndarray, size: np.ndarray, g: np.ndarray) -> None:
-    """Particles/<name>_glow: the emissive glow of fire or the fireball (GLOW_LOOKS), a
-    PointInstancer whose sprite's shells are bound to Materials/particle_<name>_glow_<k>, one
-    instance per blob of :func:`glow_blobs` at each frame (the alive-only layout:
-    time-sampled positions, scales, velocities, ids, protoIndices and extent; a frame
-    without a blob holds one of scale 0, the instancer invisible). Written beside the
-    volume or the spheres: Blender's USD importer gives a Volume no material, but it
-    imports an instancer's prototypes with their UsdPreviewSurface, emission included."""
-    heat = _heat(name, spec)
-    times = w.cache.frame_time.astype(np.float64)
-    sizes = size[mine].astype(np.float64)
-    blobs = []
-    for t, (alive, x) in zip(times, states, strict=True):
-        age = t - birth[mine][alive]
-        vel = _velocity(spec, v0[mine][alive], age, g)
-        blobs.append(glow_blobs(x[alive], vel, GLOW_LOOKS[name]["core"] * sizes[alive]
-                                * heat(age)))
-    instancer = _particle_instancer(w, scope, name, hidden=False, glow=True)
-    specs = {key: attr_spec(instancer, key, kind) for key, kind in
-             (("positions", _T.Point3fArray), ("scales", _T.Float3Array),
-              ("velocities", _T.Vector3fArray), ("ids", _T.Int64Array),
-              ("protoIndices", _T.IntArray), ("extent", _T.Float3Array))}
-    first = next((b[0][:1] for b in blobs if len(b[0])), np.zeros((1, 3)))
-    for f, empty in _sampled_frames(w, instancer, [not len(b[0]) for b in blobs]):
-        x, diameter, vel = blobs[f]
-        if empty:
-            x, diameter, vel = first, np.zeros(1), np.zeros((1, 3))
-        box = np.stack([(x - diameter[:, None] / 2).min(axis=0),
-                        (x + diameter[:, None] / 2).max(axis=0)])
-        sample = float(f)
-        w.layer.SetTimeSample(specs["positions"].path, sample, vec3f(x))
-        w.layer.SetTimeSample(specs["scales"].path, sample,
-                              vec3f(np.repeat(diameter[:, None], 3, axis=1)))
-        w.layer.SetTimeSample(specs["velocities"].path, sample, vec3f(vel))
-        w.layer.SetTimeSample(specs["ids"].path, sample, Vt.Int64Array.FromNumpy(
-            np.arange(len(x), dtype=np.int64)))
-        w.layer.SetTimeSample(specs["protoIndices"].path, sample, Vt.IntArray(len(x), 0))
-        w.layer.SetTimeSample(specs["extent"].path, sample, vec3f(box))
-
-
-def glow_blobs(x: np.ndarray, velocity: np.ndarray, glow: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One frame's glow: (centres (B, 3) m, diameters (B,) m, velocities (B, 3) m/s)
-    of the blobs that stand for live particles at ``x`` (n, 3) m moving at ``velocity``
-    whose glows are ``glow`` (n,) m across.
-
-    A particle glows over GLOW_LOOKS' ``core`` times its diameter scaled by
-    (T / hot_k)^2, T its temperature (:func:`_heat`): the light of a glowing ball,
-    about its area, then follows T^4 as a blackbody's does. Particles are pooled on a
-    lattice whose cell is the median glow, one blob per occupied cell at its
-    particles' mean position and velocity, as wide as their mean glow plus twice
-    their RMS distance from the centre: the fireball's 200 particles, born together,
-    make one soft ball, not 200 coincident ones (a renderer stops after a few
-    transparent surfaces: Blender's Cycles after 8, so coincident translucent spheres
-    render as one flat, opaque disc)."""
-    if not len(x):
-        return np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
-    glow = np.asarray(glow, dtype=np.float64)
-    cell = max(float(np.median(glow)), 1e-3)
-    keys = np.floor((x - x[0]) / cell + 0.5).astype(np.int64)
-    _, group = np.unique(keys, axis=0, return_inverse=True)
-    group = group.ravel()
-    count = np.bincount(group).astype(np.float64)
-
-    def mean(values: np.ndarray) -> np.ndarray:
-        return np.stack([np.bincount(group, values[:, k]) for k in range(values.shape[1])],
-                        axis=1) / count[:, None]
-
-    centre = mean(x)
-    spread = np.sqrt(np.bincount(group, ((x - centre[group]) ** 2).sum(axis=1)) / count)
-    diameter = np.bincount(group, glow) / count + 2.0 * spread
-    return centre, diameter, mean(velocity)
 
 
 def _layout_of(count: int, alive: list[int]) -> str:
@@ -309,55 +217,44 @@ def _sampled_frames(w, instancer: Sdf.PrimSpec, empty: list[bool]):
         yield f, now
 
 
-def _particle_instancer(w, scope: Sdf.PrimSpec, name: str, hidden: bool,
-                        glow: bool = False) -> Sdf.PrimSpec:
+def _particle_instancer(w, scope: Sdf.PrimSpec, name: str, hidden: bool) -> Sdf.PrimSpec:
     """Particles/<name> (PointInstancer) with Prototypes/sprite, a soft ball of
     diameter 1 (SPRITE_SHELLS: concentric icospheres of 80 faces, smooth normals) bound
     to Materials/particle_<name>, and if ``hidden`` Prototypes/hidden, an empty Xform
-    (prototype 1: nothing drawn). With ``glow``, Particles/<name>_glow, whose shells
-    have 320 faces each, are dented (GLOW_LUMP) and are GeomSubsets ``shell_<k>``
-    bound to Materials/particle_<name>_glow_<k>."""
+    (prototype 1: nothing drawn)."""
     import trimesh
 
-    instancer = prim_spec(scope, f"{name}_glow" if glow else name, "PointInstancer")
+    instancer = prim_spec(scope, name, "PointInstancer")
     prototypes = prim_spec(instancer, "Prototypes", "Scope")
     sprite = prim_spec(prototypes, "sprite", "Mesh")
-    ball = trimesh.creation.icosphere(subdivisions=2 if glow else 1, radius=1.0)
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
     unit = np.asarray(ball.vertices, dtype=np.float32)
-    radii = [np.full(len(unit), r) for r in SPRITE_SHELLS]
-    if glow:  # billows: each shell dented by up to GLOW_LUMP of its radius, its own way
-        radii = [r * (1.0 - GLOW_LUMP * (1.0 - _billow(unit, k)) / 2.0)
-                 for k, r in enumerate(radii)]
-    vertices = np.concatenate([unit * r[:, None] for r in radii]).astype(np.float32)
+    vertices = np.concatenate([unit * r for r in SPRITE_SHELLS]).astype(np.float32)
     faces = np.concatenate([ball.faces + k * len(unit) for k in range(len(SPRITE_SHELLS))])
-    attr_spec(sprite, "points", _T.Point3fArray, vec3f(vertices))
-    attr_spec(sprite, "normals", _T.Normal3fArray, vec3f(np.tile(unit, (len(SPRITE_SHELLS), 1))),
-              interpolation="vertex")
-    attr_spec(sprite, "extent", _T.Float3Array, points_extent(vertices))
-    attr_spec(sprite, "faceVertexCounts", _T.IntArray, Vt.IntArray(len(faces), 3))
-    attr_spec(sprite, "faceVertexIndices", _T.IntArray, Vt.IntArray.FromNumpy(
-        np.ascontiguousarray(faces.ravel(), dtype=np.int32)))
-    attr_spec(sprite, "subdivisionScheme", _T.Token, "none", uniform=True)
-    color = GLOW_LOOKS[name]["shells"][0] if glow else PARTICLE_COLORS[name]
-    attr_spec(sprite, "primvars:displayColor", _T.Color3fArray,
-              Vt.Vec3fArray([Gf.Vec3f(*color)]), interpolation="constant")
-    if not glow:
-        _bind(sprite, _particle_material(w, name))
-    else:  # a GeomSubset per shell, each in its own emission
-        _bind(sprite, _glow_material(w, name, 0))
-        attr_spec(sprite, "subsetFamily:materialBind:familyType", _T.Token, "partition",
-                  uniform=True)
-        for k in range(len(SPRITE_SHELLS)):
-            subset = prim_spec(sprite, f"shell_{k}", "GeomSubset")
-            attr_spec(subset, "elementType", _T.Token, "face", uniform=True)
-            attr_spec(subset, "familyName", _T.Token, "materialBind", uniform=True)
-            attr_spec(subset, "indices", _T.IntArray, Vt.IntArray.FromNumpy(
-                np.arange(k * len(ball.faces), (k + 1) * len(ball.faces), dtype=np.int32)))
-            _bind(subset, _glow_material(w, name, k))
+    sphere_mesh(sprite, vertices, np.tile(unit, (len(SPRITE_SHELLS), 1)), faces,
+                PARTICLE_COLORS[name])
+    _bind(sprite, _particle_material(w, name))
     targets = Sdf.RelationshipSpec(instancer, "prototypes")
     targets.targetPathList.explicitItems = [sprite.path] + (
         [prim_spec(prototypes, "hidden", "Xform").path] if hidden else [])
     return instancer
+
+
+def sphere_mesh(mesh: Sdf.PrimSpec, vertices: np.ndarray, normals: np.ndarray,
+                faces: np.ndarray, color) -> None:
+    """A particle sprite's Mesh attributes: ``vertices`` (V, 3) m, ``normals`` (V, 3)
+    smooth per vertex, triangles ``faces`` (F, 3), no subdivision, displayColor
+    ``color`` (linear RGB)."""
+    attr_spec(mesh, "points", _T.Point3fArray, vec3f(vertices))
+    attr_spec(mesh, "normals", _T.Normal3fArray, vec3f(normals), interpolation="vertex")
+    attr_spec(mesh, "extent", _T.Float3Array, points_extent(vertices))
+    attr_spec(mesh, "faceVertexCounts", _T.IntArray, Vt.IntArray(len(faces), 3))
+    attr_spec(mesh, "faceVertexIndices", _T.IntArray, Vt.IntArray.FromNumpy(
+        np.ascontiguousarray(faces.ravel(), dtype=np.int32)))
+    attr_spec(mesh, "subdivisionScheme", _T.Token, "none", uniform=True)
+    attr_spec(mesh, "primvars:displayColor", _T.Color3fArray,
+              Vt.Vec3fArray([Gf.Vec3f(*color)]), interpolation="constant")
+
 
 def _instance_samples(w, instancer: Sdf.PrimSpec, mine: np.ndarray, frames: list,
                       spec, birth: np.ndarray, v0: np.ndarray, size: np.ndarray,
@@ -409,27 +306,6 @@ def _particle_material(w, name: str) -> Sdf.Path:
           Gf.Vec3f(0.0) if emissive else color)
     attr_spec(shader, "inputs:emissiveColor", _T.Color3f, color * emissive)
     attr_spec(shader, "inputs:opacity", _T.Float, look["opacity"])
-    attr_spec(shader, "inputs:roughness", _T.Float, 1.0)
-    out = attr_spec(shader, "outputs:surface", _T.Token)
-    surface = attr_spec(material, "outputs:surface", _T.Token)
-    surface.connectionPathList.explicitItems = [out.path]
-    return material.path
-
-
-def _glow_material(w, name: str, shell: int) -> Sdf.Path:
-    """/Shot/Materials/particle_<name>_glow_<shell>: a UsdPreviewSurface that emits the
-    shell's colour of GLOW_LOOKS (no diffuse), translucent (its ``opacity``)."""
-    look = GLOW_LOOKS[name]
-    materials = w.layer.GetPrimAtPath(f"{ROOT}/Materials")
-    path = materials.path.AppendChild(f"particle_{name}_glow_{shell}")
-    if w.layer.GetPrimAtPath(path):
-        return path
-    material = prim_spec(materials, path.name, "Material")
-    shader = prim_spec(material, "PreviewSurface", "Shader")
-    attr_spec(shader, "info:id", _T.Token, "UsdPreviewSurface", uniform=True)
-    attr_spec(shader, "inputs:diffuseColor", _T.Color3f, Gf.Vec3f(0.0))
-    attr_spec(shader, "inputs:emissiveColor", _T.Color3f, Gf.Vec3f(*look["shells"][shell]))
-    attr_spec(shader, "inputs:opacity", _T.Float, look["opacity"][shell])
     attr_spec(shader, "inputs:roughness", _T.Float, 1.0)
     out = attr_spec(shader, "outputs:surface", _T.Token)
     surface = attr_spec(material, "outputs:surface", _T.Token)

@@ -12,7 +12,7 @@ files, and it is bound to ``Materials/particle_<system>``, the sprite's
 UsdPreviewSurface (the system's colour, a hint for lighters: Blender's USD importer
 reads no material of a Volume, see docs/file-formats.md). Fire and the fireball glow
 on a plain import through ``Particles/<system>_glow``, an instancer of emissive
-shells written beside the Volume (:func:`blastvox.export.usd_effects._write_glow`).
+balls written beside the Volume (:func:`blastvox.export.usd_glow.write_glow`).
 """
 
 from __future__ import annotations

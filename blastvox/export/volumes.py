@@ -61,7 +61,7 @@ VOLUME_LOOKS: dict[str, VolumeLook] = {
     "dust": VolumeLook(tau=2.0),
     "smoke": VolumeLook(tau=0.6),
     "fire": VolumeLook(tau=0.4, hot_k=1600.0, cool_k=900.0),
-    "fireball": VolumeLook(tau=0.8, hot_k=2200.0, cool_k=700.0),
+    "fireball": VolumeLook(tau=0.05, hot_k=2200.0, cool_k=700.0),
 }
 
 

@@ -21,7 +21,7 @@ Particle volumes (a USD export's ``<stem>_volumes/``, read where the file is) im
 as Volume objects with Blender's default volume material (its USD importer reads no
 material of a Volume prim: grey smoke whose density is the ``density`` grid); a
 plain import shows fire and the fireball by their own glow (``<system>_glow``:
-emissive shells, which the importer does read). ``--fire`` gives the volumes that
+emissive balls, which the importer does read). ``--fire`` gives the volumes that
 hold a ``temperature`` grid (fire, fireball) the one material an artist adds for
 flames: a Principled Volume with Blackbody Intensity ``--glow`` (default 0.5: 1 is
 physical) reading ``temperature``, and dust a warm grey colour, and hides the
