@@ -70,8 +70,8 @@ def length(a: np.ndarray, keepdims: bool = False) -> np.ndarray:
     """Euclidean lengths over the last axis (...) (or (..., 1) with ``keepdims``): the
     squares summed left to right, as ``np.linalg.norm(a, axis=-1)`` sums them."""
     a = np.asarray(a, dtype=np.float64)
-    length = np.sqrt(total(a * a))
-    return length[..., None] if keepdims else length
+    norm = np.sqrt(total(a * a))
+    return norm[..., None] if keepdims else norm
 
 
 def lane_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
