@@ -373,7 +373,8 @@ def test_an_interrupted_wedge_resumes_with_the_missing_shots(duck_scene: Path,
     child = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              env=env, preexec_fn=_default_sigint, start_new_session=True)
     deadline = time.monotonic() + 900  # the first shot's end, however loaded the host
-    while not list(out.glob("shots/*/result.json")) and time.monotonic() < deadline:
+    while (not list(out.glob("shots/*/result.json")) and time.monotonic() < deadline
+           and child.poll() is None):  # a wedge that died early fails at once
         time.sleep(0.05)
     os.killpg(child.pid, signal.SIGINT)
     _, stderr = child.communicate(timeout=60)
