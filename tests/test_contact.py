@@ -434,3 +434,29 @@ def test_the_broad_phase_finds_every_pair_a_brute_force_search_finds(tmp_path, m
             if np.sum((pa - pb) ** 2) < reach * reach:
                 expected.add((min(a, b), max(a, b)))
     assert found == expected
+
+
+def test_a_split_forgets_what_the_changed_bodies_contacts_carried():
+    """A contact's carried impulse is the load it held for the bodies it joined: after a
+    split the changed bodies' contacts (voxel pairs and the ground's rows, keys -1 - b)
+    start cold, and the others keep theirs, in order."""
+    from types import SimpleNamespace
+
+    from blastvox.simulate.contact.warmstart import forget_split
+
+    n = 6  # voxels 0-1 body 0 (split from 1 at link 0: voxels 1, 2), 2 body 1, 3-5 body 2
+    voxel_body = np.array([0, 0, 1, 2, 2, -1])
+    link_voxels = np.array([[1, 2], [3, 4]])
+    keys = np.array([0 * n + 3, 1 * n + 3, 3 * n + 4, -1 - 0, -1 - 2, 2 * n + 4, 4 * n + 5])
+    carried = np.arange(7.0)[:, None] * np.ones((7, 7))
+    memory = SimpleNamespace(keys=np.concatenate([keys, [99]]),
+                             carried=np.concatenate([carried, np.zeros((1, 7))]),
+                             count=np.array([7]))
+    forget_split(memory, voxel_body, link_voxels, np.array([0]), np.array([], dtype=np.int64))
+    kept = memory.count[0]
+    # bodies 0 and 1 changed: the pairs touching voxels 0-2 and body 0's ground row go
+    assert memory.keys[:kept].tolist() == [3 * n + 4, -1 - 2, 4 * n + 5]
+    assert memory.carried[:kept, 0].tolist() == [2.0, 4.0, 6.0]
+    forget_split(memory, voxel_body, link_voxels, np.array([], dtype=np.int64),
+                 np.array([], dtype=np.int64))  # nothing cut: nothing forgotten
+    assert memory.count[0] == kept

@@ -116,3 +116,27 @@ def test_a_beam_on_a_free_block_breaks_as_on_its_pier(tmp_path):
         assert len(pieces) >= 2  # it breaks over the block (hogging all across it)
         drop = cache.piece_position[0, pieces, 2] - cache.piece_position[-1, pieces, 2]
         assert (drop > 0.5).sum() >= 2, drop  # and both ends come down
+
+
+def test_a_support_a_body_stood_on_is_not_judged_again_until_it_tilts():
+    """A pile's contacts come and go from step to step: a body judged standing on a set
+    of supporting voxels is not solved again when that set comes back, unless it has
+    tilted by more than SAME_TILT since (its levers changed)."""
+    from types import SimpleNamespace
+
+    from blastvox.simulate.support import SAME_TILT, _stood_before
+
+    stress = SimpleNamespace(judged={})
+    down = np.array([0.0, 0.0, -9.81])
+    on_two = np.array([3, 7]).tobytes()
+    assert not _stood_before(stress, 5, on_two, down)
+    stress.judged[5] = {on_two: [down]}
+    assert _stood_before(stress, 5, on_two, down)
+    assert not _stood_before(stress, 5, np.array([3]).tobytes(), down)  # lost a support
+    assert not _stood_before(stress, 6, on_two, down)  # another body
+
+    def tilted(angle: float) -> np.ndarray:
+        return 9.81 * np.array([np.sin(angle), 0.0, -np.cos(angle)])
+
+    assert _stood_before(stress, 5, on_two, tilted(0.5 * SAME_TILT))
+    assert not _stood_before(stress, 5, on_two, tilted(1.5 * SAME_TILT))

@@ -52,6 +52,7 @@ from blastvox.simulate.confinement import Rooms, find_rooms, gas_phase
 from blastvox.simulate.contact.fragments import begin_contacts, collide_phase
 from blastvox.simulate.contact.ground import ground_phase, rest_speed
 from blastvox.simulate.contact.loads import Punch, punch_phase
+from blastvox.simulate.contact.warmstart import forget_split
 from blastvox.simulate.effects import Effects
 from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
 from blastvox.simulate.forces import blast_phase
@@ -439,6 +440,9 @@ def split(run: Run, n: int, t1: float, frame_next: int) -> None:
     if run.stress is not None:
         run.stress.solved = padded(run.stress.solved, len(state.bodies.mass), False)
         invalidate(run.stress, state.voxels.body, run.model.links.voxels, broken, destroyed)
+    if state.contacts.memory is not None:  # what their contacts held, they no longer weigh
+        forget_split(state.contacts.memory, state.voxels.body, run.model.links.voxels,
+                     broken, destroyed)
     if run.rooms is not None:  # a room whose wall broke vents
         run.rooms.vent(np.concatenate([run.model.links.voxels[broken].ravel(), destroyed]), t1)
     run.recorder.link_breaks(broken, t1)

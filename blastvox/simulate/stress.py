@@ -515,7 +515,9 @@ class Stress:
     the largest impact it survived (:mod:`blastvox.simulate.impact`), and its live
     voxel count when it is one chunk of a crushing material (no impact can break it);
     rested, by body: (live voxels, contact voxels, on the ground) of the support it was
-    last judged on (:mod:`blastvox.simulate.support`)."""
+    last judged on, and judged: by the set of supporting voxels (sorted, as bytes) it
+    stood on since its voxels last changed, the rest-frame gravity vectors (3,) it
+    stood under (:mod:`blastvox.simulate.support`)."""
 
     springs: SpringTable
     cell: np.ndarray
@@ -528,6 +530,7 @@ class Stress:
     survived: dict = field(default_factory=dict)
     rubble: dict = field(default_factory=dict)
     rested: dict = field(default_factory=dict)
+    judged: dict = field(default_factory=dict)
 
 
 def start(arrays: dict, capacity: int, enabled: bool) -> Stress | None:
@@ -668,6 +671,7 @@ def invalidate(stress: Stress, voxel_body: np.ndarray, link_voxels: np.ndarray,
         stress.survived.pop(b, None)
         stress.rubble.pop(b, None)
         stress.rested.pop(b, None)
+        stress.judged.pop(b, None)
 
 
 def break_links(state, stress: Stress, b: int, broken: np.ndarray) -> None:
