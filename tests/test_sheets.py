@@ -229,4 +229,4 @@ def test_closed_parts_smaller_than_the_voxels_say_so_not_open(tmp_path: Path) ->
         message = str(caught.value)
         assert message.startswith(f"{path}: no voxel centre lies inside any of its parts at "
                                   f"voxel size {size:g} m; use a smaller voxel size"), message
-        assert "open" not in message
+        assert "open surface" not in message and "encloses" not in message
