@@ -157,6 +157,25 @@ def test_splat_conserves_mass_at_any_cell_size():
                            atol=0.25 * h), h
 
 
+def test_splat_far_from_the_origin_is_the_same_cloud_shifted():
+    """A cloud 200 km from the origin (a scene placed in map coordinates) splats into
+    the cells of the same cloud near the origin, moved by a whole number of cells: not
+    an error because the packed cell keys reach only 2^20 cells (105 km at 0.1 m) each
+    way; the indices stay exact int32 cells of the far position."""
+    rng = np.random.default_rng(7)
+    h = 0.1
+    near = rng.normal(size=(200, 3)) * 0.5
+    size = rng.uniform(0.1, 0.4, 200)
+    amount = cross_section(size, 2.0)
+    shift = np.array([2_000_000, 500, -1_500_000])
+    ijk0, d0, _ = splat(near, size, amount, h)
+    ijk1, d1, _ = splat(near + shift * h, size, amount, h)
+    assert np.array_equal(ijk1, ijk0 + shift)
+    assert np.allclose(d1, d0, rtol=1e-4)
+    with pytest.raises(ValueError, match="spread over"):
+        splat(np.array([[-1.2e5, 0, 0], [1.2e5, 0, 0]]), size[:2], amount[:2], h)
+
+
 def test_an_isolated_particle_has_its_optical_depth():
     """A ray through a lone particle's centre sees the system's tau (the kernel's
     constant), within the sampling error of the cells."""
@@ -432,12 +451,13 @@ def test_spheres_on_request_and_in_usdz(fiery, tmp_path):
 
 def test_cells_too_small_for_the_shot_are_one_error(fiery, tmp_path, monkeypatch):
     """A cell size that would make a frame's splat too large (here a limit of 1,000
-    cells) is one BlastvoxError naming the system and frame, and writes nothing."""
+    cells) is one BlastvoxError naming the volumes folder, the system and the frame, and
+    writes nothing."""
     from blastvox.export import volumes
 
     monkeypatch.setattr(volumes, "MAX_SPLAT_CELLS", 1000)
-    with pytest.raises(BlastvoxError, match=r"fireball particles at frame 1: .* use a larger "
-                                            r"--volume-voxel"):
+    with pytest.raises(BlastvoxError, match=r"shot_volumes: fireball particles at frame 1: "
+                                            r".* use a larger --volume-voxel"):
         export(fiery, tmp_path / "shot.usdc")
     assert list(tmp_path.iterdir()) == []
 

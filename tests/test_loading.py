@@ -222,6 +222,24 @@ def test_charges_below_the_ground_or_after_the_shot_warn_naming_them(tmp_path):
     assert len(late) == 1 and late[0].startswith("charge 2 at (-3, 0, 1) m detonates at 1 s")
 
 
+def test_a_shot_shorter_than_a_frame_warns_that_nothing_is_simulated(tmp_path):
+    """A duration under one frame interval (0.01 s at 24 fps) gave a cache of frame 0
+    alone, no step run and the charge at t = 0 never set off, without a word; it warns
+    naming the duration and the shortest one that runs. A shot of one frame does not."""
+    model = _founded_wall(tmp_path, "concrete")
+    charge = (ChargeSpec((-1.0, 0.0, 1.0), 1.0),)
+    warnings: list[str] = []
+    cache = simulate(model, SimSettings(duration=0.01, charges=charge), warn=warnings.append)
+    assert cache.frame_count == 1
+    short = [w for w in warnings if "shorter than one frame" in w]
+    assert len(short) == 1 and short[0].startswith("duration 0.01 s is shorter than one "
+                                                   "frame (1/24 s)"), warnings
+    assert "at least 0.0417 s" in short[0]
+    warnings.clear()
+    simulate(model, SimSettings(duration=1 / 24, charges=charge), warn=warnings.append)
+    assert not [w for w in warnings if "shorter than one frame" in w], warnings
+
+
 def _room(open_side: bool, inner: float = 3.0, t: float = 0.5):
     """Six concrete slabs (separate objects) closing a cube room of ``inner`` m."""
     out = inner + 2 * t

@@ -212,3 +212,21 @@ def test_a_file_of_open_parts_only_is_refused_in_one_line(tmp_path: Path) -> Non
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1, done.stderr
     assert "panes.glb: no part encloses a volume" in lines[0] and "sheets" in lines[0]
+
+
+def test_closed_parts_smaller_than_the_voxels_say_so_not_open(tmp_path: Path) -> None:
+    """Two closed boxes (a multi-part file, as trimesh's multibody.stl) voxelized at a
+    size that leaves no cell centre in either were refused as "no part encloses a
+    volume (open surfaces ...)": both are closed. The error names the file, the voxel
+    size and the cure, and a file of only open panes keeps its own message (above)."""
+    path = _glb(tmp_path / "two.glb", {
+        "a": (trimesh.creation.box(extents=(0.1, 0.7, 0.1)), "a"),
+        "b": (trimesh.creation.box(extents=(0.07, 0.2, 0.1)).apply_translation((0.4, 0, 0)),
+              "b")})
+    for size in (0.7, 2.0):
+        with pytest.raises(MeshError) as caught:
+            _model(path, size)
+        message = str(caught.value)
+        assert message.startswith(f"{path}: no voxel centre lies inside any of its parts at "
+                                  f"voxel size {size:g} m; use a smaller voxel size"), message
+        assert "open surface" not in message and "encloses" not in message

@@ -64,9 +64,9 @@ def write_volume(w, scope: Sdf.PrimSpec, name: str, states: list, size: np.ndarr
         try:
             grids = frame_grids(name, x[alive], size[alive], age, voxel)
         except ValueError as exc:  # cells too small for the shot: one line, no output
-            raise BlastvoxError(f"{name} particles at frame {f}: {exc}; use a larger "
-                                f"--volume-voxel ([output] volume_voxel_m) or --particles "
-                                f"spheres") from None
+            raise BlastvoxError(f"{w.volume_out}: {name} particles at frame {f}: {exc}; "
+                                f"use a larger --volume-voxel ([output] volume_voxel_m) or "
+                                f"--particles spheres") from None
         target = volume_file(w.volume_out, name, f)
         try:
             written += write_vdb(target, grids)

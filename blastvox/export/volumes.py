@@ -156,9 +156,9 @@ def splat(positions: np.ndarray, radius: np.ndarray, amount: np.ndarray, voxel_m
     if not len(pos):
         return np.zeros((0, 3), np.int32), np.zeros(0, np.float32), (
             None if temperature is None else np.zeros(0, np.float32))
-    if np.abs(pos).max() / h + r.max() / h + 2 >= _OFFSET:
-        raise ValueError(f"particles {np.abs(pos).max():.3g} m from the origin are beyond "
-                         f"the volume grid's reach at {h} m cells")
+    base = _grid_base(pos, r, h)
+    if base.any():  # far from the origin: splat about a whole cell near the particles
+        pos = pos - base * h
     counts = _box_counts(pos, r, h)
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     total = int(starts[-1])
@@ -180,7 +180,26 @@ def splat(positions: np.ndarray, radius: np.ndarray, amount: np.ndarray, voxel_m
     if temperature is not None:
         heat_sum = np.bincount(inverse, weights=heat, minlength=len(keep))[keep]
         temp_out = (heat_sum / density).astype(np.float32)
-    return ijk.astype(np.int32), density.astype(np.float32), temp_out
+    return (ijk + base).astype(np.int32), density.astype(np.float32), temp_out
+
+
+def _grid_base(pos: np.ndarray, radius: np.ndarray, h: float) -> np.ndarray:
+    """(3,) int64: the cell the splat of particles at ``pos`` (K, 3) m with kernel radii
+    ``radius`` (K,) m on ``h`` m cells is done about, so that its packed keys reach them:
+    zeros while they lie within the keys' reach of the origin (2^20 cells each way),
+    else the cell at the middle of their box. Raises ValueError if their box is wider
+    than the keys reach or the cells lie beyond a .vdb file's int32 indices."""
+    pad = float(radius.max()) / h + 2
+    if float(np.abs(pos).max()) / h + pad < _OFFSET:
+        return np.zeros(3, dtype=np.int64)
+    lo, hi = pos.min(axis=0) / h, pos.max(axis=0) / h
+    if float((hi - lo).max()) / 2 + pad >= _OFFSET:
+        raise ValueError(f"particles spread over {float((hi - lo).max()) * h:.3g} m, beyond "
+                         f"the volume grid's reach of {2 * _OFFSET:,} cells at {h} m cells")
+    if float(np.abs(pos).max()) / h + pad >= (1 << 31) - 1:
+        raise ValueError(f"particles {np.abs(pos).max():.3g} m from the origin are beyond "
+                         f"the volume grid's int32 cell indices at {h} m cells")
+    return np.floor((lo + hi) / 2).astype(np.int64)
 
 
 def frame_grids(name: str, x: np.ndarray, size: np.ndarray, age_fraction: np.ndarray,

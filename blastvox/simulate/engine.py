@@ -519,7 +519,8 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
     per_frame = settings.steps_per_frame()
     frames = settings.frame_count()
     total_steps = (frames - 1) * per_frame
-    for line in (*_ground_warnings(run), *_charge_warnings(run, total_steps * dt)):
+    for line in (*_duration_warnings(settings, total_steps), *_ground_warnings(run),
+                 *_charge_warnings(run, total_steps * dt)):
         warn(line)
     limits = LimitMonitor(run.model, settings, dt)  # warns once per limit the run passes
     counts, counted = _alive_counts(run), state.counters.topology_version
@@ -537,6 +538,18 @@ def _simulate(run: Run, model: VoxelModel, settings: SimSettings, progress: Prog
             progress.update(n * dt, n, total_steps)
     limits.finish()
     return _cache(run, model, frames, per_frame, total_steps)
+
+
+def _duration_warnings(settings: SimSettings, total_steps: int) -> list[str]:
+    """A line if the shot is shorter than one frame interval (1/fps s): frames run to the
+    last one at or before the duration, so the cache holds frame 0 alone and no step
+    runs (no charge goes off)."""
+    if total_steps > 0:
+        return []
+    return [f"duration {settings.duration:g} s is shorter than one frame (1/{settings.fps:g} "
+            f"s): the cache holds frame 0 only and nothing is simulated, no charge goes "
+            f"off; lengthen the duration to at least {1.0 / settings.fps:.3g} s (or raise "
+            f"--fps)"]
 
 
 def _ground_warnings(run: Run) -> list[str]:

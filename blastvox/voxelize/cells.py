@@ -107,8 +107,7 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
             owner[closer & (owner < 0)] = index
         best = np.maximum(best, winding)
     if kept == 0:
-        raise MeshError(f"{printable(solids[0].part.source)}: no part encloses a volume "
-                        f"(open surfaces become sheets only beside a closed part)")
+        raise _nothing_inside(solids, grid)
     for index, mark in sheets:
         warn(f"{solids[index].label}: an open surface ({solids[index].report.open_edges} open "
              f"edges): voxelized as a sheet one voxel deep ({int(mark.sum()):,} cells)")
@@ -126,6 +125,21 @@ def choose_cells(solids: list[Solid], grid: Grid, conform: bool, warn) -> CellSe
     return CellSet(ijk=ijk.astype(np.int64), part=part.astype(np.int64),
                    inside=occupied[chosen], touched=touched[chosen],
                    sheet_parts=[index for index, _ in sheets])
+
+
+def _nothing_inside(solids: list[Solid], grid: Grid) -> MeshError:
+    """The error when no part of a multi-part input kept a cell: the voxels are too
+    large for it if a part is closed (a closed part has an inside, so none of its cells'
+    centres lay in it) or the grid is two cells across at most, else the parts are open
+    surfaces with no closed part for them to be sheets beside."""
+    source = printable(solids[0].part.source)
+    if max(grid.shape) <= 2 or any(solid.report.open_edges == 0 for solid in solids):
+        sizes = [f"{float(x):.4g}" for x in grid.spacing]
+        size = sizes[0] if len(set(sizes)) == 1 else ",".join(sizes)
+        return MeshError(f"{source}: no voxel centre lies inside any of its parts at voxel "
+                         f"size {size} m; use a smaller voxel size (or a higher resolution)")
+    return MeshError(f"{source}: no part encloses a volume (open surfaces become sheets "
+                     f"only beside a closed part)")
 
 
 def _touched_cells(solid: Solid, grid: Grid, sheet: bool = False) -> np.ndarray:
