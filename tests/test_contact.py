@@ -436,27 +436,25 @@ def test_the_broad_phase_finds_every_pair_a_brute_force_search_finds(tmp_path, m
     assert found == expected
 
 
-def test_a_split_forgets_what_the_changed_bodies_contacts_carried():
+def test_a_split_scales_what_contacts_carry_by_the_mass_their_bodies_kept():
     """A contact's carried impulse is the load it held for the bodies it joined: after a
-    split the changed bodies' contacts (voxel pairs and the ground's rows, keys -1 - b)
-    start cold, and the others keep theirs, in order."""
+    split each carries the smaller share of their mass its two bodies kept (a voxel
+    pair's, a ground row's (key -1 - b) its body's), a founded body counting as whole."""
     from types import SimpleNamespace
 
-    from blastvox.simulate.contact.warmstart import forget_split
+    from blastvox.simulate.contact.warmstart import lighten_carried, mass_kept
 
-    n = 6  # voxels 0-1 body 0 (split from 1 at link 0: voxels 1, 2), 2 body 1, 3-5 body 2
-    voxel_body = np.array([0, 0, 1, 2, 2, -1])
-    link_voxels = np.array([[1, 2], [3, 4]])
-    keys = np.array([0 * n + 3, 1 * n + 3, 3 * n + 4, -1 - 0, -1 - 2, 2 * n + 4, 4 * n + 5])
-    carried = np.arange(7.0)[:, None] * np.ones((7, 7))
-    memory = SimpleNamespace(keys=np.concatenate([keys, [99]]),
-                             carried=np.concatenate([carried, np.zeros((1, 7))]),
-                             count=np.array([7]))
-    forget_split(memory, voxel_body, link_voxels, np.array([0]), np.array([], dtype=np.int64))
-    kept = memory.count[0]
-    # bodies 0 and 1 changed: the pairs touching voxels 0-2 and body 0's ground row go
-    assert memory.keys[:kept].tolist() == [3 * n + 4, -1 - 2, 4 * n + 5]
-    assert memory.carried[:kept, 0].tolist() == [2.0, 4.0, 6.0]
-    forget_split(memory, voxel_body, link_voxels, np.array([], dtype=np.int64),
-                 np.array([], dtype=np.int64))  # nothing cut: nothing forgotten
-    assert memory.count[0] == kept
+    # before: body 0 (free, 10 kg) and body 1 (founded, 100 kg); the split leaves body 0
+    # with 8 kg and a new body 2 (4 kg, from body 0), body 1 at 90 kg
+    bodies = SimpleNamespace(count=np.array([3]), mass=np.array([8.0, 90.0, 4.0, 0.0]),
+                             parent=np.array([-1, -1, 0, -1]),
+                             fixed=np.array([False, True, False, False]))
+    kept = mass_kept(np.array([10.0, 100.0]), bodies)
+    assert kept.tolist() == [0.8, 1.0, 0.4, 1.0]
+    n = 5  # voxels 0-1 body 0, 2 body 2, 3 body 1, 4 none
+    voxel_body = np.array([0, 0, 2, 1, -1])
+    keys = np.array([0 * n + 3, 2 * n + 3, 0 * n + 2, -1 - 0, -1 - 1, 3 * n + 4])
+    memory = SimpleNamespace(keys=keys, carried=np.ones((6, 7)), count=np.array([6]))
+    lighten_carried(memory, voxel_body, kept)
+    assert memory.carried[:, 0].tolist() == [0.8, 0.4, 0.4, 0.8, 1.0, 1.0]
+    assert (memory.carried == memory.carried[:, :1]).all()  # friction and twist alike

@@ -52,7 +52,7 @@ from blastvox.simulate.confinement import Rooms, find_rooms, gas_phase
 from blastvox.simulate.contact.fragments import begin_contacts, collide_phase
 from blastvox.simulate.contact.ground import ground_phase, rest_speed
 from blastvox.simulate.contact.loads import Punch, punch_phase
-from blastvox.simulate.contact.warmstart import forget_split
+from blastvox.simulate.contact.warmstart import lighten_carried, mass_kept
 from blastvox.simulate.effects import Effects
 from blastvox.simulate.fire import Fire, burn_phase, ignite_phase
 from blastvox.simulate.forces import blast_phase
@@ -434,15 +434,16 @@ def split(run: Run, n: int, t1: float, frame_next: int) -> None:
     """Split bodies by what broke (:func:`~blastvox.simulate.topology.split_phase`), and
     record the breaks and the dusted voxels, which burst into dust particles."""
     state = run.state
+    mass_before = state.bodies.mass[:state.n_bodies].copy()
     broken, destroyed = split_phase(run.model, state, n)
     if not broken.size and not destroyed.size:
         return
     if run.stress is not None:
         run.stress.solved = padded(run.stress.solved, len(state.bodies.mass), False)
         invalidate(run.stress, state.voxels.body, run.model.links.voxels, broken, destroyed)
-    if state.contacts.memory is not None:  # what their contacts held, they no longer weigh
-        forget_split(state.contacts.memory, state.voxels.body, run.model.links.voxels,
-                     broken, destroyed)
+    if state.contacts.memory is not None:  # what their contacts held, for what they weigh
+        lighten_carried(state.contacts.memory, state.voxels.body,
+                        mass_kept(mass_before, state.bodies))
     if run.rooms is not None:  # a room whose wall broke vents
         run.rooms.vent(np.concatenate([run.model.links.voxels[broken].ravel(), destroyed]), t1)
     run.recorder.link_breaks(broken, t1)

@@ -111,34 +111,44 @@ def remember(memory, count, rw, total, bounce) -> None:
     memory.count[0] = p
 
 
-def forget_split(memory, voxel_body: np.ndarray, link_voxels: np.ndarray, broken: np.ndarray,
-                 destroyed: np.ndarray) -> None:
-    """Drop what the contacts of the bodies a split changed carry to the next step.
+def mass_kept(mass_before: np.ndarray, bodies) -> np.ndarray:
+    """(B,) the fraction of its mass before a split that each body has after it: a body
+    that kept its slot against its own mass before (mass_before (K,) kg, the first K
+    bodies'), one split off since against the body it came from (its first ancestor
+    among them); 1 for founded bodies (they do not move) and bodies born whole."""
+    count, known = int(bodies.count[0]), len(mass_before)
+    origin = np.arange(count)
+    late = origin >= known
+    while late.any():  # new bodies: up their parents to one that existed before
+        origin[late] = bodies.parent[origin[late]]
+        late = origin >= known
+    kept = np.ones(len(bodies.mass))
+    was = mass_before[np.maximum(origin, 0)]
+    judged = (origin >= 0) & ~bodies.fixed[:count] & (was > 0.0)
+    kept[:count][judged] = np.minimum(1.0, bodies.mass[:count][judged] / was[judged])
+    return kept
 
-    A carried impulse is the load a contact held for the bodies it joined: the
-    weight of a roof on a wall top, say. After the split the piece it holds may weigh
-    a hundredth of that, and the warm start would throw it (a 9 kg piece of the house
-    example's roof left at 22 m/s, 2.6 s in). The changed bodies' contacts start
-    cold, as Box2D's new contacts do. voxel_body (N,): each voxel's body after the
-    split (-1: none); link_voxels (L, 2); broken (links) and destroyed (voxels): what
-    the split cut. The ground's rows (keys -1 - body) of those bodies go too.
+
+def lighten_carried(memory, voxel_body: np.ndarray, kept: np.ndarray) -> None:
+    """Scale what contacts carry to the next step by what their bodies kept of their
+    mass in a split (kept (B,), :func:`mass_kept`; the smaller of a pair's two).
+
+    A carried impulse is the load a contact held for the bodies it joined: the weight
+    of a roof on a wall top, say. A piece that split off may weigh a hundredth of
+    that, and the whole impulse would throw it (a 9 kg piece of the house example's
+    roof left at 22 m/s, 2.6 s in); a piece that burnt a voxel away carries almost
+    what it did (its contacts starting cold every step pumped it up and down).
+    voxel_body (N,): each voxel's body after the split (-1: none). The ground's rows
+    (keys -1 - body) scale by their body's.
     """
     p = int(memory.count[0])
-    if p == 0 or not (broken.size or destroyed.size):
+    if p == 0 or not (kept < 1.0).any():
         return
-    cut = voxel_body[np.concatenate([link_voxels[broken].ravel(), destroyed])]
-    changed = np.zeros(max(int(voxel_body.max()), int(cut.max())) + 2, dtype=bool)
-    changed[cut[cut >= 0]] = True
-    changed_voxel = changed[voxel_body]  # voxel_body -1 reads the last slot: False
     keys, n = memory.keys[:p], len(voxel_body)
     pair = keys >= 0
-    ground_body = np.minimum(np.where(pair, -1, -1 - keys), len(changed) - 1)
-    hit = np.where(pair, changed_voxel[np.where(pair, keys // n, 0)]
-                   | changed_voxel[np.where(pair, keys % n, 0)], changed[ground_body])
-    if not hit.any():
-        return
-    keep = ~hit
-    count = int(keep.sum())
-    memory.keys[:count] = keys[keep]
-    memory.carried[:count] = memory.carried[:p][keep]
-    memory.count[0] = count
+    body_kept = np.append(kept, 1.0)  # voxel_body -1 and a ground row's -1: 1
+    first = voxel_body[np.where(pair, keys // n, 0)]
+    second = voxel_body[np.where(pair, keys % n, 0)]
+    ground = np.where(pair, -1, -1 - keys)
+    scale = np.where(pair, np.minimum(body_kept[first], body_kept[second]), body_kept[ground])
+    memory.carried[:p] *= scale[:, None]
