@@ -134,6 +134,11 @@ class AheadViews(NamedTuple):
     cosine: np.ndarray
 
 
+#: Voxels per task of :func:`_views_ahead`'s parallel loop (each voxel's view is its own:
+#: any split gives the same bytes).
+AHEAD_CHUNK = 256
+
+
 def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.ndarray,
                 exposure: Exposure, order: np.ndarray, ahead: AheadViews) -> None:
     """Fill ``ahead`` (an :class:`AheadViews` (K, C)) with the element view of every
@@ -163,28 +168,31 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, detour_fields, cent
     thickness, speed, material, normals, member_axis = members
     body_pos, body_rot, body_com = poses
     known, peak, impulse, depth, blocked, thick, squeezed, cosine = ahead_fields
-    for i in nb.prange(len(order)):
+    n_chunks = (len(order) + AHEAD_CHUNK - 1) // AHEAD_CHUNK
+    for chunk in nb.prange(n_chunks):  # the structs and scratch once per chunk, not voxel
         front = Front(position, time, scale, table, burst, inner, outer)
         exposure = Exposure(Occupancy(origin, cell, dims, count, member, vertices, corners,
                                       slot, box_lo, box_hi), clearing, gas, sight, reach,
                             Detour(d_origin, d_cell, d_dims, d_extra, d_most, d_voxel))
-        v = order[i]
-        b = voxel_body[v]
         centre = np.empty(3)
         normal = np.empty(3)
-        to_world_into(body_rot[b], body_pos[b], body_com[b], centroid[v], centre)
-        for c in range(position.shape[0]):
-            r = crossing(centre, position, inner, outer, c)
-            known[i, c] = r >= 0.0
-            if r < 0.0:
-                continue
-            for a in range(3):  # the member's normal, turned with its body
-                normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
-                             + body_rot[b, a, 1] * normals[member_axis[v], 1]
-                             + body_rot[b, a, 2] * normals[member_axis[v], 2])
-            (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
-             squeezed[i, c], cosine[i, c]) = element_view(
-                 front, c, r, centre, exposure, b, thickness[v], speed[material[v]], normal)
+        for i in range(chunk * AHEAD_CHUNK, min((chunk + 1) * AHEAD_CHUNK, len(order))):
+            v = order[i]
+            b = voxel_body[v]
+            to_world_into(body_rot[b], body_pos[b], body_com[b], centroid[v], centre)
+            for c in range(position.shape[0]):
+                r = crossing(centre, position, inner, outer, c)
+                known[i, c] = r >= 0.0
+                if r < 0.0:
+                    continue
+                for a in range(3):  # the member's normal, turned with its body
+                    normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
+                                 + body_rot[b, a, 1] * normals[member_axis[v], 1]
+                                 + body_rot[b, a, 2] * normals[member_axis[v], 2])
+                (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
+                 squeezed[i, c], cosine[i, c]) = element_view(
+                     front, c, r, centre, exposure, b, thickness[v], speed[material[v]],
+                     normal)
 
 
 def no_views_ahead(n_charges: int) -> AheadViews:
