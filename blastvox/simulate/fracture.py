@@ -543,6 +543,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
     members = (model.thickness, model.wave_speed, model.material, MEMBER_NORMALS,
                model.member_axis)
     parts = (model.voxels, model.links, model.strength, members)
+    hold_room(state, len(ids))  # each voxel it dusts holds its impulse (new loads arrays)
     run_state = (state.links, state.voxels, state.bodies, marks, state.loads)
     ahead = no_views_ahead(len(front.position))
     if params.pressure_impulse and len(ids):
@@ -554,7 +555,6 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
                     ids, ahead)
     order, rows = wave_order(ids, when, params.pressure_impulse and len(ids) > 0 and order_free(
         front, parts, run_state, ids, exposure, ahead))
-    hold_room(state, len(order))  # each voxel it dusts holds its impulse
     released, n = fracture_wave(front, params, parts, run_state, order, rows, exposure,
                                 wave_views(state, len(front.position)), ahead)
     if params.pressure_impulse and marks.destroyed.any():
