@@ -80,11 +80,15 @@ def conform_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.
 
 
 def solid_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.ndarray,
-                box_lo: np.ndarray, box_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                box_lo: np.ndarray, box_hi: np.ndarray,
+                corner: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Each voxel's solid bounding box at rest, (lo, hi) (N, 3) m: its corners' box
     (vertices (V, 3) m, corners (N, 8)), or for a conform voxel (conform_voxels (C,))
-    its box (box_lo, box_hi (C, 3) m: :func:`conform_boxes`)."""
-    lo, hi = corner_boxes(vertices, corners)
+    its box (box_lo, box_hi (C, 3) m: :func:`conform_boxes`). corner: the corners'
+    boxes (lo, hi) if worked out already (:func:`corner_boxes`): they are changed
+    into the result."""
+    lo, hi = corner_boxes(vertices, corners) if corner is None else corner
     lo[conform_voxels] = box_lo
     hi[conform_voxels] = box_hi
     return lo, hi
