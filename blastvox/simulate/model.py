@@ -428,12 +428,16 @@ def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
         return voxel_chunk
     from blastvox.simulate.stress import node_labels
 
+    # of each pair of member normals (D, D), the same bits as the dot of each link's two
+    # (one per pair, not per link: the (L, 3) normals of both ends took 140 MB)
+    pairs = np.indices((len(MEMBER_NORMALS),) * 2).reshape(2, -1)
+    same = (np.abs(np.einsum("ij,ij->i", MEMBER_NORMALS[pairs[0]], MEMBER_NORMALS[pairs[1]]))
+            >= SAME_MEMBER).reshape(len(MEMBER_NORMALS), len(MEMBER_NORMALS))
     together = np.empty(len(ends), dtype=bool)
-    for block in link_blocks(len(ends)):  # the (L, 3) normals of both ends took 140 MB
+    for block in link_blocks(len(ends)):
         a, b = ends[block, 0], ends[block, 1]
-        normal_a, normal_b = MEMBER_NORMALS[member_axis[a]], MEMBER_NORMALS[member_axis[b]]
-        together[block] = (voxel_chunk[a] == voxel_chunk[b]) & (
-            np.abs(np.einsum("ij,ij->i", normal_a, normal_b)) >= SAME_MEMBER)
+        together[block] = (voxel_chunk[a] == voxel_chunk[b]) & same[member_axis[a],
+                                                                    member_axis[b]]
     n = len(voxel_chunk)  # the components of the links kept, numbered as components does
     labels = np.empty(n, dtype=np.int32)
     node_labels(np.ascontiguousarray(ends, dtype=np.int32), together, np.ones(n, dtype=bool),
