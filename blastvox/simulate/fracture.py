@@ -32,6 +32,7 @@ import numpy as np
 from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel, parallel_kernel
+from blastvox.simulate.arrivals import _arrivals, crossing, order_free, wave_order
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.criteria import (
     REFERENCE_THICKNESS,
@@ -105,18 +106,6 @@ def element_view(front, c, r, centre, exposure, b, member, speed, normal):
             cos_a)
 
 
-@helper
-def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
-    """Distance to charge c if the front crosses ``point`` this step, else -1."""
-    dx = point[0] - charge_pos[c, 0]
-    dy = point[1] - charge_pos[c, 1]
-    dz = point[2] - charge_pos[c, 2]
-    r = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if r > reach_in[c] and r <= reach_out[c]:
-        return r
-    return -1.0
-
-
 class AheadViews(NamedTuple):
     """Element views of the voxels a step's fronts cross, worked out before the step
     judges them (:func:`views_ahead`), (K, C) for the K voxels of its ``order``:
@@ -132,6 +121,11 @@ class AheadViews(NamedTuple):
     thickness: np.ndarray
     squeezed: np.ndarray
     cosine: np.ndarray
+
+
+#: Voxels per task of :func:`_views_ahead`'s parallel loop (each voxel's view is its own:
+#: any split gives the same bytes).
+AHEAD_CHUNK = 256
 
 
 def views_ahead(front: Front, geometry, members: tuple, bodies, voxel_body: np.ndarray,
@@ -163,28 +157,31 @@ def _views_ahead(front_fields, grid_fields, exposure_fields, detour_fields, cent
     thickness, speed, material, normals, member_axis = members
     body_pos, body_rot, body_com = poses
     known, peak, impulse, depth, blocked, thick, squeezed, cosine = ahead_fields
-    for i in nb.prange(len(order)):
+    n_chunks = (len(order) + AHEAD_CHUNK - 1) // AHEAD_CHUNK
+    for chunk in nb.prange(n_chunks):  # the structs and scratch once per chunk, not voxel
         front = Front(position, time, scale, table, burst, inner, outer)
         exposure = Exposure(Occupancy(origin, cell, dims, count, member, vertices, corners,
                                       slot, box_lo, box_hi), clearing, gas, sight, reach,
                             Detour(d_origin, d_cell, d_dims, d_extra, d_most, d_voxel))
-        v = order[i]
-        b = voxel_body[v]
         centre = np.empty(3)
         normal = np.empty(3)
-        to_world_into(body_rot[b], body_pos[b], body_com[b], centroid[v], centre)
-        for c in range(position.shape[0]):
-            r = crossing(centre, position, inner, outer, c)
-            known[i, c] = r >= 0.0
-            if r < 0.0:
-                continue
-            for a in range(3):  # the member's normal, turned with its body
-                normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
-                             + body_rot[b, a, 1] * normals[member_axis[v], 1]
-                             + body_rot[b, a, 2] * normals[member_axis[v], 2])
-            (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
-             squeezed[i, c], cosine[i, c]) = element_view(
-                 front, c, r, centre, exposure, b, thickness[v], speed[material[v]], normal)
+        for i in range(chunk * AHEAD_CHUNK, min((chunk + 1) * AHEAD_CHUNK, len(order))):
+            v = order[i]
+            b = voxel_body[v]
+            to_world_into(body_rot[b], body_pos[b], body_com[b], centroid[v], centre)
+            for c in range(position.shape[0]):
+                r = crossing(centre, position, inner, outer, c)
+                known[i, c] = r >= 0.0
+                if r < 0.0:
+                    continue
+                for a in range(3):  # the member's normal, turned with its body
+                    normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
+                                 + body_rot[b, a, 1] * normals[member_axis[v], 1]
+                                 + body_rot[b, a, 2] * normals[member_axis[v], 2])
+                (peak[i, c], impulse[i, c], depth[i, c], blocked[i, c], thick[i, c],
+                 squeezed[i, c], cosine[i, c]) = element_view(
+                     front, c, r, centre, exposure, b, thickness[v], speed[material[v]],
+                     normal)
 
 
 def no_views_ahead(n_charges: int) -> AheadViews:
@@ -195,12 +192,15 @@ def no_views_ahead(n_charges: int) -> AheadViews:
 
 
 @kernel
-def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead):
+def fracture_wave(front, params, parts, run_state, order, rows, exposure, views, ahead):
     """Judge each voxel a front crosses this step, then the links it is the second end
     of to be judged, once per wave: dust, break or weaken them; wear foundations.
 
     order (K,) int64: the voxels a front crosses this step, the only ones tested, in
-    order of the wave's arrival (see :func:`arrival_order`). parts: the model's
+    order of the wave's arrival (:func:`~blastvox.simulate.arrivals.arrival_order`),
+    or of their index when that gives the same bytes
+    (:func:`~blastvox.simulate.arrivals.order_free`); rows (K,) int64: each one's row
+    of ``ahead``. parts: the model's
     (VoxelGeometry, LinkGeometry, Strength, members); run_state: the state's
     (Links, Voxels, Bodies, Marks, Loads). Each (voxel, charge)
     is judged once in a run, when that charge's front crosses it: its element view
@@ -273,9 +273,10 @@ def fracture_wave(front, params, parts, run_state, order, exposure, views, ahead
                         front, c, r, centre, exposure, b, thickness[v], speed[material[v]],
                         normal)
                 else:
-                    peak, imp, depth = ahead.peak[i, c], ahead.impulse[i, c], ahead.depth[i, c]
-                    blocked, thick = ahead.blocked[i, c], ahead.thickness[i, c]
-                    squeezed, cos_a = ahead.squeezed[i, c], ahead.cosine[i, c]
+                    j = rows[i]
+                    peak, imp, depth = ahead.peak[j, c], ahead.impulse[j, c], ahead.depth[j, c]
+                    blocked, thick = ahead.blocked[j, c], ahead.thickness[j, c]
+                    squeezed, cos_a = ahead.squeezed[j, c], ahead.cosine[j, c]
                 # pulverizing starts at the loaded surface: a deeper voxel is reached once
                 # those in front of it have gone (in order of arrival)
                 i0 = strength.voxel_impulse[strength.material[v]] * thick / REFERENCE_THICKNESS
@@ -442,44 +443,6 @@ def _dust_once(v, geometry, links, voxel_alive, loads, rot, rx, ry, rz) -> None:
         held[there, a] -= held[own, a]
 
 
-def arrival_order(front, voxel_centroid, voxels, bodies, candidate, active) -> np.ndarray:
-    """The alive candidate voxels (candidate (N,) bool) of active bodies that a front
-    crosses this step, in order of the earliest crossing front's arrival time there
-    (its time of detonation plus the arrival time at that distance), ties by index:
-    (K,) int64. NumPy's stable sort, not numba's (which costs a first run 2 s of
-    compilation)."""
-    ids, when = _arrivals(front, voxel_centroid, voxels, bodies, candidate, active)
-    return ids[np.argsort(when, kind="stable")]
-
-
-@kernel
-def _arrivals(front, voxel_centroid, voxels, bodies, candidate, active):
-    """(ids (K,) int64 ascending, arrival times (K,) s) of :func:`arrival_order`."""
-    n = voxel_centroid.shape[0]
-    ids = np.empty(n, dtype=np.int64)
-    when = np.empty(n)
-    count = 0
-    centre = np.empty(3)
-    for v in range(n):
-        if not candidate[v] or not voxels.alive[v]:
-            continue
-        b = voxels.body[v]
-        if not active[b]:
-            continue
-        to_world_into(bodies.rot[b], bodies.pos[b], bodies.com[b], voxel_centroid[v], centre)
-        first = np.inf
-        for c in range(front.position.shape[0]):
-            r = crossing(centre, front.position, front.inner, front.outer, c)
-            if r >= 0.0:
-                ta = face_params_at(front.table, front.burst[c], r, front.scale[c])[1]
-                first = min(first, front.time[c] + ta)
-        if first < np.inf:
-            ids[count] = v
-            when[count] = first
-            count += 1
-    return ids[:count], when[:count]
-
-
 @kernel
 def fracture_damage(front, params, geometry, link_geometry, links, voxels, bodies,
                     marks) -> int:
@@ -575,23 +538,25 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
     exposure = exposure_of(model, state, front.position, marks.active, gas)
     candidate = _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
                             state.scratch.voxel_candidate, front)
-    order = arrival_order(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
+    ids, when = _arrivals(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
     members = (model.thickness, model.wave_speed, model.material, MEMBER_NORMALS,
                model.member_axis)
+    parts = (model.voxels, model.links, model.strength, members)
+    hold_room(state, len(ids))  # each voxel it dusts holds its impulse (new loads arrays)
+    run_state = (state.links, state.voxels, state.bodies, marks, state.loads)
     ahead = no_views_ahead(len(front.position))
-    if params.pressure_impulse and len(order):
-        k, c = len(order), len(front.position)
+    if params.pressure_impulse and len(ids):
+        k, c = len(ids), len(front.position)
         ahead = AheadViews(np.zeros((k, c), dtype=bool), np.empty((k, c)), np.empty((k, c)),
                            np.empty((k, c)), np.zeros((k, c), dtype=bool), np.empty((k, c)),
                            np.zeros((k, c), dtype=bool), np.empty((k, c)))
         views_ahead(front, model.voxels, members, state.bodies, state.voxels.body, exposure,
-                    order, ahead)
-    hold_room(state, len(order))  # each voxel it dusts holds its impulse
-    released, n = fracture_wave(
-        front, params, (model.voxels, model.links, model.strength, members),
-        (state.links, state.voxels, state.bodies, marks, state.loads), order, exposure,
-        wave_views(state, len(front.position)), ahead)
+                    ids, ahead)
+    order, rows = wave_order(ids, when, params.pressure_impulse and len(ids) > 0 and order_free(
+        front, parts, run_state, ids, exposure, ahead))
+    released, n = fracture_wave(front, params, parts, run_state, order, rows, exposure,
+                                wave_views(state, len(front.position)), ahead)
     if params.pressure_impulse and marks.destroyed.any():
         state.holding = True  # the split hands the dust its impulse (release_held)
     if s.fracture == "damage":

@@ -239,8 +239,9 @@ def build_model(model: VoxelModel) -> SimModel:
     grid_cell = grid_cell if grid_cell > 0.0 else 1.0
     link_midpoint = np.ascontiguousarray(a["link_midpoint"], dtype=np.float64)
     mass = np.ascontiguousarray(a["voxel_mass"], dtype=np.float64)
+    corner = corner_boxes(vertices, corners)  # (lo, hi): both box sets start from it
     box_half, box_radius, contact_vertices, contact_corners = _contact_boxes(
-        a, vertices, corners, voxel_centroid)
+        a, vertices, corners, voxel_centroid, corner)
     voxels = VoxelGeometry(
         vertices=vertices, corners=corners, mass=mass, centroid=voxel_centroid,
         inertia=np.ascontiguousarray(a["voxel_inertia"], dtype=np.float64),
@@ -257,7 +258,9 @@ def build_model(model: VoxelModel) -> SimModel:
         direction=np.ascontiguousarray(a["link_direction"], dtype=np.float64))
     conform = conform_boxes(vertices, corners, a["conform_voxels"], a["conform_offsets"],
                             a["conform_triangles"])
-    boxes = solid_boxes(vertices, corners, a["conform_voxels"], *conform)  # start-up only
+    boxes = solid_boxes(vertices, corners, a["conform_voxels"], *conform,
+                        corner=corner)  # start-up only; corner's arrays become its own
+    del corner
     rest_grid = build_occupancy(
         vertices, corners, (slot, *conform), boxes, voxel_centroid,
         typical_edge(a["voxel_volume"], slot >= 0, vertices, corners))
@@ -307,22 +310,25 @@ BOX_LIKE = 0.9
 
 
 def _contact_boxes(a: dict, vertices: np.ndarray, corners: np.ndarray,
-                   centroid: np.ndarray) -> tuple:
+                   centroid: np.ndarray, corner: tuple[np.ndarray, np.ndarray]) -> tuple:
     """The voxels' contact boxes and ground corners (see :class:`VoxelGeometry`): a
     box-like solid's box (the model's ``voxel_solid_box``: a wall's cell cut along a
     lattice plane), else its corners' box, scaled to the solid's volume
     (:func:`voxel_boxes`); the 8 corners of a solid box about the centroid are the
     ground's. A cell cut on a slant (a roof's) keeps its cell's proportions: the box of
     a thin wedge, centred on its centroid, would stand out of the wedge (the house's
-    roof cells sank 0.52 voxels into each other, against 0.37)."""
-    lo, hi = corner_boxes(vertices, corners)
+    roof cells sank 0.52 voxels into each other, against 0.37). corner: (lo, hi) (N, 3)
+    m, the :func:`~blastvox.geometry.boxes.corner_boxes` of the voxels (read only)."""
+    lo, hi = corner
     own = np.zeros(len(corners), dtype=bool)
     solid = _solid_volume(a)
     if "voxel_solid_box" in a:
         box = np.asarray(a["voxel_solid_box"], dtype=np.float64)
         own = ((box[:, 0] != lo) | (box[:, 1] != hi)).any(axis=1) & (
             solid >= BOX_LIKE * np.prod(box[:, 1] - box[:, 0], axis=1))
-        lo[own], hi[own] = box[own, 0], box[own, 1]
+        if own.any():
+            lo, hi = lo.copy(), hi.copy()
+            lo[own], hi[own] = box[own, 0], box[own, 1]
     half, radius = voxel_boxes(lo, hi, solid)
     mine = np.flatnonzero(own)
     signs = np.array([[(c >> k & 1) * 2.0 - 1.0 for k in range(3)] for c in range(8)])
@@ -422,12 +428,16 @@ def member_chunks(voxel_chunk: np.ndarray, ends: np.ndarray,
         return voxel_chunk
     from blastvox.simulate.stress import node_labels
 
+    # of each pair of member normals (D, D), the same bits as the dot of each link's two
+    # (one per pair, not per link: the (L, 3) normals of both ends took 140 MB)
+    pairs = np.indices((len(MEMBER_NORMALS),) * 2).reshape(2, -1)
+    same = (np.abs(np.einsum("ij,ij->i", MEMBER_NORMALS[pairs[0]], MEMBER_NORMALS[pairs[1]]))
+            >= SAME_MEMBER).reshape(len(MEMBER_NORMALS), len(MEMBER_NORMALS))
     together = np.empty(len(ends), dtype=bool)
-    for block in link_blocks(len(ends)):  # the (L, 3) normals of both ends took 140 MB
+    for block in link_blocks(len(ends)):
         a, b = ends[block, 0], ends[block, 1]
-        normal_a, normal_b = MEMBER_NORMALS[member_axis[a]], MEMBER_NORMALS[member_axis[b]]
-        together[block] = (voxel_chunk[a] == voxel_chunk[b]) & (
-            np.abs(np.einsum("ij,ij->i", normal_a, normal_b)) >= SAME_MEMBER)
+        together[block] = (voxel_chunk[a] == voxel_chunk[b]) & same[member_axis[a],
+                                                                    member_axis[b]]
     n = len(voxel_chunk)  # the components of the links kept, numbered as components does
     labels = np.empty(n, dtype=np.int32)
     node_labels(np.ascontiguousarray(ends, dtype=np.int32), together, np.ones(n, dtype=bool),

@@ -80,11 +80,15 @@ def conform_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.
 
 
 def solid_boxes(vertices: np.ndarray, corners: np.ndarray, conform_voxels: np.ndarray,
-                box_lo: np.ndarray, box_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                box_lo: np.ndarray, box_hi: np.ndarray,
+                corner: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Each voxel's solid bounding box at rest, (lo, hi) (N, 3) m: its corners' box
     (vertices (V, 3) m, corners (N, 8)), or for a conform voxel (conform_voxels (C,))
-    its box (box_lo, box_hi (C, 3) m: :func:`conform_boxes`)."""
-    lo, hi = corner_boxes(vertices, corners)
+    its box (box_lo, box_hi (C, 3) m: :func:`conform_boxes`). corner: the corners'
+    boxes (lo, hi) if worked out already (:func:`corner_boxes`): they are changed
+    into the result."""
+    lo, hi = corner_boxes(vertices, corners) if corner is None else corner
     lo[conform_voxels] = box_lo
     hi[conform_voxels] = box_hi
     return lo, hi
@@ -311,53 +315,68 @@ def sight_line(grid, px, py, pz, qx, qy, qz, skip_own):
         return False, -1, 0.0
     if t_lo > 0.0 and skip_own:
         skip_own = False  # p is outside the grid: it cannot be inside solid
-    idx = np.empty(3, dtype=np.int64)
-    step = np.empty(3, dtype=np.int64)
-    t_next = np.empty(3)
-    t_delta = np.empty(3)
-    for a in range(3):
-        x = (p[a] + t_lo * d[a] - origin[a]) / cell
-        idx[a] = min(max(int(math.floor(x)), 0), dims[a] - 1)
-        if d[a] > 0.0:
-            step[a] = 1
-            t_next[a] = t_lo + ((idx[a] + 1) - x) * cell / d[a]
-            t_delta[a] = cell / d[a]
-        elif d[a] < 0.0:
-            step[a] = -1
-            t_next[a] = t_lo + (idx[a] - x) * cell / d[a]
-            t_delta[a] = -cell / d[a]
-        else:
-            step[a] = 0
-            t_next[a] = _HUGE
-            t_delta[a] = _HUGE
-    in_own = skip_own and _occupied(grid, idx[0], idx[1], idx[2])
+    # the walk's state in scalars, not arrays: registers, no allocation per ray
+    ix, sx, nx, tx = _axis_start(p[0], d[0], origin[0], t_lo, cell, dims[0])
+    iy, sy, ny, ty = _axis_start(p[1], d[1], origin[1], t_lo, cell, dims[1])
+    iz, sz, nz, tz = _axis_start(p[2], d[2], origin[2], t_lo, cell, dims[2])
+    count, stride_x, stride_y = grid.count, dims[1] * dims[2], dims[2]
+    flat = (ix * dims[1] + iy) * dims[2] + iz  # as _occupied's index
+    in_own = skip_own and count[flat] > 0
     exit_axis, exit_depth = -1, 0.0
     last_axis, last_t = -1, 0.0
     while True:
-        solid = _occupied(grid, idx[0], idx[1], idx[2])
+        solid = count[flat] > 0
         if in_own:
             if not solid:
                 in_own = False
                 exit_axis, exit_depth = last_axis, last_t * length
         elif solid:
             return True, exit_axis, exit_depth
-        a = 0
-        if t_next[1] < t_next[a]:
-            a = 1
-        if t_next[2] < t_next[a]:
-            a = 2
-        if t_next[a] > t_hi:
+        # the axis whose next cell boundary comes first (the lower axis on a tie)
+        a, t_next = (1, ny) if ny < nx else (0, nx)
+        if nz < t_next:
+            a, t_next = 2, nz
+        if t_next > t_hi:
             break
-        idx[a] += step[a]
-        if idx[a] < 0 or idx[a] >= dims[a]:
-            break
-        last_axis, last_t = a, t_next[a]
-        t_next[a] += t_delta[a]
+        if a == 0:
+            ix += sx
+            if ix < 0 or ix >= dims[0]:
+                break
+            flat += sx * stride_x
+            nx += tx
+        elif a == 1:
+            iy += sy
+            if iy < 0 or iy >= dims[1]:
+                break
+            flat += sy * stride_y
+            ny += ty
+        else:
+            iz += sz
+            if iz < 0 or iz >= dims[2]:
+                break
+            flat += sz
+            nz += tz
+        last_axis, last_t = a, t_next
     if in_own:  # never left solid inside the grid: it leaves through the grid's face
         # (the axis of the last cell stepped was not that face's: a wall at the grid's low
         # edge took its inner links as loaded at normal incidence from one side only)
         exit_axis, exit_depth = clip_axis, t_hi * length
     return False, exit_axis, exit_depth
+
+
+@helper
+def _axis_start(p, d, origin, t_lo, cell, dim):
+    """One axis of :func:`sight_line`'s walk (Amanatides & Woo): from the point p (m)
+    along d (m, the segment's extent on this axis), entering the grid at parameter
+    t_lo: (first cell's index, step -1/0/1, parameter of the next cell boundary,
+    parameter per cell)."""
+    x = (p + t_lo * d - origin) / cell
+    idx = min(max(int(math.floor(x)), 0), dim - 1)
+    if d > 0.0:
+        return idx, 1, t_lo + ((idx + 1) - x) * cell / d, cell / d
+    if d < 0.0:
+        return idx, -1, t_lo + (idx - x) * cell / d, -cell / d
+    return idx, 0, _HUGE, _HUGE
 
 
 @kernel
