@@ -32,20 +32,10 @@ def crossing(point, charge_pos, reach_in, reach_out, c) -> float:
     return -1.0
 
 
-def arrival_order(front, voxel_centroid, voxels, bodies, candidate, active) -> np.ndarray:
-    """The alive candidate voxels (candidate (N,) bool) of active bodies that a front
-    crosses this step, in order of the earliest crossing front's arrival time there
-    (its time of detonation plus the arrival time at that distance), ties by index:
-    (K,) int64. NumPy's stable sort, not numba's (which costs a first run 2 s of
-    compilation)."""
-    ids, when = _arrivals(front, voxel_centroid, voxels, bodies, candidate, active)
-    return ids[np.argsort(when, kind="stable")]
-
-
 def wave_order(ids: np.ndarray, when: np.ndarray, free: bool) -> tuple[np.ndarray, np.ndarray]:
     """(order, rows) (K,) int64 for :func:`~blastvox.simulate.fracture.fracture_wave`:
     the crossed voxels ``ids`` (K,) ascending, in order of arrival (``when`` (K,) s;
-    ties by index, as :func:`arrival_order`), or, when ``free`` (:func:`order_free`),
+    ties by index), or, when ``free`` (:func:`order_free`),
     in index order, which reads the model's arrays front to back instead of scattered
     over the shell (a million-voxel block's wave ran ~4x faster); rows: each one's row
     in ids."""
@@ -100,8 +90,10 @@ def order_free(front, parts, run_state, ids, exposure, ahead) -> bool:
 
 
 @kernel
-def _arrivals(front, voxel_centroid, voxels, bodies, candidate, active):
-    """(ids (K,) int64 ascending, arrival times (K,) s) of :func:`arrival_order`."""
+def arrivals(front, voxel_centroid, voxels, bodies, candidate, active):
+    """The alive candidate voxels (candidate (N,) bool) of active bodies that a front
+    crosses this step: (ids (K,) int64 ascending, the earliest crossing front's arrival
+    time there (K,) s: its time of detonation plus the arrival time at that distance)."""
     n = voxel_centroid.shape[0]
     ids = np.empty(n, dtype=np.int64)
     when = np.empty(n)

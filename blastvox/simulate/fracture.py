@@ -32,7 +32,7 @@ import numpy as np
 from blastvox.blast.face_load import face_load_nb, face_params_at
 from blastvox.geometry.transforms_nb import to_world_into
 from blastvox.jit import helper, kernel, parallel_kernel
-from blastvox.simulate.arrivals import _arrivals, crossing, order_free, wave_order
+from blastvox.simulate.arrivals import arrivals, crossing, order_free, wave_order
 from blastvox.simulate.clearing import exposure_of
 from blastvox.simulate.criteria import (
     REFERENCE_THICKNESS,
@@ -197,7 +197,7 @@ def fracture_wave(front, params, parts, run_state, order, rows, exposure, views,
     of to be judged, once per wave: dust, break or weaken them; wear foundations.
 
     order (K,) int64: the voxels a front crosses this step, the only ones tested, in
-    order of the wave's arrival (:func:`~blastvox.simulate.arrivals.arrival_order`),
+    order of the wave's arrival (:func:`~blastvox.simulate.arrivals.wave_order`),
     or of their index when that gives the same bytes
     (:func:`~blastvox.simulate.arrivals.order_free`); rows (K,) int64: each one's row
     of ``ahead``. parts: the model's
@@ -538,7 +538,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
     exposure = exposure_of(model, state, front.position, marks.active, gas)
     candidate = _candidates(model, state, model.voxel_grid, state.scratch.voxel_owner,
                             state.scratch.voxel_candidate, front)
-    ids, when = _arrivals(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
+    ids, when = arrivals(front, model.voxels.centroid, state.voxels, state.bodies, candidate,
                           marks.active)
     members = (model.thickness, model.wave_speed, model.material, MEMBER_NORMALS,
                model.member_axis)
