@@ -33,15 +33,10 @@ def boundary_lists(voxels, conform_slot, n_bodies):
 
 def boundary_of(model, state) -> tuple[np.ndarray, np.ndarray]:
     """Each body's boundary voxels (offsets (B+1,), voxels), rebuilt only after a topology
-    change (:func:`blastvox.simulate.topology.split_phase` drops the cache). Also grows
-    the ground-contact scratch (contacts.points) to fit the largest body."""
+    change (:func:`blastvox.simulate.topology.split_phase` drops the cache)."""
     caches = state.caches
     if caches.boundary is None:
-        offsets, members = boundary_lists(state.voxels, model.voxels.conform_slot,
-                                          state.n_bodies)
-        need = 8 * int(np.diff(offsets).max(initial=0)) + 8
-        if need > len(state.contacts.points):
-            state.contacts = state.contacts._replace(points=np.zeros((need, 3)))
-        caches.boundary = (offsets, members)
+        caches.boundary = boundary_lists(state.voxels, model.voxels.conform_slot,
+                                         state.n_bodies)
         caches.version += 1
     return caches.boundary

@@ -128,14 +128,14 @@ def initial_state(model: VoxelModel, sm: SimModel, ground: bool = True) -> State
     capacity = n_objects + min(SPARE_BODIES, 2 * n + 2)  # grows as splits need
     foundation = a["voxel_foundation"].copy() if ground else np.zeros(n, dtype=bool)
     voxels = Voxels(
-        body=objects.copy(), alive=np.ones(n, dtype=bool), link_mask=np.zeros(n, dtype=np.uint8),
-        yield_pa=a["voxel_yield"].astype(np.float64).copy(), foundation=foundation,
-        foundation_pa=a["voxel_foundation_yield"].astype(np.float64).copy(),
+        body=objects, alive=np.ones(n, dtype=bool), link_mask=np.zeros(n, dtype=np.uint8),
+        yield_pa=a["voxel_yield"].astype(np.float64), foundation=foundation,
+        foundation_pa=a["voxel_foundation_yield"].astype(np.float64),
         # the model's own combustibility until a fire burns it (_start_fire copies it)
         damage=np.zeros(n), combust=np.asarray(a["voxel_combustibility"], dtype=np.float64),
         burning=np.zeros(n, dtype=bool))
     links = Links(alive=np.ones(n_links, dtype=bool),
-                  yield_pa=a["link_yield"].astype(np.float64).copy())
+                  yield_pa=a["link_yield"].astype(np.float64))
     bodies = empty_bodies(capacity)
     bodies.count[0] = n_objects
     order = np.argsort(objects, kind="stable").astype(np.int32)  # as split_bodies' members

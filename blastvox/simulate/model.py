@@ -331,6 +331,8 @@ def _contact_boxes(a: dict, vertices: np.ndarray, corners: np.ndarray,
             lo[own], hi[own] = box[own, 0], box[own, 1]
     half, radius = voxel_boxes(lo, hi, solid)
     mine = np.flatnonzero(own)
+    if not mine.size:  # cubes and cells cut along lattice planes only: the model's corners
+        return half, radius, vertices, corners
     signs = np.array([[(c >> k & 1) * 2.0 - 1.0 for k in range(3)] for c in range(8)])
     extra = (centroid[mine, None, :] + signs[None] * half[mine, None, :]).reshape(-1, 3)
     contact_corners = corners.copy()

@@ -419,6 +419,7 @@ def ground_rows(model, state, settings, dt: float, ground: float, start: int) ->
     them in the run's counters. ground: the plane's height along the model's up axis, m.
     """
     offsets, members = boundary_of(model, state)
+    _fit_points(state, offsets)
     memory = state.contacts.memory
     if memory is None:
         memory = new_memory(state, voxel_size(model.voxels.contact_radius), np.zeros((0, 3)),
@@ -432,6 +433,17 @@ def ground_rows(model, state, settings, dt: float, ground: float, start: int) ->
                         memory, start)
     state.counters.ground_contacts += int(memory.rows.used[start:end].sum())
     return end
+
+
+def _fit_points(state, offsets: np.ndarray) -> None:
+    """Grow the ground's corner scratch (contacts.points) to hold the corners of the
+    largest body that can move (a founded one is never scanned: a million-voxel founded
+    block would hold 11 MB of it for nothing)."""
+    bodies, n = state.bodies, state.n_bodies
+    movable = bodies.live[:n] & ~bodies.fixed[:n] & ~bodies.dust[:n]
+    need = 8 * int(np.diff(offsets[:n + 1])[movable].max(initial=0)) + 8
+    if need > len(state.contacts.points):
+        state.contacts = state.contacts._replace(points=np.zeros((need, 3)))
 
 
 def settle_on_ground(model, state, settings, dt: float, start: int, end: int) -> None:
