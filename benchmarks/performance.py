@@ -319,6 +319,40 @@ def stream_gbs(mib: int = 256, repeat: int = 3) -> float:
     return 2 * nbytes / copy_seconds(2 * nbytes, 1, repeat) / 1e9
 
 
+def peak_cell(r: dict) -> str:
+    """The peak RSS cell of table (a): one simulate()'s (the timing worker's)."""
+    alone = r.get("simulate_peak_mib")
+    worker = f"{r['peak_mib']:,.0f}"
+    return worker if alone is None else f"{alone:,.0f} ({worker})"
+
+
+#: One ``simulate()`` of a block in a process that imports only blastvox (the benchmark's
+#: own imports, trimesh and pybullet among them, are ~50 MiB that a user's run does not
+#: hold); argv: model path, charge x (m), dt (s), duration (s).
+MEMORY_PROBE = """
+import resource, sys
+from blastvox.model import VoxelModel
+from blastvox.simulate import engine
+from blastvox.simulate.settings import ChargeSpec, SimSettings
+model = VoxelModel.load(sys.argv[1])
+charge = ChargeSpec((float(sys.argv[2]), 0.0, 0.0), 1.0, "TNT", 0.0)
+engine.simulate(model, SimSettings(dt=float(sys.argv[3]), duration=float(sys.argv[4]),
+                                   charges=(charge,), collisions=False))
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+"""
+
+
+def simulate_peak_mib(model_path: Path) -> float | None:
+    """Peak resident set (MiB) of one ``simulate()`` of a block (the settings of
+    :func:`settings_for`) in a process of its own (:data:`MEMORY_PROBE`): Python, numba
+    and its cached kernels, the model as loaded, and the run. None if it failed."""
+    settings = settings_for(Case("block", cells=1, duration=BLOCK_DURATION))
+    proc = subprocess.run([sys.executable, "-c", MEMORY_PROBE, str(model_path),
+                           repr(settings.charges[0].position[0]), repr(settings.dt),
+                           repr(settings.duration)], capture_output=True, text=True)
+    return float(proc.stdout.split()[-1]) if proc.returncode == 0 else None
+
+
 def throughput_worker(cells: int, model_path: Path, repeat: int, profile: bool) -> dict:
     """Count, then time ``simulate`` of one block; measure its bandwidth bound; with
     ``profile``, one more run timed phase by phase (called in a worker process)."""
@@ -380,8 +414,10 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
           "counting run (at least 5 up to 10^4 voxels). Loop: the steps and the frame "
           "recording, i.e. `simulate()` less building the run and packing the cache. Bound: "
           "NumPy copying the bytes the loop's sweeps must at least read and write (byte model "
-          "in `performance.py`), step by step, in the same process. Peak RSS: the worker "
-          "process's (Python, numba, the model and the runs); estimate: the memory budget's "
+          "in `performance.py`), step by step, in the same process. Peak RSS: one `simulate()` "
+          "in a process of its own (Python, numba's cached kernels, the model and the run; "
+          "the timing worker's, which also holds its counting run, in brackets); estimate: "
+          "the memory budget's "
           "figure for the run (`blastvox.simulate.settings.run_memory_bytes`: the model, the "
           "run's arrays and the kernels, not the interpreter's ~100 MiB).\n")
     print("| voxels | links | steps | simulate s | voxel-steps/s | loop s | model MB/step | "
@@ -402,6 +438,7 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
                 lines = proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"]
                 raise RuntimeError(f"worker crashed: {lines[-1]}")
             r = json.loads(proc.stdout.strip().splitlines()[-1])
+            r["simulate_peak_mib"] = simulate_peak_mib(model)
         except (RuntimeError, ValueError, IndexError) as exc:
             crashed = True
             print(f"| {cells ** 3:,} | — | — | — | — | — | — | — | error: {exc} | — | — | — |",
@@ -415,7 +452,7 @@ def throughput(directory: Path, quick: bool, repeat: int) -> tuple[dict[int, dic
         print(f"| {r['voxels']:,} | {r['links']:,} | {r['steps']} | {best:.3f} | "
               f"{r['voxels'] * r['steps'] / best / 1e6:,.2f}M | {loop:.3f} | "
               f"{r['bytes'] / r['steps'] / 1e6:,.2f} | {r['bound']:.4f} | "
-              f"{loop / r['bound']:,.1f}× | {r['pieces']:,} | {r['peak_mib']:,.0f} | "
+              f"{loop / r['bound']:,.1f}× | {r['pieces']:,} | {peak_cell(r)} | "
               f"{r['estimate_mib']:,.0f} |", flush=True)
     if missing:
         print(f"\nByte model: kernels not found in blastvox.simulate, so not counted: "
