@@ -99,21 +99,26 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
             continue
         rows_of = order[bounds[i]:bounds[i + 1]]
         stress.rested[b] = key
-        members = np.flatnonzero(voxels.alive & (voxels.body == b))
         placed = ~on_ground[rows_of] & (support[rows_of] >= 0)
         under = support[rows_of][placed]
-        at = exact.vecmat(point[rows_of][placed] - bodies.pos[b], bodies.rot[b]) + bodies.com[b]
+        members = lying = None
         if ground is not None and key[2]:
+            members = np.flatnonzero(voxels.alive & (voxels.body == b))
             lying = _on_the_ground(model, bodies, b, members, ground)
-            under = np.concatenate([under, lying])
-            at = np.concatenate([at, model.voxels.centroid[lying]])
-        if not under.size:
+        if not under.size and (lying is None or not lying.size):
             continue
         # a pile's contacts flicker: a support it stood on comes back
-        signature = np.unique(under).tobytes()
-        down = exact.vecmat(gravity, bodies.rot[b])  # gravity in its rest frame
+        signature = np.unique(under if lying is None
+                              else np.concatenate([under, lying])).tobytes()
+        down = _in_rest_frame(gravity, bodies.rot[b])
         if _stood_before(stress, b, signature, down):
             continue
+        at = exact.vecmat(point[rows_of][placed] - bodies.pos[b], bodies.rot[b]) + bodies.com[b]
+        if lying is not None:
+            under = np.concatenate([under, lying])
+            at = np.concatenate([at, model.voxels.centroid[lying]])
+        if members is None:
+            members = np.flatnonzero(voxels.alive & (voxels.body == b))
         if _supported(model, state, stress, b, members, under, at, gravity):
             any_broken = True
         else:
@@ -122,13 +127,28 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
     return any_broken
 
 
-def _stood_before(stress: Stress, b: int, signature: bytes, down: np.ndarray) -> bool:
+def _in_rest_frame(gravity: np.ndarray, rot: np.ndarray) -> tuple[float, float, float]:
+    """gravity (3,) in the rest frame of a body turned by rot (3, 3): g R, in Python
+    floats (the same IEEE operations, in the same order, as
+    :func:`blastvox.geometry.exact.vecmat`; a pile asks it of hundreds of bodies a step)."""
+    g0, g1, g2 = gravity.tolist()
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot.tolist()
+    return (g0 * r00 + g1 * r10 + g2 * r20, g0 * r01 + g1 * r11 + g2 * r21,
+            g0 * r02 + g1 * r12 + g2 * r22)
+
+
+def _stood_before(stress: Stress, b: int, signature: bytes, down) -> bool:
     """Whether body b stood on the supporting voxels ``signature`` (sorted, as bytes)
     with gravity ``down`` (3,) m/s^2 in its rest frame within :data:`SAME_TILT` rad of
-    a direction it was judged under since its voxels last changed."""
-    for seen in stress.judged.get(b, {}).get(signature, ()):
-        cos = float(exact.dot(seen, down)) / float(exact.norm(seen) * exact.norm(down))
-        if cos >= math.cos(SAME_TILT):
+    a direction it was judged under since its voxels last changed (Python floats: the
+    same roundings as :mod:`blastvox.geometry.exact`'s products, without an array per
+    direction)."""
+    d0, d1, d2 = (float(x) for x in down)
+    size = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    least = math.cos(SAME_TILT)
+    for s0, s1, s2 in stress.judged.get(b, {}).get(signature, ()):
+        cos = (s0 * d0 + s1 * d1 + s2 * d2) / (math.sqrt(s0 * s0 + s1 * s1 + s2 * s2) * size)
+        if cos >= least:
             return True
     return False
 
