@@ -14,7 +14,7 @@ frame_time                 (F,) f8         s, output frame times
 voxel_piece                (N,) i4         final piece of each voxel
 piece_pivot                (P, 3) f8       m, rest centre of mass (model frame)
 piece_mass                 (P,) f8         kg
-piece_position             (F, P, 3) f4    m, world position of the pivot
+piece_position             (F, P, 3) f8    m, world position of the pivot (f4 in version 1)
 piece_orientation          (F, P, 4) f4    unit quaternion (w, x, y, z), rest -> world
 piece_end_frame            (P,) i4         first frame the piece is gone (F if never)
 voxel_destroyed_frame      (N,) i4         frame the voxel turned to dust, -1 never
@@ -72,7 +72,9 @@ from blastvox.model import COORD_LIMIT_M, VoxelModel, check_model
 from blastvox.particles import SYSTEM_NAMES
 
 SCHEMA = "blastvox.SimCache"
-SCHEMA_VERSION = 1
+#: 2: piece_position is float64 (version 1's float32 moved a scene 100 km from the
+#: origin in 7.8 mm steps); version 1 files are still read, their positions widened
+SCHEMA_VERSION = 2
 MODEL_PREFIX = "model."
 UNITS = {"length": "m", "time": "s", "mass": "kg", "velocity": "m/s", "damage": "1/255"}
 
@@ -84,7 +86,7 @@ _F8, _F4, _I4, _U1 = np.float64, np.float32, np.int32, np.uint8
 _REQUIRED: dict[str, Spec] = {
     "frame_time": (_F8, ("F",)), "voxel_piece": (_I4, ("N",)),
     "piece_pivot": (_F8, ("P", 3)), "piece_mass": (_F8, ("P",)),
-    "piece_position": (_F4, ("F", "P", 3)), "piece_orientation": (_F4, ("F", "P", 4)),
+    "piece_position": (_F8, ("F", "P", 3)), "piece_orientation": (_F4, ("F", "P", 4)),
     "piece_end_frame": (_I4, ("P",)), "voxel_destroyed_frame": (_I4, ("N",)),
     "damage_frame": (_I4, ("D",)), "damage_voxel": (_I4, ("D",)),
     "damage_value": (_U1, ("D",)), "link_break_link": (_I4, ("K",)),
@@ -154,6 +156,7 @@ class SimCache:
         model_arrays = {k[len(MODEL_PREFIX):]: arrays.pop(k) for k in list(arrays)
                         if k.startswith(MODEL_PREFIX)}
         model_meta = meta.pop("model", None)
+        upgrade(meta, arrays)
         check_cache(path, arrays, meta, model_arrays, model_meta)
         model = VoxelModel(arrays=model_arrays, meta=model_meta)
         return cls(arrays=arrays, model=model, meta=meta)
@@ -180,6 +183,17 @@ class SimCache:
             **{f"momentum_{term}_n_s": [round(x, 3) for x in value]
                for term, value in self.meta.get("momentum", {}).items()},
         }
+
+
+def upgrade(meta: Mapping[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    """Bring the arrays of an older SimCache (``meta["schema_version"]`` < 2) to this
+    version in place, losing nothing: version 1's float32 ``piece_position`` becomes
+    float64. Anything else is left for :func:`check_cache` to judge."""
+    version = meta.get("schema_version")
+    position = arrays.get("piece_position")
+    if isinstance(version, int) and version < 2 and position is not None \
+            and position.dtype == np.float32:
+        arrays["piece_position"] = position.astype(np.float64)
 
 
 #: A piece moved when its centre travelled further than this over the shot (m).

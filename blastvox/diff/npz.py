@@ -23,6 +23,8 @@ def _load_npz(path: Path) -> tuple[str, dict[str, Any], dict[str, np.ndarray]]:
 
     versions = {model.SCHEMA: model.SCHEMA_VERSION, cache.SCHEMA: cache.SCHEMA_VERSION}
     meta, arrays = read_contract(path, versions, what="file")  # diff_files names the error
+    if meta["schema"] == cache.SCHEMA:
+        cache.upgrade(meta, arrays)  # an older SimCache compares as this version reads it
     return meta["schema"], meta, arrays
 
 

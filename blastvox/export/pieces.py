@@ -28,8 +28,8 @@ from blastvox.geometry.frames import frame_change
 from blastvox.geometry.transforms import change_frame
 from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG, face_triangles
 
-__all__ = ["FRACTURE_FACES", "Animation", "PieceMeshes", "animation", "frame_change",
-           "piece_meshes"]
+__all__ = ["FRACTURE_FACES", "ORIGIN_GRID_M", "Animation", "PieceMeshes", "animation",
+           "export_origin", "frame_change", "piece_meshes"]
 
 #: How an export draws the fracture faces: rubble surfaces, or the voxels' cell faces.
 FRACTURE_FACES = ("rough", "voxel")
@@ -79,6 +79,31 @@ def animation(cache: SimCache, export_up: str) -> Animation:
     pos, ori = change_frame(cache.piece_position, cache.piece_orientation, c)
     return Animation(position=pos, orientation=ori, end_frame=cache.piece_end_frame.copy(),
                      times=cache.frame_time.copy())
+
+
+#: Grid (m) of an export's origin (:func:`export_origin`): a power of two, so a multiple
+#: of it within the model's 10^7 m is exact in float32 as well as float64.
+ORIGIN_GRID_M = 1024.0
+
+
+def export_origin(anim: Animation) -> np.ndarray:
+    """(3,) float64 m, export frame: the multiple of :data:`ORIGIN_GRID_M` nearest the
+    centre of the box round the pieces' first positions; zero for a scene within half a
+    grid (512 m) of the origin, which exports as before.
+
+    Formats whose coordinates are float32 (glTF's translations, USD's point arrays)
+    store the scene relative to it, and a transform above them carries it (a glTF root
+    node's translation; a USD ``xformOp:translate``, double3): float32 is 2^-24 of the
+    value, 7.8 mm at 100 km from the origin but under 0.1 mm within a scene's own
+    kilometre of it."""
+    pos = np.asarray(anim.position, dtype=np.float64)
+    if pos.size == 0:
+        return np.zeros(3)
+    first = pos[0][np.all(np.isfinite(pos[0]), axis=-1)]
+    if not len(first):
+        return np.zeros(3)
+    centre = 0.5 * (first.min(axis=0) + first.max(axis=0))
+    return np.rint(centre / ORIGIN_GRID_M) * ORIGIN_GRID_M + 0.0  # no -0
 
 
 def velocities(anim: Animation) -> tuple[np.ndarray, np.ndarray]:

@@ -98,7 +98,7 @@ class Recorder:
         return {
             "frame_time": frame_time, "voxel_piece": voxel_piece, "piece_pivot": pivot,
             "piece_mass": state.bodies.mass[final].copy(),
-            "piece_position": positions.astype(np.float32),
+            "piece_position": positions,  # float64: sub-millimetre far from the origin
             "piece_orientation": orientations.astype(np.float32),
             "piece_end_frame": end, "voxel_destroyed_frame": self.destroyed_frame,
             **self._damage_arrays(), **self._break_arrays(), **self._dust_arrays(),
