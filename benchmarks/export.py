@@ -83,7 +83,7 @@ def synthetic_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0, se
     i4, f8 = np.zeros(0, np.int32), np.zeros(0)
     arrays = {
         "frame_time": t, "voxel_piece": piece, "piece_pivot": pivot, "piece_mass": mass,
-        "piece_position": position.astype(np.float64),
+        "piece_position": position.astype(np.float32),
         "piece_orientation": orientation.astype(np.float32), "piece_end_frame": end,
         "voxel_destroyed_frame": destroyed,
         "damage_frame": d_frame[order], "damage_voxel": d_voxel[order],

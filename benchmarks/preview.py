@@ -49,7 +49,7 @@ def preview_cache(pieces: int = 1000, frames: int = 120, seed: int = 1):
     pivot = a["piece_pivot"][None]
     position = pivot + (a["piece_position"].astype(np.float64) - pivot) / 3.0
     position[..., 2] = np.maximum(position[..., 2], lo[2] + 0.25)
-    a["piece_position"] = position.astype(np.float64)
+    a["piece_position"] = position.astype(np.float32)
     charge = a["charge_position"][0]
     births, positions, velocities, systems, sizes = [], [], [], [], []
     for name, count, t_max, where, speed in (("dust", 4000, 2.0, "block", 6.0),

@@ -370,7 +370,7 @@ def fast_piece(tmp_path_factory: pytest.TempPathFactory) -> SimCache:
     t = cache.frame_time
     position = np.repeat(cache.piece_pivot[None], len(t), axis=0).astype(np.float64)
     position[:, 0, 0] += 40.0 * (t - t[len(t) // 2])  # in the middle of the view mid-shot
-    arrays["piece_position"] = position.astype(np.float64)
+    arrays["piece_position"] = position.astype(np.float32)
     camera = {"position": [0.0, -12.0, 1.0], "look_at": [0.0, 0.0, 1.0],
               "focal_length_mm": 35.0}
     return SimCache(arrays=arrays, model=cache.model, meta={**cache.meta, "camera": camera})

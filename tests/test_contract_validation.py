@@ -317,8 +317,10 @@ CACHE_CASES: list[tuple[str, Callable[[Arrays], None], tuple[str, ...]]] = [
     ("particle-size-zero", _set("particle_size", 0, 0.0), ("'particle_size'",)),
     ("particle-birth-nan", _set("particle_birth", 0, np.nan), ("'particle_birth'",)),
     ("particle-velocity-inf", _set("particle_velocity", (0, 0), np.inf), ("'particle_velocity'",)),
-    ("dtype-float32-positions", _replace("piece_position", lambda x: x.astype(np.float32)),
-     ("'piece_position'", "float64")),  # version 2: float32 only in a version 1 file
+    ("dtype-float64-positions", _replace("piece_position", lambda x: x.astype(np.float64)),
+     ("'piece_position'", "float32")),
+    ("position-origin-far", _set("position_origin", 0, 1e8), ("'position_origin'",)),
+    ("position-origin-nan", _set("position_origin", 1, np.nan), ("'position_origin'",)),
     ("missing", _drop("dust_time"), ("missing array 'dust_time'",)),
     ("meta-version-99", _meta_set("schema_version", 99), ("blastvox.SimCache version 99",)),
     ("meta-fps-zero", _meta_set("fps", 0), ("meta fps is 0",)),

@@ -50,7 +50,7 @@ def cache(tmp_path_factory) -> SimCache:
     # piece 0 bounces at frame 15: its height is mirrored about the frame's
     pos[15:SETTLED, 0, 2] = 2 * pos[15, 0, 2] - pos[15:SETTLED, 0, 2]
     pos[SETTLED:, 0] = pos[SETTLED - 1, 0]
-    arrays = {**base.arrays, "piece_position": pos.astype(np.float64),
+    arrays = {**base.arrays, "piece_position": pos.astype(np.float32),
               "piece_orientation": ori.astype(np.float32)}
     sizes = {"F": FRAMES, "N": base.model.voxel_count, "X": 1, "P": base.piece_count}
     for name, (dtype, shape) in _REQUIRED.items():  # the rest: none of them (Q, ...: 0)

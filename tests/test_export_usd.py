@@ -94,7 +94,7 @@ def synthetic(tmp_path_factory) -> SimCache:
     i4, f8 = np.zeros(0, np.int32), np.zeros(0)
     arrays = {
         "frame_time": t, "voxel_piece": piece, "piece_pivot": pivot, "piece_mass": mass,
-        "piece_position": position.astype(np.float64),
+        "piece_position": position.astype(np.float32),
         "piece_orientation": orientation.astype(np.float32), "piece_end_frame": end,
         "voxel_destroyed_frame": destroyed, "damage_frame": d_frame, "damage_voxel": d_voxel,
         "damage_value": d_value, "link_break_link": i4, "link_break_time": f8,

@@ -1,7 +1,9 @@
 """A scene 100 km from the origin keeps sub-millimetre positions (issue 37).
 
 SimCache version 1 stored ``piece_position`` as float32: 2^-24 of 100 km is 6 mm, so a
-scene that far out moved in 7.8 mm steps. Version 2 stores float64; the exports carry
+scene that far out moved in 7.8 mm steps. Version 2 stores float32 offsets from a
+float64 ``position_origin`` near the scene (2^-24 of the distance from it; float64
+positions cost the building's cache 57 % more, docs/file-formats.md); the exports carry
 it too: USD's piece translations are double3, glTF's float32 translations sit under a
 root node translated to the scene's origin (:func:`blastvox.export.pieces.export_origin`),
 and USD's float32 point arrays (the instancer's positions, the particles') under a
@@ -73,6 +75,21 @@ def test_recorded_positions_far_out_are_those_at_the_origin_shifted(shots):
     assert np.abs(rounded - SHIFT - near.piece_position).max() > MM
 
 
+def test_the_file_holds_float32_offsets_from_a_float64_origin(shots, tmp_path):
+    near, far = shots
+    for cache, origin in ((near, 0.0), (far, 98 * ORIGIN_GRID_M)):
+        cache.save(tmp_path / "c.npz")
+        with np.load(tmp_path / "c.npz") as raw:
+            assert raw["piece_position"].dtype == np.float32
+            np.testing.assert_array_equal(raw["position_origin"], [origin, 0.0, 0.0])
+            # near the origin the offsets are the positions: version 1's bytes
+            np.testing.assert_array_equal(
+                raw["piece_position"].astype(np.float64) + raw["position_origin"],
+                cache.piece_position)
+        again = SimCache.load(tmp_path / "c.npz")
+        np.testing.assert_array_equal(again.piece_position, cache.piece_position)
+
+
 def _gltf_translations(doc: dict, blob: bytes, node: int) -> np.ndarray:
     anim = doc["animations"][0]
     sampler = next(anim["samplers"][c["sampler"]] for c in anim["channels"]
@@ -124,9 +141,10 @@ def _piece_paths(stage: Usd.Stage) -> list[str]:
 
 
 def test_a_version_1_cache_is_read_with_its_positions_widened(shots, tmp_path):
-    """Old caches (float32 positions) still load: as version 2, positions float64."""
+    """Old caches (absolute float32 positions) still load, positions float64 in memory."""
     near, _ = shots
-    arrays = dict(near.arrays, piece_position=near.piece_position.astype(np.float32))
+    arrays = {k: v for k, v in near.arrays.items() if k != "position_origin"}
+    arrays["piece_position"] = near.piece_position.astype(np.float32)
     from blastvox.io.npz import write_npz
 
     meta = dict(near.meta, schema_version=1, model=near.model.contract_meta())

@@ -118,7 +118,7 @@ def static_cache(model: VoxelModel, voxel_piece: np.ndarray, frames: int,
     arrays = {
         "frame_time": np.arange(frames) / 24.0, "voxel_piece": voxel_piece.astype(np.int32),
         "piece_pivot": pivot, "piece_mass": mass,
-        "piece_position": np.repeat(pivot[None], frames, axis=0).astype(np.float64),
+        "piece_position": np.repeat(pivot[None], frames, axis=0).astype(np.float32),
         "piece_orientation": orientation,
         "piece_end_frame": (np.full(pieces, frames) if end_frame is None
                             else end_frame).astype(np.int32),

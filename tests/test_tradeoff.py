@@ -36,7 +36,7 @@ def synthetic_arrays() -> dict[str, np.ndarray]:
     return {
         "frame_time": t,
         "piece_mass": np.array([100.0, 10.0, 4.0, 1.0]),
-        "piece_position": position.astype(np.float64),
+        "piece_position": position.astype(np.float32),
         "piece_end_frame": np.array([FRAMES, FRAMES, FRAMES, 1], dtype=np.int32),
         "voxel_destroyed_frame": np.array([-1, -1, 1, -1, -1], dtype=np.int32),
         "dust_voxel": np.array([2], dtype=np.int32),

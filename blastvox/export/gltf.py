@@ -530,7 +530,7 @@ def bench_cache(pieces: int = 1000, frames: int = 120, fps: float = 24.0,
     i4, f8 = np.zeros(0, np.int32), np.zeros(0)
     arrays = {
         "frame_time": t, "voxel_piece": piece, "piece_pivot": pivot, "piece_mass": mass,
-        "piece_position": position,
+        "piece_position": position.astype(np.float32),
         "piece_orientation": orientation.astype(np.float32), "piece_end_frame": end,
         "voxel_destroyed_frame": np.full(n, -1, np.int32),
         "damage_frame": i4, "damage_voxel": i4, "damage_value": np.zeros(0, np.uint8),

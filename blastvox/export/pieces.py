@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from blastvox.cache import SimCache
+from blastvox.cache import ORIGIN_GRID_M, SimCache, position_origin
 from blastvox.export.rubble import roughen
 from blastvox.geometry import exact, fixed, quaternion
 from blastvox.geometry.frames import frame_change
@@ -81,29 +81,18 @@ def animation(cache: SimCache, export_up: str) -> Animation:
                      times=cache.frame_time.copy())
 
 
-#: Grid (m) of an export's origin (:func:`export_origin`): a power of two, so a multiple
-#: of it within the model's 10^7 m is exact in float32 as well as float64.
-ORIGIN_GRID_M = 1024.0
-
-
 def export_origin(anim: Animation) -> np.ndarray:
-    """(3,) float64 m, export frame: the multiple of :data:`ORIGIN_GRID_M` nearest the
-    centre of the box round the pieces' first positions; zero for a scene within half a
-    grid (512 m) of the origin, which exports as before.
+    """(3,) float64 m, export frame: the multiple of :data:`ORIGIN_GRID_M` (1024 m)
+    nearest the centre of the box round the pieces' first positions, as a SimCache's
+    ``position_origin`` (:func:`blastvox.cache.position_origin`) in the export's axes;
+    zero for a scene within 512 m of the origin, which exports as before.
 
     Formats whose coordinates are float32 (glTF's translations, USD's point arrays)
     store the scene relative to it, and a transform above them carries it (a glTF root
     node's translation; a USD ``xformOp:translate``, double3): float32 is 2^-24 of the
     value, 7.8 mm at 100 km from the origin but under 0.1 mm within a scene's own
     kilometre of it."""
-    pos = np.asarray(anim.position, dtype=np.float64)
-    if pos.size == 0:
-        return np.zeros(3)
-    first = pos[0][np.all(np.isfinite(pos[0]), axis=-1)]
-    if not len(first):
-        return np.zeros(3)
-    centre = 0.5 * (first.min(axis=0) + first.max(axis=0))
-    return np.rint(centre / ORIGIN_GRID_M) * ORIGIN_GRID_M + 0.0  # no -0
+    return position_origin(anim.position)
 
 
 def velocities(anim: Animation) -> tuple[np.ndarray, np.ndarray]:
