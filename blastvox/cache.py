@@ -14,7 +14,9 @@ frame_time                 (F,) f8         s, output frame times
 voxel_piece                (N,) i4         final piece of each voxel
 piece_pivot                (P, 3) f8       m, rest centre of mass (model frame)
 piece_mass                 (P,) f8         kg
-piece_position             (F, P, 3) f4    m, world position of the pivot
+piece_position             (F, P, 3) f4    m, world position of the pivot less position_origin
+position_origin            (3,) f8         m, a multiple of ORIGIN_GRID_M (zero for a scene
+                                          within 512 m of the origin; absent in version 1)
 piece_orientation          (F, P, 4) f4    unit quaternion (w, x, y, z), rest -> world
 piece_end_frame            (P,) i4         first frame the piece is gone (F if never)
 voxel_destroyed_frame      (N,) i4         frame the voxel turned to dust, -1 never
@@ -33,6 +35,13 @@ particle_birth             (Q,) f8         s
 particle_position/velocity (Q, 3) f8       m, m/s at birth (model frame)
 particle_size              (Q,) f4         m
 =========================  ==============  ======================================
+
+Positions are float32 offsets from a float64 origin near the scene: 2^-24 of the
+distance from it, under 0.1 mm within a kilometre of it, wherever the scene is (plain
+float32 moved a scene 100 km out in 7.8 mm steps). In memory (:meth:`SimCache.load`,
+and what ``simulate`` returns) ``piece_position`` is float64 world positions, the
+sum, so readers never see the offsets; :meth:`SimCache.save` splits them again,
+exactly.
 
 Particles are ballistic with drag; their positions at any time follow from
 the birth state in closed form (blastvox.particles.positions_at) with
@@ -72,7 +81,12 @@ from blastvox.model import COORD_LIMIT_M, VoxelModel, check_model
 from blastvox.particles import SYSTEM_NAMES
 
 SCHEMA = "blastvox.SimCache"
-SCHEMA_VERSION = 1
+#: 2: piece_position is relative to position_origin (version 1's, absolute float32, moved
+#: a scene 100 km from the origin in 7.8 mm steps); version 1 files are still read
+SCHEMA_VERSION = 2
+#: Grid (m) of ``position_origin``: a power of two, so its multiples within the model's
+#: 10^7 m are exact in float32 and float64 alike.
+ORIGIN_GRID_M = 1024.0
 MODEL_PREFIX = "model."
 UNITS = {"length": "m", "time": "s", "mass": "kg", "velocity": "m/s", "damage": "1/255"}
 
@@ -84,7 +98,8 @@ _F8, _F4, _I4, _U1 = np.float64, np.float32, np.int32, np.uint8
 _REQUIRED: dict[str, Spec] = {
     "frame_time": (_F8, ("F",)), "voxel_piece": (_I4, ("N",)),
     "piece_pivot": (_F8, ("P", 3)), "piece_mass": (_F8, ("P",)),
-    "piece_position": (_F4, ("F", "P", 3)), "piece_orientation": (_F4, ("F", "P", 4)),
+    "piece_position": (_F4, ("F", "P", 3)), "position_origin": (_F8, (3,)),
+    "piece_orientation": (_F4, ("F", "P", 4)),
     "piece_end_frame": (_I4, ("P",)), "voxel_destroyed_frame": (_I4, ("N",)),
     "damage_frame": (_I4, ("D",)), "damage_voxel": (_I4, ("D",)),
     "damage_value": (_U1, ("D",)), "link_break_link": (_I4, ("K",)),
@@ -143,6 +158,11 @@ class SimCache:
                     tool_version=meta.get("tool_version", __version__),
                     model=self.model.contract_meta())
         arrays = dict(self.arrays)
+        position = np.asarray(arrays["piece_position"], dtype=np.float64)
+        origin = arrays.get("position_origin")
+        origin = position_origin(position) if origin is None else np.asarray(origin, _F8)
+        arrays["position_origin"] = origin
+        arrays["piece_position"] = _offsets(position, origin)
         arrays.update({MODEL_PREFIX + k: v for k, v in self.model.arrays.items()})
         write_npz(path, arrays, meta)
 
@@ -154,7 +174,10 @@ class SimCache:
         model_arrays = {k[len(MODEL_PREFIX):]: arrays.pop(k) for k in list(arrays)
                         if k.startswith(MODEL_PREFIX)}
         model_meta = meta.pop("model", None)
+        upgrade(meta, arrays)
         check_cache(path, arrays, meta, model_arrays, model_meta)
+        arrays["piece_position"] = world_positions(arrays["position_origin"],
+                                                   arrays["piece_position"])
         model = VoxelModel(arrays=model_arrays, meta=model_meta)
         return cls(arrays=arrays, model=model, meta=meta)
 
@@ -180,6 +203,55 @@ class SimCache:
             **{f"momentum_{term}_n_s": [round(x, 3) for x in value]
                for term, value in self.meta.get("momentum", {}).items()},
         }
+
+
+def upgrade(meta: Mapping[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    """Bring the arrays of an older SimCache (``meta["schema_version"]`` < 2) to this
+    version in place, losing nothing: version 1's absolute float32 ``piece_position``
+    is the offset from a ``position_origin`` of zero. Anything else is left for
+    :func:`check_cache` to judge."""
+    version = meta.get("schema_version")
+    if isinstance(version, int) and version < 2 and "position_origin" not in arrays:
+        arrays["position_origin"] = np.zeros(3)
+
+
+def position_origin(position: np.ndarray) -> np.ndarray:
+    """(3,) float64 m: the multiple of :data:`ORIGIN_GRID_M` nearest the centre of the
+    box round the first frame's finite positions ``position`` (F, P, 3); zero for a
+    scene within half a grid (512 m) of the origin (then the offsets are the positions:
+    version 1's bytes)."""
+    position = np.asarray(position, dtype=np.float64)
+    first = position[0][np.all(np.isfinite(position[0]), axis=-1)] if len(position) else ()
+    if not len(first):
+        return np.zeros(3)
+    centre = 0.5 * (first.min(axis=0) + first.max(axis=0))
+    return np.rint(centre / ORIGIN_GRID_M) * ORIGIN_GRID_M + 0.0  # no -0
+
+
+def _offsets(position: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """float32 offsets (F, P, 3) of float64 ``position`` from ``origin`` (3,)."""
+    offset = np.array(position, dtype=np.float64)
+    for a in range(3):
+        if origin[a] != 0.0:  # an axis at zero keeps its values (and signed zeros)
+            offset[..., a] -= origin[a]
+    return offset.astype(np.float32)
+
+
+def world_positions(origin: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """float64 world positions (F, P, 3): float32 ``offset`` plus ``origin`` (3,); what
+    :meth:`SimCache.save` writes for them is ``offset`` again, exactly."""
+    out = np.asarray(offset).astype(np.float64)
+    for a in range(3):
+        if origin[a] != 0.0:
+            out[..., a] += origin[a]
+    return out
+
+
+def quantised(position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(position_origin (3,), piece_position (F, P, 3) float64) as a SimCache holds
+    float64 world positions ``position`` in memory: what it saves and loads back."""
+    origin = position_origin(position)
+    return origin, world_positions(origin, _offsets(position, origin))
 
 
 #: A piece moved when its centre travelled further than this over the shot (m).
@@ -238,6 +310,7 @@ def check_cache(path: str | os.PathLike, arrays: Mapping[str, np.ndarray],
     if pieces and not owned.min() > 0:
         fail(path, f"array 'voxel_piece' gives piece {int(np.argmin(owned))} no voxel")
     check_bound(path, "piece_pivot", a["piece_pivot"], COORD_LIMIT_M)
+    check_bound(path, "position_origin", a["position_origin"], COORD_LIMIT_M)
     check_range(path, "piece_mass", a["piece_mass"], 0.0, lo_open=True)
     check_finite(path, "piece_position", a["piece_position"])
     check_unit(path, "piece_orientation", a["piece_orientation"], QUATERNION_TOLERANCE,

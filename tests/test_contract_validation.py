@@ -319,6 +319,8 @@ CACHE_CASES: list[tuple[str, Callable[[Arrays], None], tuple[str, ...]]] = [
     ("particle-velocity-inf", _set("particle_velocity", (0, 0), np.inf), ("'particle_velocity'",)),
     ("dtype-float64-positions", _replace("piece_position", lambda x: x.astype(np.float64)),
      ("'piece_position'", "float32")),
+    ("position-origin-far", _set("position_origin", 0, 1e8), ("'position_origin'",)),
+    ("position-origin-nan", _set("position_origin", 1, np.nan), ("'position_origin'",)),
     ("missing", _drop("dust_time"), ("missing array 'dust_time'",)),
     ("meta-version-99", _meta_set("schema_version", 99), ("blastvox.SimCache version 99",)),
     ("meta-fps-zero", _meta_set("fps", 0), ("meta fps is 0",)),

@@ -23,6 +23,14 @@ def _load_npz(path: Path) -> tuple[str, dict[str, Any], dict[str, np.ndarray]]:
 
     versions = {model.SCHEMA: model.SCHEMA_VERSION, cache.SCHEMA: cache.SCHEMA_VERSION}
     meta, arrays = read_contract(path, versions, what="file")  # diff_files names the error
+    if meta["schema"] == cache.SCHEMA and "piece_position" in arrays:
+        # positions as a SimCache reads them (float64 world), whatever the version
+        cache.upgrade(meta, arrays)
+        origin = arrays.pop("position_origin", None)
+        position = arrays["piece_position"]
+        if origin is not None and origin.shape == (3,) and position.ndim == 3 \
+                and position.shape[-1] == 3:
+            arrays["piece_position"] = cache.world_positions(origin, arrays["piece_position"])
     return meta["schema"], meta, arrays
 
 

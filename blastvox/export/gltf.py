@@ -70,6 +70,7 @@ from blastvox.export.gltf_meshes import TRIANGLES, _piece_meshes, _skin_groups
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import (
     animation,
+    export_origin,
     object_groups,
     piece_meshes,
     piece_objects,
@@ -175,6 +176,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     meshes, piece_mesh = _piece_meshes(cache, b, mat_index, look["material"], pm,
                                        skin_of if skinned else None)
     anim = animation(cache, "Y")
+    origin = export_origin(anim)  # float32 far from the origin: relative to the root's
     n_pieces, n_frames = cache.piece_count, cache.frame_count
 
     nodes: list[dict[str, Any]] = []
@@ -187,7 +189,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
         channels.append({"sampler": len(samplers) - 1, "target": {"node": node, "path": path}})
 
     times = anim.times.astype(np.float32)
-    position = anim.position.astype(np.float32)  # (F, P, 3)
+    position = (anim.position - origin).astype(np.float32)  # (F, P, 3)
     rotation = _gltf_quaternions(anim.orientation)  # (F, P, 4), (x, y, z, w), sign continuous
     end = np.asarray(anim.end_frame, dtype=np.int64)
     first_t = _floats(position[0]) if n_frames else []
@@ -245,7 +247,7 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
             "roughnessFactor": 1.0}, "alphaMode": "BLEND"})
         meshes.append(_sphere_mesh(b, len(mats) - 1))
         change = frame_change(cache.model.meta.get("up_axis", "Y"), "Y")
-        centres = exact.turn(change, np.asarray(cache.charge_position, dtype=np.float64))
+        centres = exact.turn(change, np.asarray(cache.charge_position, dtype=np.float64)) - origin
         radius = np.asarray(cache.shock_radius, dtype=np.float32).reshape(n_frames, n_charges)
         scale = np.repeat(radius.T[:, :, None], 3, axis=2)  # (C, F, 3)
         sc_view = b.view(_f32(scale)) if n_frames else -1
@@ -258,13 +260,13 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
                 channel(len(nodes) - 1, "scale", frame_input(),
                         b.accessor(sc_view, c * n_frames * 12, FLOAT, n_frames, "VEC3"))
 
-    cameras = _camera(cache, b, nodes, channel, frame_input if n_frames else None)
+    cameras = _camera(cache, b, nodes, channel, frame_input if n_frames else None, origin)
     if particles:
         from blastvox.export.gltf_particles import add_particles
 
         add_particles(cache, b, mats, meshes, nodes, channel,
                       frame_input() if n_frames else None,
-                      _sphere_mesh)
+                      _sphere_mesh, origin)
 
     others = list(range(n_pieces, len(nodes)))  # shock fronts, camera, particles
     groups = object_groups(objects)
@@ -280,7 +282,10 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
         object_nodes.append(len(nodes))
         nodes.append({"name": name or "object", "children": children,
                       "extras": {"object": name}})
-    nodes.append({"name": "blastvox", "children": object_nodes + others})
+    root: dict[str, Any] = {"name": "blastvox", "children": object_nodes + others}
+    if origin.any():  # a scene far from the origin: its children are relative to this
+        root["translation"] = _floats(origin)
+    nodes.append(root)
     roots = [len(nodes) - 1]
     if skinned:  # a skinned mesh's node ignores its transform: keep it a root
         for m, k in sorted({int(piece_mesh[j[0]]): k for k, j in enumerate(skins)
@@ -323,16 +328,18 @@ def build_gltf(cache: SimCache, buffer_uri: str | None = None, shock: bool = Fal
     return doc, blob
 
 
-def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc) -> list[dict]:
+def _camera(cache: SimCache, b: _Builder, nodes: list, channel, t_acc,
+            origin: np.ndarray) -> list[dict]:
     """The scene's camera (if any) as a perspective camera node whose translation is
     animated with the baked shake; glTF cameras look down -Z with +Y up. ``t_acc``: a
-    callable giving the accessor of the frame times, or None (no frames)."""
+    callable giving the accessor of the frame times, or None (no frames); ``origin``
+    (3,) m: the root node's translation, which the camera's is relative to."""
     camera = cache.meta.get("camera")
     if not camera:
         return []
     change = frame_change(cache.model.meta.get("up_axis", "Y"), "Y")
-    position = exact.turn(change, np.asarray(camera["position"], dtype=np.float64))
-    target = exact.turn(change, np.asarray(camera["look_at"], dtype=np.float64))
+    position = exact.turn(change, np.asarray(camera["position"], dtype=np.float64)) - origin
+    target = exact.turn(change, np.asarray(camera["look_at"], dtype=np.float64)) - origin
     offset = exact.turn(change, np.asarray(
         cache.arrays.get("camera_offset", np.zeros((cache.frame_count, 3))), dtype=np.float64))
     back = (position - target) / exact.length(position - target)

@@ -41,11 +41,12 @@ PARTICLE_LOOKS = {"dust": {"opacity": 0.35, "emissive": 0.0},
 
 
 def add_particles(cache, b: _Builder, mats: list, meshes: list, nodes: list, channel,
-                  t_acc: int | None, sphere_mesh) -> list[int]:
+                  t_acc: int | None, sphere_mesh, origin: np.ndarray) -> list[int]:
     """Append the particle nodes (and their materials, meshes and channels) of ``cache``
     (Y-up glTF) and return their node indices. ``sphere_mesh(b, material)`` makes the
     unit sphere mesh; ``channel(node, path, input, output, interpolation)`` adds an
-    animation channel; ``t_acc`` the frame times' accessor (None: no frames)."""
+    animation channel; ``t_acc`` the frame times' accessor (None: no frames); ``origin``
+    (3,) m: the root node's translation, which the particles' are relative to."""
     from blastvox.export.usd_specs import model_gravity
     from blastvox.geometry.frames import frame_change, up_vector
     from blastvox.particles import SYSTEM_NAMES, all_positions_at, ground_plane
@@ -85,7 +86,7 @@ def add_particles(cache, b: _Builder, mats: list, meshes: list, nodes: list, cha
         kinds = np.full(len(mine), index, dtype=np.uint8)
         states = [all_positions_at(birth[mine], x0[mine], v0[mine], kinds, t, g, ground)
                   for t in times]
-        position = np.stack([x for _, x in states], axis=1)                # (K, F, 3)
+        position = np.stack([x for _, x in states], axis=1) - origin       # (K, F, 3)
         alive = np.stack([a for a, _ in states], axis=1)                   # (K, F)
         scale = np.repeat((alive * radius[mine][:, None])[:, :, None], 3, axis=2)
         n_frames = len(times)

@@ -21,15 +21,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from blastvox.cache import SimCache
+from blastvox.cache import ORIGIN_GRID_M, SimCache, position_origin
 from blastvox.export.rubble import roughen
 from blastvox.geometry import exact, fixed, quaternion
 from blastvox.geometry.frames import frame_change
 from blastvox.geometry.transforms import change_frame
 from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG, face_triangles
 
-__all__ = ["FRACTURE_FACES", "Animation", "PieceMeshes", "animation", "frame_change",
-           "piece_meshes"]
+__all__ = ["FRACTURE_FACES", "ORIGIN_GRID_M", "Animation", "PieceMeshes", "animation",
+           "export_origin", "frame_change", "piece_meshes"]
 
 #: How an export draws the fracture faces: rubble surfaces, or the voxels' cell faces.
 FRACTURE_FACES = ("rough", "voxel")
@@ -79,6 +79,20 @@ def animation(cache: SimCache, export_up: str) -> Animation:
     pos, ori = change_frame(cache.piece_position, cache.piece_orientation, c)
     return Animation(position=pos, orientation=ori, end_frame=cache.piece_end_frame.copy(),
                      times=cache.frame_time.copy())
+
+
+def export_origin(anim: Animation) -> np.ndarray:
+    """(3,) float64 m, export frame: the multiple of :data:`ORIGIN_GRID_M` (1024 m)
+    nearest the centre of the box round the pieces' first positions, as a SimCache's
+    ``position_origin`` (:func:`blastvox.cache.position_origin`) in the export's axes;
+    zero for a scene within 512 m of the origin, which exports as before.
+
+    Formats whose coordinates are float32 (glTF's translations, USD's point arrays)
+    store the scene relative to it, and a transform above them carries it (a glTF root
+    node's translation; a USD ``xformOp:translate``, double3): float32 is 2^-24 of the
+    value, 7.8 mm at 100 km from the origin but under 0.1 mm within a scene's own
+    kilometre of it."""
+    return position_origin(anim.position)
 
 
 def velocities(anim: Animation) -> tuple[np.ndarray, np.ndarray]:

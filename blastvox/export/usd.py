@@ -68,6 +68,7 @@ from blastvox.export.damage_textures import damage_textures
 from blastvox.export.options import ExportOptions
 from blastvox.export.pieces import (
     animation,
+    export_origin,
     piece_meshes,
     piece_objects,
     piece_parts,
@@ -75,7 +76,13 @@ from blastvox.export.pieces import (
 )
 from blastvox.export.usd_effects import write_camera, write_particles, write_shock
 from blastvox.export.usd_pieces import write_instancer, write_materials, write_xforms
-from blastvox.export.usd_specs import ROOT, object_prim_names, part_prim_names, vec3f
+from blastvox.export.usd_specs import (
+    ROOT,
+    object_prim_names,
+    origin_translate,
+    part_prim_names,
+    vec3f,
+)
 from blastvox.export.uv import face_uvs, texture_names
 from blastvox.geometry import quaternion
 from blastvox.geometry.frames import frame_change
@@ -149,6 +156,8 @@ class _Writer:
         self.instancer = options.layout == "instancer"
         self.meshes = piece_meshes(cache, options.up_axis, options.fracture_faces)
         self.anim = animation(cache, options.up_axis)
+        #: float32 arrays (the instancer's positions, the particles') are relative to it
+        self.origin = export_origin(self.anim)
         self.objects = piece_objects(cache)
         self.object_prims = object_prim_names(self.objects)
         self.parts = piece_parts(cache)
@@ -336,6 +345,8 @@ class _Writer:
         self.layer.GetAttributeAtPath(inst.AppendProperty("protoIndices")).default = \
             Vt.IntArray.FromNumpy(np.arange(p_count, dtype=np.int32))
         pos, ori = self.animation_arrays()
+        pos = pos - self.origin  # float32 points: relative to the instancer's translate
+        origin_translate(spec, self.origin)
         # the corners of each prototype's box, turned and moved per frame, bound the instances
         lo = np.zeros((p_count, 3))
         hi = np.zeros((p_count, 3))

@@ -14,6 +14,7 @@ from blastvox.export.usd_specs import (
     ROOT,
     attr_spec,
     model_gravity,
+    origin_translate,
     points_extent,
     prim_spec,
     run_ends,
@@ -92,6 +93,7 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
     if system is None or len(system) == 0 or w.frames == 0:
         return
     scope = prim_spec(shot, "Particles", "Xform")
+    origin_translate(scope, w.origin)  # the particles' float32 points are relative to it
     g = exact.turn(w.change, model_gravity(c))
     x0 = exact.turn(w.change, c.particle_position.astype(np.float64))
     v0 = exact.turn(w.change, c.particle_velocity.astype(np.float64))
@@ -104,9 +106,10 @@ def write_particles(w, shot: Sdf.PrimSpec) -> None:
         mine = np.flatnonzero(system == index)
         if not mine.size:
             continue
-        states = [all_positions_at(birth[mine], x0[mine], v0[mine],
-                                   np.full(len(mine), index, dtype=np.uint8), t, g, ground)
-                  for t in times]
+        states = [(alive, x - w.origin) for alive, x in (
+            all_positions_at(birth[mine], x0[mine], v0[mine],
+                             np.full(len(mine), index, dtype=np.uint8), t, g, ground)
+            for t in times)]
         if name in GLOW_LOOKS:
             write_glow(w, scope, name, mine, states, SYSTEMS[name], birth, v0, size, g)
         if w.particle_mode == "volumes":

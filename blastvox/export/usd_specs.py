@@ -7,7 +7,7 @@ Shared by :mod:`blastvox.export.usd` (pieces) and :mod:`blastvox.export.usd_effe
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, Tf, Vt
+from pxr import Gf, Sdf, Tf, Vt
 
 from blastvox.cache import SimCache
 from blastvox.export.names import unique
@@ -39,6 +39,16 @@ def attr_spec(prim: Sdf.PrimSpec, name: str, type_name, value=None,
 def xform_order(prim: Sdf.PrimSpec, ops: list[str]) -> None:
     spec = Sdf.AttributeSpec(prim, "xformOpOrder", _T.TokenArray, Sdf.VariabilityUniform)
     spec.default = Vt.TokenArray(ops)
+
+
+def origin_translate(prim: Sdf.PrimSpec, origin) -> None:
+    """Give ``prim`` (an Xformable) a double3 ``xformOp:translate`` of ``origin`` (3,) m,
+    the export's origin (:func:`blastvox.export.pieces.export_origin`), when it is not
+    zero: the float32 points below it are relative to it."""
+    if not any(float(x) for x in origin):
+        return
+    attr_spec(prim, "xformOp:translate", _T.Double3, Gf.Vec3d(*map(float, origin)))
+    xform_order(prim, ["xformOp:translate"])
 
 
 def object_prim_names(objects: list[str]) -> list[str]:

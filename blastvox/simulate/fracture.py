@@ -106,6 +106,15 @@ def element_view(front, c, r, centre, exposure, b, member, speed, normal):
             cos_a)
 
 
+@helper
+def _member_normal(body_rot, b, normals, axis, out) -> None:
+    """out (3,): the unit normal ``normals[axis]`` of a voxel's member, turned with its
+    body b."""
+    for a in range(3):
+        out[a] = (body_rot[b, a, 0] * normals[axis, 0] + body_rot[b, a, 1] * normals[axis, 1]
+                  + body_rot[b, a, 2] * normals[axis, 2])
+
+
 class AheadViews(NamedTuple):
     """Element views of the voxels a step's fronts cross, worked out before the step
     judges them (:func:`views_ahead`), (K, C) for the K voxels of its ``order``:
@@ -220,12 +229,14 @@ def fracture_wave(front, params, parts, run_state, order, rows, exposure, views,
     after it are worked out here again, as it changed the grid.
 
     A voxel dusted under pressure-impulse fracture leaves the shielding grid at
-    once, so the points behind it see the gap (the same whatever the step), and
-    leaves with the net impulse of the wave on its face towards the charge in
-    loads.held_p (N s, replacing what it held; handed to its dust body by the
-    split): dust carries the momentum of the wave that destroyed it. That impulse
-    goes through the face once: the dust's neighbours mark the face they shared
-    with it in loads.shadow (the blast no longer loads it), and a voxel dusted
+    once, so the points behind it see the gap (the same whatever the step). In every
+    fracture model a dusted voxel leaves with the net impulse of the wave on its face
+    towards the charge (its element view's, :func:`element_view`, whatever the model
+    judged it by) in loads.held_p (N s, replacing what it held; handed to its dust
+    body by the split, which starts it at its body's velocity at its place): dust
+    carries the momentum its voxel had and that of the wave that destroyed it. That
+    impulse goes through the face once: the dust's neighbours mark the face they
+    shared with it in loads.shadow (the blast no longer loads it), and a voxel dusted
     behind dust of the current waves shares, by mass, the impulse the dust in front
     of it still holds (none if that has left: each layer of a crater took the whole
     impulse again, and a wall pulverized in four layers left with four times the
@@ -265,10 +276,7 @@ def fracture_wave(front, params, parts, run_state, order, rows, exposure, views,
                 continue
             if params.pressure_impulse:
                 if gap:  # dust opened the grid this step: the view ahead is stale
-                    for a in range(3):  # the member's normal, turned with its body
-                        normal[a] = (body_rot[b, a, 0] * normals[member_axis[v], 0]
-                                     + body_rot[b, a, 1] * normals[member_axis[v], 1]
-                                     + body_rot[b, a, 2] * normals[member_axis[v], 2])
+                    _member_normal(body_rot, b, normals, member_axis[v], normal)
                     peak, imp, depth, blocked, thick, squeezed, cos_a = element_view(
                         front, c, r, centre, exposure, b, thickness[v], speed[material[v]],
                         normal)
@@ -310,16 +318,19 @@ def fracture_wave(front, params, parts, run_state, order, rows, exposure, views,
                 if params.pressure_impulse:
                     remove_voxel(exposure.grid, geometry, v)
                     gap = True
-                    i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
-                    area = (2.0 * geometry.contact_radius[v]) ** 2
-                    row = hold(loads, v)
-                    for a in range(3):  # a voxel centred on the charge: pushed evenly
-                        loads.held_p[row, a] = (imp - i_neg) * area * (
-                            centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
-                        loads.held_l[row, a] = 0.0
-                    _dust_once(v, geometry, link_geometry, voxels.alive, loads, body_rot[b],
-                               cx - charge_pos[c, 0], cy - charge_pos[c, 1],
-                               cz - charge_pos[c, 2])
+                else:  # judged on the incident peak: the wave's load on its face all the same
+                    _member_normal(body_rot, b, normals, member_axis[v], normal)
+                    imp = element_view(front, c, r, centre, exposure, b, thickness[v],
+                                       speed[material[v]], normal)[1]
+                i_neg = face_params_at(front.table, front.burst[c], r, front.scale[c])[10]
+                area = (2.0 * geometry.contact_radius[v]) ** 2
+                row = hold(loads, v)
+                for a in range(3):  # a voxel centred on the charge: pushed evenly
+                    loads.held_p[row, a] = (imp - i_neg) * area * (
+                        centre[a] - charge_pos[c, a]) / r if r > 0.0 else 0.0
+                    loads.held_l[row, a] = 0.0
+                _dust_once(v, geometry, link_geometry, voxels.alive, loads, body_rot[b],
+                           cx - charge_pos[c, 0], cy - charge_pos[c, 1], cz - charge_pos[c, 2])
                 break
             voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * peak)
             if voxel_foundation[v]:
@@ -557,7 +568,7 @@ def fracture_phase(model, state, front, settings, gas: np.ndarray | None = None)
         front, parts, run_state, ids, exposure, ahead))
     released, n = fracture_wave(front, params, parts, run_state, order, rows, exposure,
                                 wave_views(state, len(front.position)), ahead)
-    if params.pressure_impulse and marks.destroyed.any():
+    if marks.destroyed.any():
         state.holding = True  # the split hands the dust its impulse (release_held)
     if s.fracture == "damage":
         n = fracture_damage(front, params, model.voxels, model.links, state.links,

@@ -7,7 +7,9 @@ change is booked to its cause:
 - ``initial``: what the pieces had before a step, set by a caller (0 from the CLI);
 - ``blast``: the wave's impulse on free pieces (and a confined charge's gas);
 - ``released``: the impulse founded voxels took from a wave, handed to the pieces
-  that break free of them in it (:func:`~blastvox.simulate.kernels.release_held`);
+  that break free of them in it (:func:`~blastvox.simulate.kernels.release_held`),
+  and the wave's impulse on the face of a voxel it turned to dust, handed to its dust
+  (in every fracture model, :func:`~blastvox.simulate.fracture.fracture_wave`);
 - ``gravity_drag``: gravity and air drag;
 - ``ground`` and ``foundations``: what contacts with the ground and with founded
   bodies gave the pieces (negative: what the pieces put into them);

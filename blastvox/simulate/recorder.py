@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from blastvox.cache import quantised
 from blastvox.geometry import quaternion
 from blastvox.simulate.kernels import damage_levels
 from blastvox.simulate.state import State
@@ -98,7 +99,9 @@ class Recorder:
         return {
             "frame_time": frame_time, "voxel_piece": voxel_piece, "piece_pivot": pivot,
             "piece_mass": state.bodies.mass[final].copy(),
-            "piece_position": positions.astype(np.float32),
+            # float32 offsets from an origin near the scene, as the file holds them
+            **dict(zip(("position_origin", "piece_position"), quantised(positions),
+                       strict=True)),
             "piece_orientation": orientations.astype(np.float32),
             "piece_end_frame": end, "voxel_destroyed_frame": self.destroyed_frame,
             **self._damage_arrays(), **self._break_arrays(), **self._dust_arrays(),
