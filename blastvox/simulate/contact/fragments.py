@@ -97,20 +97,27 @@ def collide_bodies(geometry, voxels, bodies, params, boundary, static, rest, mem
     return _emit_rows(geometry, bodies, params, memory, pairs, patches, hit)
 
 
+#: Candidates per task of :func:`_box_tests`' parallel loop (each test is its own: any
+#: split gives the same bytes).
+BOX_CHUNK = 64
+
+
 @parallel_kernel
 def _box_tests(rot, half, pairs, centres, ahead, patches, hit) -> None:
     """The box test (:func:`~blastvox.simulate.contact.boxes.box_contact`) of every
     candidate (:func:`~blastvox.simulate.contact.broadphase.candidates`), each on its
     own: hit (C,) whether it touches, patches (C, 32) its patch."""
-    for c in nb.prange(len(ahead)):
+    n_chunks = (len(ahead) + BOX_CHUNK - 1) // BOX_CHUNK
+    for chunk in nb.prange(n_chunks):  # scratch once a chunk: allocations serialize threads
         work = (np.empty((3, 3)), np.empty((3, 8, 3)), np.empty(32))
         pair = np.empty(8, dtype=np.int64)  # bodies and voxels, then the manifold's picks
-        for k in range(4):
-            pair[k] = pairs[c, k]
-        hit[c] = box_contact(rot, half, pair, centres[c], ahead[c], work)
-        if hit[c]:
-            for k in range(32):
-                patches[c, k] = work[2][k]
+        for c in range(chunk * BOX_CHUNK, min((chunk + 1) * BOX_CHUNK, len(ahead))):
+            for k in range(4):
+                pair[k] = pairs[c, k]
+            hit[c] = box_contact(rot, half, pair, centres[c], ahead[c], work)
+            if hit[c]:
+                for k in range(32):
+                    patches[c, k] = work[2][k]
 
 
 @kernel
