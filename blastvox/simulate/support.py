@@ -92,9 +92,12 @@ def support_phase(model, state, stress: Stress, gravity: np.ndarray, rows, end: 
     grounded[owner[on_ground]] = True
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], np.append(candidates, np.iinfo(np.int64).max))
-    for i in np.flatnonzero(slow).tolist():
-        b = int(candidates[i])
-        key = (int(count[b]), int(distinct[b]), bool(grounded[b]))
+    at_rest = np.flatnonzero(slow)
+    mine = candidates[at_rest]
+    # as Python values at once: hundreds of pile pieces are looked up every step
+    for i, b, key in zip(at_rest.tolist(), mine.tolist(),
+                         zip(count[mine].tolist(), distinct[mine].tolist(),
+                             grounded[mine].tolist(), strict=True), strict=True):
         if key[0] < 2 or stress.rested.get(b) == key:
             continue
         rows_of = order[bounds[i]:bounds[i + 1]]
