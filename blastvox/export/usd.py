@@ -14,7 +14,8 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
           textured_<name>                         GeomSubsets (materialBind, partition), a
                                                   time-sampled per-face ``primvars:damage``
                                                   and faceVarying ``primvars:st`` (UVs in
-                                                  rest space: blastvox.export.uv)
+                                                  rest space: blastvox.export.uv); a piece
+                                                  of one material is bound as a whole
       Pieces (PointInstancer)                     layout "instancer": one prototype Mesh per
         Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
                                                   (quath) and orientationsf (quatf, which
@@ -234,11 +235,6 @@ class _Writer:
         self.subset_key = sk[starts]
         self.subset_piece_offsets = np.searchsorted(spc[starts], np.arange(p_count + 1))
         self.subset_start = np.append(starts, t)
-        self.main_material = np.zeros(p_count, dtype=np.int64)
-        if t:
-            counts = np.zeros((p_count, len(self.material_names)), dtype=np.int64)
-            np.add.at(counts, (tri_piece, m.material), 1)
-            self.main_material = counts.argmax(axis=1)
         self.used_materials = (np.unique(m.material) if t else
                                np.unique(self.cache.model.voxel_material)).tolist()
 
