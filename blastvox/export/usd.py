@@ -208,7 +208,11 @@ class _Writer:
         tri_piece = np.repeat(np.arange(p_count), np.diff(m.offsets))
         corners = m.vertices.reshape(-1, 3).astype(np.float32) + np.float32(0.0)  # no -0
         corner_piece = np.repeat(tri_piece, 3)
-        order = np.lexsort((corners[:, 2], corners[:, 1], corners[:, 0], corner_piece))
+        # sorted by piece, then by the corners' float32 bit patterns (two uint64 keys: a
+        # sort of two keys instead of four; equal bits are equal floats, -0 being gone)
+        bits = corners.view(np.uint32).astype(np.uint64)
+        order = np.lexsort(((bits[:, 1] << np.uint64(32)) | bits[:, 2],
+                            (corner_piece.astype(np.uint64) << np.uint64(32)) | bits[:, 0]))
         sc, sp = corners[order], corner_piece[order]
         new = np.ones(len(order), dtype=bool)
         new[1:] = (sp[1:] != sp[:-1]) | np.any(sc[1:] != sc[:-1], axis=1)
