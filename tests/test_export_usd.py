@@ -238,20 +238,56 @@ def _subsets(stage: Usd.Stage, p: int, paths: list[str] = PIECE
             UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "materialBind")}
 
 
+def _face_materials(stage: Usd.Stage, p: int, paths: list[str] = PIECE) -> list[str]:
+    """The material each face of piece p's mesh renders with: its materialBind subset's,
+    or the mesh's own binding where it has no subsets."""
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"{paths[p]}/piece_{p:05d}"))
+    faces = len(mesh.GetFaceVertexCountsAttr().Get())
+    subsets = _subsets(stage, p, paths)
+    if not subsets:
+        bound = UsdShade.MaterialBindingAPI(mesh.GetPrim()).ComputeBoundMaterial()[0]
+        return [str(bound.GetPath())] * faces
+    out = [""] * faces
+    for subset in subsets.values():
+        bound = UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()[0]
+        for i in subset.GetIndicesAttr().Get():
+            out[i] = str(bound.GetPath())
+    return out
+
+
 def test_damage_subsets_match_piece_meshes(synthetic, tmp_path):
+    """Every face renders with its material's surface or damage material: through a
+    GeomSubset (a materialBind partition, elementType the fallback "face") where a piece
+    has faces of several, through the mesh's own binding where all its faces share one."""
     stage = _write(synthetic, tmp_path / "shot.usdc")
     meshes = piece_meshes(synthetic, "Y")
     names = synthetic.model.meta["materials"]
+    single = 0
     for p in range(synthetic.piece_count):
         t0, t1 = meshes.offsets[p], meshes.offsets[p + 1]
         subsets = _subsets(stage, p)
         mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"{PIECE[p]}/piece_{p:05d}"))
-        assert UsdGeom.Subset.GetFamilyType(mesh, "materialBind") == UsdGeom.Tokens.partition
-        valid, reason = UsdGeom.Subset.ValidateFamily(mesh, UsdGeom.Tokens.face, "materialBind")
-        assert valid, reason
+        pairs = list(zip(meshes.material[t0:t1].tolist(), meshes.damage[t0:t1].tolist(),
+                         strict=True))
+        keys = set(pairs)
+        if len(keys) > 1:
+            family = UsdGeom.Subset.GetFamilyType(mesh, "materialBind")
+            assert family == UsdGeom.Tokens.partition
+            valid, reason = UsdGeom.Subset.ValidateFamily(mesh, UsdGeom.Tokens.face,
+                                                          "materialBind")
+            assert valid, reason
+            assert len(subsets) == len(keys)
+            for subset in subsets.values():
+                assert not subset.GetElementTypeAttr().HasAuthoredValue()
+                assert subset.GetElementTypeAttr().Get() == UsdGeom.Tokens.face
+        else:
+            single += 1
+            assert not subsets and not mesh.GetPrim().GetChildren()
+        want = [f"/Shot/Materials/{names[m]}{'_damage' if d else ''}" for m, d in pairs]
+        assert _face_materials(stage, p) == want
         damage = sum(len(s.GetIndicesAttr().Get()) for n, s in subsets.items()
                      if n.startswith("damage_"))
-        assert damage == int(meshes.damage[t0:t1].sum())
+        assert damage == (int(meshes.damage[t0:t1].sum()) if len(keys) > 1 else 0)
         for name, subset in subsets.items():
             kind, material = name.split("_", 1)
             faces = np.asarray(subset.GetIndicesAttr().Get()) + t0
@@ -278,7 +314,8 @@ def test_material_bindings(synthetic, tmp_path):
             assert shader.GetInput("roughness").Get() == pytest.approx(0.8)
     for p in range(synthetic.piece_count):
         mesh = stage.GetPrimAtPath(f"{PIECE[p]}/piece_{p:05d}")
-        assert mesh.HasAPI(UsdShade.MaterialBindingAPI)
+        # bound as a whole (MaterialBindingAPI) only where no subsets bind its faces
+        assert mesh.HasAPI(UsdShade.MaterialBindingAPI) == (not _subsets(stage, p))
         for name, subset in _subsets(stage, p).items():
             prim = subset.GetPrim()
             assert prim.HasAPI(UsdShade.MaterialBindingAPI)
@@ -487,13 +524,12 @@ def test_piece_xforms_carry_index_mass_and_object(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usda")
     names = ["left", "left", "right"]  # piece 1 spans both objects: its first voxel's
     for p in range(synthetic.piece_count):
-        primvars = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(PIECE[p]))
-        assert primvars.GetPrimvar("blastvox:piece").Get() == p
-        assert primvars.GetPrimvar("blastvox:mass").Get() == synthetic.piece_mass[p]
-        assert primvars.GetPrimvar("blastvox:object").Get() == names[p]
-        # and as custom userProperties, which Blender imports as custom properties
-        # named as the glTF export's node extras
+        # custom userProperties, which Blender imports as custom properties named as
+        # the glTF export's node extras; written once (no primvars of the same values)
         prim = stage.GetPrimAtPath(PIECE[p])
+        primvars = UsdGeom.PrimvarsAPI(prim)
+        assert not any(primvars.HasPrimvar(f"blastvox:{k}") for k in ("piece", "mass",
+                                                                       "object", "part"))
         for key, value in (("piece", p), ("mass_kg", synthetic.piece_mass[p]),
                            ("object", names[p])):
             attr = prim.GetAttribute(f"userProperties:{key}")

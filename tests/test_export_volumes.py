@@ -136,6 +136,22 @@ def test_same_grids_same_bytes_and_bad_grids_refused():
         vdb_bytes([FloatGrid("a", ijk, values, 0.0)])
 
 
+def test_tree_order_is_the_twelve_key_depth_first_order():
+    """The writer's voxel order (two packed keys) is the depth-first order of the tree's
+    twelve keys (root origin x, y, z, then each node's offset), out to the ends of int32."""
+    from blastvox.export.vdb import _grid_tree
+
+    ijk, values = _random_grid(3, 3000, 4000)
+    ends = np.array([[-2**31, 0, 2**31 - 1], [2**31 - 1, -2**31, 0], [-1, -1, -1],
+                     [-4096, 4095, 4096]], dtype=np.int64)
+    ijk = np.concatenate([ijk, ends.astype(np.int32)])
+    values = np.concatenate([values, np.ones(len(ends), dtype=np.float32)])
+    _, _, got, _ = _grid_tree(FloatGrid("density", ijk, values, 0.1), False)
+    a = ijk.astype(np.int64)[values > 0]
+    keys = np.concatenate([a >> 12, (a >> 7) & 31, (a >> 3) & 15, a & 7], axis=1)
+    assert np.array_equal(got, a[np.lexsort(keys.T[::-1])])
+
+
 # ----------------------------------------------------------------------------- the splat
 
 def test_splat_conserves_mass_at_any_cell_size():

@@ -112,8 +112,11 @@ def test_usd_carries_st_the_texture_and_its_material(cache, tmp_path: Path) -> N
     st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
     assert st.GetInterpolation() == "faceVarying"
     assert len(st.Get()) == len(mesh.GetFaceVertexIndicesAttr().Get())
-    subset = UsdGeom.Subset(mesh.GetPrim().GetChild("textured_cube_0"))
-    material, _ = UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()
+    # the textured faces' subset, or the mesh itself where all its faces are textured
+    subset = mesh.GetPrim().GetChild("textured_cube_0")
+    bound = subset if subset else mesh.GetPrim()
+    material, _ = UsdShade.MaterialBindingAPI(bound).ComputeBoundMaterial()
+    assert material.GetPath() == "/Shot/Materials/texture_cube_0"
     surface = material.ComputeSurfaceSource()[0]
     source = surface.GetInput("diffuseColor").GetConnectedSources()[0][0].source
     reader = UsdShade.Shader(source.GetPrim())

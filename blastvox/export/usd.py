@@ -14,7 +14,8 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
           textured_<name>                         GeomSubsets (materialBind, partition), a
                                                   time-sampled per-face ``primvars:damage``
                                                   and faceVarying ``primvars:st`` (UVs in
-                                                  rest space: blastvox.export.uv)
+                                                  rest space: blastvox.export.uv); a piece
+                                                  of one material is bound as a whole
       Pieces (PointInstancer)                     layout "instancer": one prototype Mesh per
         Prototypes/piece_00000 (Mesh)             piece, time-sampled positions, orientations
                                                   (quath) and orientationsf (quatf, which
@@ -216,7 +217,11 @@ class _Writer:
         tri_piece = np.repeat(np.arange(p_count), np.diff(m.offsets))
         corners = m.vertices.reshape(-1, 3).astype(np.float32) + np.float32(0.0)  # no -0
         corner_piece = np.repeat(tri_piece, 3)
-        order = np.lexsort((corners[:, 2], corners[:, 1], corners[:, 0], corner_piece))
+        # sorted by piece, then by the corners' float32 bit patterns (two uint64 keys: a
+        # sort of two keys instead of four; equal bits are equal floats, -0 being gone)
+        bits = corners.view(np.uint32).astype(np.uint64)
+        order = np.lexsort(((bits[:, 1] << np.uint64(32)) | bits[:, 2],
+                            (corner_piece.astype(np.uint64) << np.uint64(32)) | bits[:, 0]))
         sc, sp = corners[order], corner_piece[order]
         new = np.ones(len(order), dtype=bool)
         new[1:] = (sp[1:] != sp[:-1]) | np.any(sc[1:] != sc[:-1], axis=1)
@@ -243,11 +248,6 @@ class _Writer:
         self.subset_key = sk[starts]
         self.subset_piece_offsets = np.searchsorted(spc[starts], np.arange(p_count + 1))
         self.subset_start = np.append(starts, t)
-        self.main_material = np.zeros(p_count, dtype=np.int64)
-        if t:
-            counts = np.zeros((p_count, len(self.material_names)), dtype=np.int64)
-            np.add.at(counts, (tri_piece, m.material), 1)
-            self.main_material = counts.argmax(axis=1)
         self.used_materials = (np.unique(m.material) if t else
                                np.unique(self.cache.model.voxel_material)).tolist()
 

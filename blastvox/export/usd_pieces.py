@@ -141,12 +141,16 @@ def _texture_material(scope: Sdf.PrimSpec, path: str, texture: str, directory: s
 def write_mesh(w, parent: Sdf.PrimSpec, name: str, p: int) -> None:
     """Piece p's static Mesh with its values: points shared within the piece, faceVarying
     normals and ``st``, per-face colour and damage (its samples come later:
-    ``w.damage_paths[p]``), a GeomSubset per material, damage material and texture."""
+    ``w.damage_paths[p]``), and its material: a ``material:binding`` of the Mesh where
+    all its faces share one (material, surface or damage, or texture), else a GeomSubset
+    per material, damage material and texture (a ``materialBind`` partition; the
+    subsets' ``elementType`` is the schema's fallback, "face")."""
     t0, t1 = int(w.meshes.offsets[p]), int(w.meshes.offsets[p + 1])
     v0, v1 = int(w.point_offsets[p]), int(w.point_offsets[p + 1])
+    g0, g1 = int(w.subset_piece_offsets[p]), int(w.subset_piece_offsets[p + 1])
     points = w.points[v0:v1]
     mesh = _prim(parent, name, "Mesh")
-    if t1 > t0:
+    if g1 - g0 == 1:
         mesh.SetInfo("apiSchemas", _BINDING_API)
     _attr(mesh, "extent", _T.Float3Array, points_extent(points))
     _attr(mesh, "faceVertexCounts", _T.IntArray, Vt.IntArray(t1 - t0, 3))
@@ -163,15 +167,16 @@ def write_mesh(w, parent: Sdf.PrimSpec, name: str, p: int) -> None:
     _attr(mesh, "primvars:st", _T.TexCoord2fArray, Vt.Vec2fArray.FromNumpy(
         np.ascontiguousarray(w.look.uv[t0:t1].reshape(-1, 2))), interpolation="faceVarying")
     _attr(mesh, "subdivisionScheme", _T.Token, "none", uniform=True)
-    if t1 == t0:
+    if g1 - g0 == 1:  # one material for every face: bound to the Mesh, no subsets
+        _rel(mesh, "material:binding", [w.subset(int(w.subset_key[g0]))[1]])
         return
-    _rel(mesh, "material:binding", [w.material_path(int(w.main_material[p]), False)])
+    if g1 == g0:
+        return
     _attr(mesh, "subsetFamily:materialBind:familyType", _T.Token, "partition", uniform=True)
-    for g in range(int(w.subset_piece_offsets[p]), int(w.subset_piece_offsets[p + 1])):
+    for g in range(g0, g1):
         subset_name, target = w.subset(int(w.subset_key[g]))
         subset = _prim(mesh, subset_name, "GeomSubset")
         subset.SetInfo("apiSchemas", _BINDING_API)
-        _attr(subset, "elementType", _T.Token, "face", uniform=True)
         _attr(subset, "familyName", _T.Token, "materialBind", uniform=True)
         faces = w.subset_order[w.subset_start[g]:w.subset_start[g + 1]]
         _attr(subset, "indices", _T.IntArray, Vt.IntArray.FromNumpy(w.local_face[faces]))
@@ -181,10 +186,10 @@ def write_mesh(w, parent: Sdf.PrimSpec, name: str, p: int) -> None:
 # ----------------------------------------------------------------------------- xforms
 
 def write_xforms(w, shot: Sdf.PrimSpec) -> None:
-    """Layout "xforms": an Xform per scene object holding an Xform per piece (constant
-    primvars piece, mass and object, and the same as custom ``userProperties:``, which
-    Blender imports as the object's custom properties; time-sampled velocity and angularVelocity
-    primvars, translate, orient and, for a piece that vanishes, visibility and a scale
+    """Layout "xforms": an Xform per scene object holding an Xform per piece (piece, mass
+    and object as custom ``userProperties:``, which Blender imports as the object's
+    custom properties; time-sampled velocity and angularVelocity primvars, translate,
+    orient and, for a piece that vanishes, visibility and a scale
     to 0) whose child Mesh carries the piece's name (importers that merge an Xform
     with its only child, Blender's, keep it)."""
     f_count, p_count = w.frames, w.pieces
@@ -207,16 +212,12 @@ def write_xforms(w, shot: Sdf.PrimSpec) -> None:
                                      ("part", _T.String, w.parts[p]))
                 parent = part_groups[w.part_prims[p]]
             xform = _prim(parent, name, "Xform")
-            _attr(xform, "primvars:blastvox:piece", _T.Int, p)
-            _attr(xform, "primvars:blastvox:mass", _T.Double, float(mass[p]))
-            _attr(xform, "primvars:blastvox:object", _T.String, w.objects[p])
-            # the same as custom properties, which Blender's importer reads (its own
-            # convention for them: the namespace is dropped): piece, mass_kg, object
-            # (and part), the names the glTF export's node extras give them
+            # custom properties, which Blender's importer reads (its own convention for
+            # them: the namespace is dropped): piece, mass_kg, object (and part), the
+            # names the glTF export's node extras give them
             properties = [("piece", _T.Int, p), ("mass_kg", _T.Double, float(mass[p])),
                           ("object", _T.String, w.objects[p])]
             if w.parts[p]:
-                _attr(xform, "primvars:blastvox:part", _T.String, w.parts[p])
                 properties.append(("part", _T.String, w.parts[p]))
             _user_properties(xform, *properties)
             for key, type_name in (("primvars:blastvox:velocity", _T.Vector3f),

@@ -90,13 +90,17 @@ def _masks(offsets: np.ndarray, groups: np.ndarray, count: int, bits: int) -> np
     return words
 
 
-def _runs(keys: np.ndarray) -> np.ndarray:
-    """Start index of each run of equal rows of ``keys`` (sorted), and the end."""
-    if not len(keys):
+def _packed_runs(*keys: np.ndarray) -> np.ndarray:
+    """Start index of each run of equal (keys[0][i], keys[1][i], ...) (sorted), and the
+    end."""
+    n = len(keys[0])
+    if not n:
         return np.zeros(1, dtype=np.int64)
-    new = np.ones(len(keys), dtype=bool)
-    new[1:] = np.any(keys[1:] != keys[:-1], axis=1)
-    return np.append(np.flatnonzero(new), len(keys))
+    new = np.zeros(n, dtype=bool)
+    new[0] = True
+    for key in keys:
+        new[1:] |= key[1:] != key[:-1]
+    return np.append(np.flatnonzero(new), n)
 
 
 def _zip_chunk(data: bytes) -> bytes:
@@ -121,32 +125,37 @@ def _grid_tree(grid: FloatGrid, zipped: bool | None
     ijk, values = ijk[keep], values[keep]
     if len(ijk) and (ijk.min() < -(2**31) or ijk.max() >= 2**31):
         raise ValueError(f"grid {grid.name!r}: voxel indices outside int32")
-    # depth-first order: root children by origin, then each node's table offset
-    hier = [ijk >> _INT2_TOTAL, (ijk >> _INT1_TOTAL) & 31, (ijk >> _LEAF_TOTAL) & 15, ijk & 7]
-    keys = np.concatenate(hier, axis=1)
-    order = np.lexsort(keys.T[::-1])
-    ijk, values, keys = ijk[order], values[order], keys[order]
-    if len(keys) > 1 and not np.all(np.any(keys[1:] != keys[:-1], axis=1)):
+    # depth-first order: root children by origin, then each node's table offset: the
+    # 12 keys (root origin x, y, z; the 32^3 node's offset x, y, z; the 16^3 node's;
+    # the leaf's) packed into two uint64, whose order is theirs (root origins offset
+    # by 2^19 to 20 bits each; 5 + 5 + 5, 4 + 4 + 4 and 3 + 3 + 3 bits below)
+    u = (ijk >> _INT2_TOTAL) + (1 << 19)
+    hi = (u[:, 0] << 40) | (u[:, 1] << 20) | u[:, 2]
+    lo = np.zeros(len(ijk), dtype=np.int64)
+    for shift, bits, mask in ((_INT1_TOTAL, 5, 31), (_LEAF_TOTAL, 4, 15), (0, 3, 7)):
+        part = (ijk >> shift) & mask
+        lo = (lo << (3 * bits)) | (part[:, 0] << (2 * bits)) | (part[:, 1] << bits) | part[:, 2]
+    order = np.lexsort((lo, hi))
+    ijk, values, hi, lo = ijk[order], values[order], hi[order], lo[order]
+    if len(ijk) > 1 and np.any((hi[1:] == hi[:-1]) & (lo[1:] == lo[:-1])):
         raise ValueError(f"grid {grid.name!r}: a voxel is listed twice")
-    leaf_runs = _runs(keys[:, :9])
-    leaf_keys = keys[leaf_runs[:-1], :9]
-    int1_runs = _runs(leaf_keys[:, :6])
-    int1_keys = leaf_keys[int1_runs[:-1], :6]
-    int2_runs = _runs(int1_keys[:, :3])
-    int2_keys = int1_keys[int2_runs[:-1], :3]
-    n_leaf = len(leaf_keys)
+    leaf_runs = _packed_runs(hi, lo >> 9)
+    leaf_ijk = ijk[leaf_runs[:-1]]
+    int1_runs = _packed_runs(hi[leaf_runs[:-1]], lo[leaf_runs[:-1]] >> 21)
+    int1_ijk = leaf_ijk[int1_runs[:-1]]
+    int2_runs = _packed_runs(hi[leaf_runs[:-1]][int1_runs[:-1]])
+    int2_keys = int1_ijk[int2_runs[:-1]] >> _INT2_TOTAL
+    n_leaf = len(leaf_ijk)
     if zipped is None:
         zipped = len(values) >= ZIP_MIN_VALUES_PER_LEAF * max(n_leaf, 1)
     voxel_leaf = np.repeat(np.arange(n_leaf), np.diff(leaf_runs))
-    local = keys[:, 9:12]
-    leaf_masks = _masks((local[:, 0] << 6) | (local[:, 1] << 3) | local[:, 2], voxel_leaf,
-                        n_leaf, 512)
-    leaf_int1 = np.repeat(np.arange(len(int1_keys)), np.diff(int1_runs))
-    lk = leaf_keys[:, 6:9]
+    leaf_masks = _masks(lo & 511, voxel_leaf, n_leaf, 512)  # the leaf offset's 9 bits
+    leaf_int1 = np.repeat(np.arange(len(int1_ijk)), np.diff(int1_runs))
+    lk = (leaf_ijk >> _LEAF_TOTAL) & 15
     int1_masks = _masks((lk[:, 0] << 8) | (lk[:, 1] << 4) | lk[:, 2], leaf_int1,
-                        len(int1_keys), 4096)
+                        len(int1_ijk), 4096)
     int1_int2 = np.repeat(np.arange(len(int2_keys)), np.diff(int2_runs))
-    ik = int1_keys[:, 3:6]
+    ik = (int1_ijk >> _INT1_TOTAL) & 31
     int2_masks = _masks((ik[:, 0] << 10) | (ik[:, 1] << 5) | ik[:, 2], int1_int2,
                         len(int2_keys), 32768)
     no_values = b"\x00" + (struct.pack("<q", 0) if zipped else b"")  # no tile values
