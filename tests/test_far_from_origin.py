@@ -134,9 +134,9 @@ def test_usd_keeps_far_positions(shots, layout):
 
 
 def _piece_paths(stage: Usd.Stage) -> list[str]:
-    found = {int(p.GetAttribute("primvars:blastvox:piece").Get()): str(p.GetPath())
+    found = {int(p.GetAttribute("userProperties:piece").Get()): str(p.GetPath())
              for p in stage.Traverse() if p.GetName().startswith("piece_")
-             and p.GetAttribute("primvars:blastvox:piece")}
+             and p.GetAttribute("userProperties:piece")}
     return [found[p] for p in sorted(found)]
 
 
