@@ -439,9 +439,9 @@ def _fit_points(state, offsets: np.ndarray) -> None:
     """Grow the ground's corner scratch (contacts.points) to hold the corners of the
     largest body that can move (a founded one is never scanned: a million-voxel founded
     block would hold 11 MB of it for nothing)."""
-    bodies, n = state.bodies, state.n_bodies
+    bodies, n = state.bodies, len(offsets) - 1  # the bodies the boundary lists
     movable = bodies.live[:n] & ~bodies.fixed[:n] & ~bodies.dust[:n]
-    need = 8 * int(np.diff(offsets[:n + 1])[movable].max(initial=0)) + 8
+    need = 8 * int(np.diff(offsets)[movable].max(initial=0)) + 8
     if need > len(state.contacts.points):
         state.contacts = state.contacts._replace(points=np.zeros((need, 3)))
 
