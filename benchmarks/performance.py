@@ -326,30 +326,29 @@ def peak_cell(r: dict) -> str:
     return worker if alone is None else f"{alone:,.0f} ({worker})"
 
 
-#: One ``simulate()`` of a block in a process that imports only blastvox (the benchmark's
-#: own imports, trimesh and pybullet among them, are ~50 MiB that a user's run does not
-#: hold); argv: model path, charge x (m), dt (s), duration (s).
+#: One ``simulate()`` of a block in a process that imports only blastvox and the
+#: block's settings (benchmarks/simulate.py: the standard library): the benchmark's own
+#: imports, trimesh and pybullet among them, are ~50 MiB that a user's run does not hold.
+#: argv: model path, benchmarks folder, duration (s).
 MEMORY_PROBE = """
 import resource, sys
+sys.path.insert(0, sys.argv[2])
+from simulate import Case, settings_for
 from blastvox.model import VoxelModel
 from blastvox.simulate import engine
-from blastvox.simulate.settings import ChargeSpec, SimSettings
 model = VoxelModel.load(sys.argv[1])
-charge = ChargeSpec((float(sys.argv[2]), 0.0, 0.0), 1.0, "TNT", 0.0)
-engine.simulate(model, SimSettings(dt=float(sys.argv[3]), duration=float(sys.argv[4]),
-                                   charges=(charge,), collisions=False))
+engine.simulate(model, settings_for(Case("block", cells=1, duration=float(sys.argv[3]))))
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
 """
 
 
 def simulate_peak_mib(model_path: Path) -> float | None:
-    """Peak resident set (MiB) of one ``simulate()`` of a block (the settings of
-    :func:`settings_for`) in a process of its own (:data:`MEMORY_PROBE`): Python, numba
-    and its cached kernels, the model as loaded, and the run. None if it failed."""
-    settings = settings_for(Case("block", cells=1, duration=BLOCK_DURATION))
+    """Peak resident set (MiB) of one ``simulate()`` of a block (:func:`settings_for`)
+    in a process of its own (:data:`MEMORY_PROBE`): Python, numba and its cached
+    kernels, the model as loaded, and the run. None if it failed."""
     proc = subprocess.run([sys.executable, "-c", MEMORY_PROBE, str(model_path),
-                           repr(settings.charges[0].position[0]), repr(settings.dt),
-                           repr(settings.duration)], capture_output=True, text=True)
+                           str(Path(__file__).resolve().parent), repr(BLOCK_DURATION)],
+                          capture_output=True, text=True)
     return float(proc.stdout.split()[-1]) if proc.returncode == 0 else None
 
 
