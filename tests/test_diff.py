@@ -105,8 +105,8 @@ def perturb_npz(path: Path, dest: Path, delta: float) -> str:
 
 
 def perturb_usd(path: Path, dest: Path, delta: float) -> tuple[str, float]:
-    """Add ``delta`` to x of one double3 translate time sample (not the first); the prim
-    path and the time code."""
+    """Add ``delta`` to x of one float3 translate time sample (an offset from the piece's
+    ``xformOp:translate:start``; not the first); the prim path and the time code."""
     from pxr import Gf, Sdf
 
     copy = copy_shot(path, dest.parent)
@@ -119,7 +119,7 @@ def perturb_usd(path: Path, dest: Path, delta: float) -> tuple[str, float]:
         if len(times) >= 2:
             t = times[1]
             v = layer.QueryTimeSample(attr, t)
-            layer.SetTimeSample(attr, t, Gf.Vec3d(v[0] + delta, v[1], v[2]))
+            layer.SetTimeSample(attr, t, Gf.Vec3f(v[0] + delta, v[1], v[2]))
             assert layer.Save()
             return prim, t
     raise AssertionError("no piece with translate samples")
@@ -319,7 +319,7 @@ def test_difference_fields_and_format(shots: dict[str, dict[str, Path]], tmp_pat
     assert (d.path, d.attribute) == (prim, "xformOp:translate")
     assert d.frame == float(frame.split()[-1])
     assert len(d.value_a) == 3 and len(d.value_b) == 3
-    assert abs(d.value_a[0] - d.value_b[0] - 1e-3) < 1e-9
+    assert abs(d.value_a[0] - d.value_b[0] - 1e-3) < 1e-6  # float3: within its spacing
     line = d.format()
     assert "\n" not in line and prim in line and frame in line
 

@@ -100,6 +100,8 @@ def accessor(doc: Doc, blob: bytes, index: int) -> np.ndarray:
         if stride != dtype.itemsize * width else \
         [np.frombuffer(blob, dtype, width * acc["count"], start)]
     out = np.concatenate(rows).reshape(acc["count"], width)
+    if acc.get("normalized"):  # unsigned integers as fractions of their maximum
+        out = out.astype(np.float64) / np.iinfo(dtype).max
     return out[:, 0] if width == 1 else out
 
 

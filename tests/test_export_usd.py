@@ -204,17 +204,21 @@ def test_world_transform_matches_cache(synthetic, tmp_path, up):
 def test_unchanged_samples_are_pruned(synthetic, tmp_path):
     stage = _write(synthetic, tmp_path / "shot.usda")
     resting = UsdGeom.Xformable(stage.GetPrimAtPath(PIECE[1]))
-    translate = resting.GetOrderedXformOps()[0].GetAttr()
+    # a constant double3 start (the piece's frame-0 translation), then float3 offsets from it
+    start, translate = (op.GetAttr() for op in resting.GetOrderedXformOps()[:2])
+    assert not start.GetTimeSamples() and start.HasAuthoredValue()
     assert translate.GetTimeSamples() == [0.0]
+    assert tuple(translate.Get(0)) == (0.0, 0.0, 0.0)
     moving = UsdGeom.Xformable(stage.GetPrimAtPath(PIECE[0]))
-    assert len(moving.GetOrderedXformOps()[0].GetAttr().GetTimeSamples()) == F
+    assert len(moving.GetOrderedXformOps()[1].GetAttr().GetTimeSamples()) == F
     ops = [op.GetOpName() for op in moving.GetOrderedXformOps()]
-    assert ops == ["xformOp:translate", "xformOp:orient"]
-    assert moving.GetOrderedXformOps()[1].GetPrecision() == UsdGeom.XformOp.PrecisionFloat
-    assert moving.GetOrderedXformOps()[0].GetPrecision() == UsdGeom.XformOp.PrecisionDouble
+    assert ops == ["xformOp:translate:start", "xformOp:translate", "xformOp:orient"]
+    precision = [op.GetPrecision() for op in moving.GetOrderedXformOps()]
+    assert precision == [UsdGeom.XformOp.PrecisionDouble, UsdGeom.XformOp.PrecisionFloat,
+                         UsdGeom.XformOp.PrecisionFloat]
     # a vanished piece has no samples after it is gone
     gone = UsdGeom.Xformable(stage.GetPrimAtPath(PIECE[VANISH_PIECE]))
-    assert max(gone.GetOrderedXformOps()[0].GetAttr().GetTimeSamples()) == VANISH_FRAME - 1
+    assert max(gone.GetOrderedXformOps()[1].GetAttr().GetTimeSamples()) == VANISH_FRAME - 1
 
 
 def test_visibility_switches_at_end_frame(synthetic, tmp_path):

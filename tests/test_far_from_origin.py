@@ -124,8 +124,10 @@ def test_usd_keeps_far_positions(shots, layout):
     expected = (near.piece_position + SHIFT) @ c.T
     for f in (0, far.frame_count - 1):
         if layout == "xforms":
-            world = np.array([np.array(stage.GetPrimAtPath(path).GetAttribute(
-                "xformOp:translate").Get(f)) for path in _piece_paths(stage)])
+            world = np.array([
+                np.array(stage.GetPrimAtPath(path).GetAttribute("xformOp:translate:start").Get())
+                + np.array(stage.GetPrimAtPath(path).GetAttribute("xformOp:translate").Get(f),
+                           dtype=np.float64) for path in _piece_paths(stage)])
         else:
             inst = stage.GetPrimAtPath("/Shot/Pieces")
             offset = np.array(inst.GetAttribute("xformOp:translate").Get())

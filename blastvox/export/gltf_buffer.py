@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 #: glTF componentType and bufferView target constants (OpenGL enums)
-FLOAT, UINT16, UINT32 = 5126, 5123, 5125
+FLOAT, UINT8, UINT16, UINT32 = 5126, 5121, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 
@@ -41,12 +41,16 @@ class _Builder:
         return len(self.views) - 1
 
     def accessor(self, view: int, offset: int, component: int, count: int, kind: str,
-                 lo: list[float] | None = None, hi: list[float] | None = None) -> int:
-        """lo/hi: min/max (lists of float32 values as floats, see :func:`_floats`)."""
+                 lo: list[float] | None = None, hi: list[float] | None = None,
+                 normalized: bool = False) -> int:
+        """lo/hi: min/max (lists of float32 values as floats, see :func:`_floats`);
+        ``normalized``: integers read as fractions of their type's maximum."""
         acc: dict[str, Any] = {"bufferView": view, "componentType": component, "count": count,
                                "type": kind}
         if offset:
             acc["byteOffset"] = offset
+        if normalized:
+            acc["normalized"] = True
         if lo is not None:
             acc["min"], acc["max"] = lo, hi
         self.accessors.append(acc)

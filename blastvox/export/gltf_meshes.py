@@ -17,6 +17,7 @@ from blastvox.export.gltf_buffer import (
     ARRAY_BUFFER,
     ELEMENT_ARRAY_BUFFER,
     FLOAT,
+    UINT8,
     UINT16,
     UINT32,
     _Builder,
@@ -53,8 +54,11 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     its skin, WEIGHTS_0 = 1), mesh index = skin.
 
     Primitives are groups of (piece, glTF material): the model material and damage,
-    or the source look's texture; within a group, corners with the same float32
-    position, normal and UV share a vertex (first-use order). TEXCOORD_0 holds the
+    or the source look's texture. A mesh's primitives share its POSITION, NORMAL and
+    TEXCOORD_0 accessors (one set per mesh, each primitive its own indices: three
+    accessors a mesh fewer per extra primitive); within a mesh (and piece), corners
+    with the same float32 position, normal and UV share a vertex (first-use order,
+    primitive by primitive). TEXCOORD_0 holds the
     UVs of :mod:`blastvox.export.uv` with v flipped (glTF's origin is the image's top
     left).
     """
@@ -89,10 +93,13 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     texcoords[:, 1] = np.float32(1.0) - texcoords[:, 1]
     texcoords += np.float32(0.0)  # no -0
     corner_group = np.repeat(group, 3)
-    # shared vertices: equal (group, position, normal and UV bits); stable sort keeps
-    # first use
+    mesh_change = np.r_[True, owner[1:] != owner[:-1]]
+    tri_mesh = np.cumsum(mesh_change) - 1  # the mesh of each triangle
+    corner_mesh = np.repeat(tri_mesh, 3)
+    # shared vertices: equal (mesh, piece, position, normal and UV bits), one vertex set
+    # per mesh that its primitives share; stable sort keeps first use
     corner_piece = np.repeat(tri_piece, 3).astype(np.int32)  # skinned: no sharing across
-    cols = np.concatenate([corner_group[:, None].astype(np.int32), corner_piece[:, None],
+    cols = np.concatenate([corner_mesh[:, None].astype(np.int32), corner_piece[:, None],
                            corners.view(np.int32), normals.view(np.int32),
                            texcoords.view(np.int32)], axis=1)
     srt = np.lexsort(cols.T[::-1])
@@ -105,7 +112,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     inverse = np.empty(len(cols), dtype=np.int64)
     inverse[srt] = rank[uid]
     keep = np.sort(first)
-    vpos, vnrm, vuv, vgroup = corners[keep], normals[keep], texcoords[keep], corner_group[keep]
+    vpos, vnrm, vuv, vmesh = corners[keep], normals[keep], texcoords[keep], corner_mesh[keep]
     if skinned:
         by_skin = np.argsort(skin_of, kind="stable")  # each piece's place in its skin:
         first = np.searchsorted(skin_of[by_skin], skin_of[by_skin])  # its rank there
@@ -116,10 +123,12 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
         skin = None
 
     n_groups = len(starts)
-    vstart = np.searchsorted(vgroup, np.arange(n_groups + 1))
-    local_index = inverse - vstart[corner_group]
+    n_meshes = int(tri_mesh[-1]) + 1
+    vstart = np.searchsorted(vmesh, np.arange(n_meshes + 1))
+    local_index = inverse - vstart[corner_mesh]
     lo = np.minimum.reduceat(vpos, vstart[:-1], axis=0)
     hi = np.maximum.reduceat(vpos, vstart[:-1], axis=0)
+    group_mesh = tri_mesh[starts]
 
     pos_view = b.view(_f32(vpos), ARRAY_BUFFER, 12)
     nrm_view = b.view(_f32(vnrm), ARRAY_BUFFER, 12)
@@ -129,7 +138,7 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     # run starts on a 4-byte boundary
     counts = np.diff(vstart)
     cstart = np.r_[starts, n_tri] * 3
-    wide = counts >= U16_VERTEX_LIMIT
+    wide = counts[group_mesh] >= U16_VERTEX_LIMIT
     item = np.where(wide, 4, 2)
     padded = (np.diff(cstart) * item + 3) // 4 * 4
     idx_offsets = np.r_[0, np.cumsum(padded)[:-1]]
@@ -148,30 +157,33 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
     vstart_l, counts_l, wide_l = vstart.tolist(), counts.tolist(), wide.tolist()
     n_idx, idx_off = np.diff(cstart).tolist(), idx_offsets.tolist()
     owner_mesh = np.full(n_pieces, -1, dtype=np.int64)  # mesh of each piece (or skin)
+    attributes: dict[str, int] = {}
     for g in range(n_groups):
         if g == 0 or g_owner[g] != g_owner[g - 1]:
-            owner_mesh[g_owner[g]] = len(meshes)
+            k = len(meshes)
+            owner_mesh[g_owner[g]] = k
             meshes.append({"name": f"{'pieces' if skinned else 'piece'}_"
                                    f"{g_owner[g]:{'03' if skinned else '05'}d}",
                            "primitives": []})
-        n_v = counts_l[g]
+            n_v = counts_l[k]
+            attributes = {
+                "POSITION": b.accessor(pos_view, vstart_l[k] * 12, FLOAT, n_v, "VEC3",
+                                       lo_l[k], hi_l[k]),
+                "NORMAL": b.accessor(nrm_view, vstart_l[k] * 12, FLOAT, n_v, "VEC3"),
+                "TEXCOORD_0": b.accessor(uv_view, vstart_l[k] * 8, FLOAT, n_v, "VEC2"),
+            }
+            if skin is not None:
+                attributes["JOINTS_0"] = b.accessor(skin[0], vstart_l[k] * 8, UINT16,
+                                                    n_v, "VEC4")
+                attributes["WEIGHTS_0"] = b.accessor(skin[1], vstart_l[k] * 4, UINT8,
+                                                     n_v, "VEC4", normalized=True)
         prim = {
-            "attributes": {
-                "POSITION": b.accessor(pos_view, vstart_l[g] * 12, FLOAT, n_v, "VEC3",
-                                       lo_l[g], hi_l[g]),
-                "NORMAL": b.accessor(nrm_view, vstart_l[g] * 12, FLOAT, n_v, "VEC3"),
-                "TEXCOORD_0": b.accessor(uv_view, vstart_l[g] * 8, FLOAT, n_v, "VEC2"),
-            },
+            "attributes": dict(attributes),
             "indices": b.accessor(idx_view, idx_off[g], UINT32 if wide_l[g] else UINT16,
                                   n_idx[g], "SCALAR"),
             "material": g_mat[g],
             "mode": TRIANGLES,
         }
-        if skin is not None:
-            prim["attributes"]["JOINTS_0"] = b.accessor(skin[0], vstart_l[g] * 8, UINT16,
-                                                        n_v, "VEC4")
-            prim["attributes"]["WEIGHTS_0"] = b.accessor(skin[1], vstart_l[g] * 16, FLOAT,
-                                                         n_v, "VEC4")
         meshes[-1]["primitives"].append(prim)
     piece_mesh = owner_mesh[skin_of] if skinned else owner_mesh
     return meshes, piece_mesh
@@ -179,10 +191,11 @@ def _piece_meshes(cache: SimCache, b: _Builder, mat_index: dict[tuple[int, bool]
 
 def _skin_views(b: _Builder, vertex_piece: np.ndarray) -> tuple[int, int]:
     """Buffer views of JOINTS_0 (u16 VEC4: the vertex's piece, then three zero-weight
-    0s) and WEIGHTS_0 (f32 VEC4: 1, 0, 0, 0) for vertices of pieces (V,)."""
+    0s) and WEIGHTS_0 (normalized u8 VEC4: 255, 0, 0, 0, that is 1, 0, 0, 0; 4 bytes a
+    vertex where float32 took 16) for vertices of pieces (V,)."""
     joints = np.zeros((len(vertex_piece), 4), dtype="<u2")
     joints[:, 0] = vertex_piece
-    weights = np.zeros((len(vertex_piece), 4), dtype=np.float32)
-    weights[:, 0] = 1.0
+    weights = np.zeros((len(vertex_piece), 4), dtype=np.uint8)
+    weights[:, 0] = 255
     return (b.view(joints.tobytes(), ARRAY_BUFFER, 8),
-            b.view(_f32(weights), ARRAY_BUFFER, 16))
+            b.view(weights.tobytes(), ARRAY_BUFFER, 4))

@@ -8,8 +8,9 @@ Stage layout (``/Shot`` is the default prim; time code = frame index)::
                                                   diffuse colour is a UsdUVTexture of
                                                   ``<stem>_textures/<name>.png`` beside the file
       <object>/piece_00000 (Xform)                layout "xforms": pieces under an Xform
-                                                  per scene object; time-sampled translate
-        piece_NNNNN (Mesh)                             (double3) and orient (quatf), visibility
+                                                  per scene object; a constant translate:start
+        piece_NNNNN (Mesh)                        (double3), time-sampled translate (float3
+                                                  offsets from it) and orient (quatf), visibility
           surface_<material>, damage_<material>,  for pieces that vanish; a static mesh with
           textured_<name>                         GeomSubsets (materialBind, partition), a
                                                   time-sampled per-face ``primvars:damage``
