@@ -301,9 +301,31 @@ def wedge(scene: Scene, args: argparse.Namespace) -> tuple[Stage, list[dict]]:
            str(max(4_000_000, int(2 * scene.expected))), "--max-memory", str(args.max_memory)]
     if args.duration is not None:
         cmd += ["--vary", f"simulation.duration={args.duration}"]
+    (scene.path.parent / "logs").mkdir(exist_ok=True)
     stage = run_stage("wedge", cmd, scene.path.parent, scene.path.parent / "logs" / "wedge.txt")
     summary = json.loads((scene.path.parent / "wedge" / "summary.json").read_text())
     return stage, summary if isinstance(summary, list) else summary.get("shots", [])
+
+
+def table(scene: Scene, args: argparse.Namespace, gbs: float) -> None:
+    """The shot's stages through the CLI and their table."""
+    stages, model, cache = shot(scene, args)
+    steps = round(cache["duration_s"] / cache["dt_s"])
+    print("| stage | voxels | links | steps | pieces at end | wall s | user s | "
+          "peak RSS MiB | GB/s copy |")
+    print("|---|--:|--:|--:|--:|--:|--:|--:|--:|")
+    for s in stages:
+        pieces = f"{cache['piece_count']:,}" if s.name != "voxelize" else ""
+        step_cell = f"{steps:,}" if s.name == "simulate" else ""
+        print(f"| {s.name} | {model['voxel_count']:,} | {model['link_count']:,} | "
+              f"{step_cell} | {pieces} | {s.wall_s:,.1f} | {s.user_s:,.1f} | "
+              f"{s.peak_mib:,.0f} | {gbs:.1f} |")
+    print(f"\nChunks {model['chunk_count']:,}, foundations "
+          f"{model['foundation_voxel_count']:,}; at the end: {cache['piece_count']:,} "
+          f"pieces ({cache['moving_piece_count']:,} moving), "
+          f"{cache['broken_link_count']:,} links broken, "
+          f"{cache['destroyed_voxel_count']:,} voxels to dust; simulate "
+          f"{model['voxel_count'] * steps / stages[1].wall_s / 1e6:.2f} M voxel-steps/s.")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -318,6 +340,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--wedge", type=int, default=0, metavar="N",
                         help="also run the scene as an N-shot wedge over the charge mass")
     parser.add_argument("--wedge-workers", type=int, default=1)
+    parser.add_argument("--wedge-only", action="store_true",
+                        help="run the wedge alone, not the stages one by one")
     parser.add_argument("--max-memory", type=float, default=20.0, metavar="GIB",
                         help="simulate's --max-memory (its default 4 GiB refuses ~5 M voxels)")
     parser.add_argument("--reuse-model", action="store_true",
@@ -345,23 +369,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\nCity block: {len(BUILDINGS)} buildings, {scene.solid_m3:,.0f} m^3 of wall and "
               f"slab, voxel edge {scene.voxel_size} m; {CHARGE_KG:g} kg TNT in the street; "
               f"{duration:g} s at 1/240 s{'' if args.duration is None else ' (SHORTENED)'}.\n")
-        stages, model, cache = shot(scene, args)
-        steps = round(cache["duration_s"] / cache["dt_s"])
-        print("| stage | voxels | links | steps | pieces at end | wall s | user s | "
-              "peak RSS MiB | GB/s copy |")
-        print("|---|--:|--:|--:|--:|--:|--:|--:|--:|")
-        for s in stages:
-            pieces = f"{cache['piece_count']:,}" if s.name != "voxelize" else ""
-            step_cell = f"{steps:,}" if s.name == "simulate" else ""
-            print(f"| {s.name} | {model['voxel_count']:,} | {model['link_count']:,} | "
-                  f"{step_cell} | {pieces} | {s.wall_s:,.1f} | {s.user_s:,.1f} | "
-                  f"{s.peak_mib:,.0f} | {gbs:.1f} |")
-        print(f"\nChunks {model['chunk_count']:,}, foundations "
-              f"{model['foundation_voxel_count']:,}; at the end: {cache['piece_count']:,} "
-              f"pieces ({cache['moving_piece_count']:,} moving), "
-              f"{cache['broken_link_count']:,} links broken, "
-              f"{cache['destroyed_voxel_count']:,} voxels to dust; simulate "
-              f"{model['voxel_count'] * steps / stages[1].wall_s / 1e6:.2f} M voxel-steps/s.")
+        if not args.wedge_only:
+            table(scene, args, gbs)
         if args.wedge:
             stage, shots = wedge(scene, args)
             print(f"\nWedge: {args.wedge} shots (charge mass), {args.wedge_workers} worker(s): "
