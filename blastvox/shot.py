@@ -123,12 +123,14 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
                log: Callable[[str], None] = print, warn: Callable[[str], None] | None = None,
                seconds: dict[str, float] | None = None,
                references_anywhere: bool = False,
-               max_memory_gib: float | None = None) -> list[str]:
+               max_memory_gib: float | None = None,
+               max_voxels: int | None = None) -> list[str]:
     """Bring the outputs of ``scene`` (read from ``scene_path``, whose name the model
     records) up to date, as :func:`run_scene`; returns the stages that ran.
 
     ``seconds``, if given, receives the wall time of each stage that ran (s), keyed
-    by stage name ("voxelize", "simulate", "export").
+    by stage name ("voxelize", "simulate", "export"). ``max_voxels``: voxelize's budget
+    (``--max-voxels``; default its own, whose refusal says to voxelize the scene first).
     """
     seconds = {} if seconds is None else seconds
     out = scene.output
@@ -155,7 +157,7 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
 
         log(f"voxelize -> {out.model}")
         started = time.perf_counter()
-        settings = settings_from_scene(scene)
+        settings = settings_from_scene(scene, max_voxels)
         settings.recorded = {"scene": scene_path.name}
         settings.references_anywhere = references_anywhere
         model = voxelize(requests_from_scene(scene), settings, warn=warn)

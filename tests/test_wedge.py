@@ -242,6 +242,25 @@ def test_a_refused_value_names_the_shot(duck_scene: Path) -> None:
         plan_wedge(duck_scene, ["charges.0.mass_kg=1,-2"])
 
 
+def test_budgets_reach_every_shot_and_stay_out_of_its_key(duck_scene: Path) -> None:
+    """--max-voxels and --max-memory (issue 37's 10 M-voxel city block is over both
+    defaults) travel with each shot to its worker; they never change a shot's files."""
+    from blastvox.wedge.shot import run_shot
+
+    plain = plan_wedge(duck_scene, ["seed=0,1"])
+    tight = plan_wedge(duck_scene, ["seed=0,1"], max_voxels=5, max_memory_gib=64.0)
+    assert [s.key for s in tight.shots] == [s.key for s in plain.shots]
+    assert (plain.shots[0].max_voxels, plain.shots[0].max_memory_gib) == (None, None)
+    assert (tight.shots[1].max_voxels, tight.shots[1].max_memory_gib) == (5, 64.0)
+    result = run_shot(tight.shots[0])
+    assert result["status"] == "failed"
+    assert "budget of 5" in result["error"] and "--max-voxels" in result["error"]
+    assert not Path(tight.shots[0].scene["output"]["model"]).exists()
+    outcome = run_blastvox("wedge", duck_scene, "--vary", "seed=0,1", "--max-voxels",
+                           "20000000", "--max-memory", "32", "--dry-run")
+    assert outcome.code == 0, outcome.stderr
+
+
 def test_cache_stats_count_what_moved_and_how_it_broke() -> None:
     """Three pieces of 1 kg voxels: a 10-voxel piece that flies (one of its voxels turned
     to dust), a single voxel that flies, a single voxel that stays."""

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import typer
 
+from blastvox.bounds import MAX_MEMORY_GIB
+
 
 def wedge(
     scene: Path = typer.Argument(..., metavar="SCENE", help="Scene TOML (its [wedge] table, "
@@ -40,6 +42,13 @@ def wedge(
                                       "sheet [default: wedge.preview, else on]."),
     dry_run: bool = typer.Option(False, "--dry-run", help="List the shots and their keys; "
                                  "run nothing."),
+    max_voxels: int = typer.Option(4_000_000, "--max-voxels", help="Refuse a shot that "
+                                   "would make more voxels than this (`blastvox voxelize "
+                                   "--help`)."),
+    max_memory: float = typer.Option(MAX_MEMORY_GIB, "--max-memory", metavar="GIB",
+                                     help="Refuse a shot whose simulation would need more "
+                                     "memory, GiB (`blastvox simulate --help`); a worker "
+                                     "needs this much for each shot it runs at once."),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="Print nothing but errors."),
 ) -> None:
     """Run the scene once per combination of --vary values (a wedge), each variant through
@@ -50,6 +59,7 @@ def wedge(
     finished shots, so an interrupted wedge resumes. A failed shot does not stop the
     others; the exit code is 1 if any failed. Writes DIR/summary.csv, summary.json and
     sheet.png (the shots side by side)."""
+    from blastvox.bounds import MAX_VOXELS, printable
     from blastvox.cli.console import RichProgress, err_console
     from blastvox.io.outputs import check_output
     from blastvox.wedge.cluster import connect, dashboard_link, local_workers, run_shots
@@ -60,8 +70,9 @@ def wedge(
     say = (lambda m: None) if quiet else (
         lambda m: console.print(m, markup=False, highlight=False))
     started = time.perf_counter()
+    MAX_VOXELS.at(max_voxels, f"{printable(scene)}: --max-voxels")
     plan = plan_wedge(scene, vary, sample=sample, sample_seed=sample_seed, out=out,
-                      preview=preview)
+                      preview=preview, max_voxels=max_voxels, max_memory_gib=max_memory)
     shots = plan.shots
     if dry_run:
         for spec in shots:

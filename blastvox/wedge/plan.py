@@ -48,7 +48,9 @@ class ShotSpec:
     key: its content key; params: varied key -> value; scene: the parsed scene file
     with the values set and the outputs in ``directory``; scene_path: the scene
     file (absolute: relative paths in ``scene`` are relative to its directory);
-    preview: render a preview strip.
+    preview: render a preview strip; max_voxels, max_memory_gib: voxelize's and
+    simulate's budgets (``--max-voxels``, ``--max-memory``; None: their defaults). The
+    budgets only refuse a shot, they never change its files, so they are not in its key.
     """
 
     index: int
@@ -58,6 +60,8 @@ class ShotSpec:
     scene_path: str
     directory: str
     preview: bool
+    max_voxels: int | None = None
+    max_memory_gib: float | None = None
 
     def label(self) -> str:
         """``"shot 3: charges.0.mass_kg=50, seed=1"``."""
@@ -93,12 +97,14 @@ def parse_vary(option: str) -> tuple[str, str]:
 
 def plan_wedge(scene_path: Path, vary: Sequence[str] = (), sample: int | None = None,
                sample_seed: int | None = None, out: Path | None = None,
-               preview: bool | None = None) -> WedgePlan:
+               preview: bool | None = None, max_voxels: int | None = None,
+               max_memory_gib: float | None = None) -> WedgePlan:
     """The plan of a wedge of the scene file at ``scene_path``.
 
     ``vary``: ``KEY=VALUES`` options, added to the scene's ``[wedge.vary]`` table (a
     key given in both takes the option's values). ``sample``, ``sample_seed``, ``out``
-    and ``preview`` override the ``[wedge]`` table's. Raises
+    and ``preview`` override the ``[wedge]`` table's. ``max_voxels``, ``max_memory_gib``:
+    every shot's voxelize and simulate budgets (None: their defaults). Raises
     :class:`~blastvox.errors.WedgeError` or :class:`~blastvox.errors.SceneError`: one
     line naming the key, option or shot.
     """
@@ -121,7 +127,9 @@ def plan_wedge(scene_path: Path, vary: Sequence[str] = (), sample: int | None = 
     base = {k: v for k, v in raw.items() if k != "wedge"}
     exports = _export_names(raw)
     memo: dict[Path, str] = {}
-    shots = [_shot(i, axes, base, exports, scene_path, out, preview, memo) for i in indices]
+    limits = (max_voxels, max_memory_gib)
+    shots = [_shot(i, axes, base, exports, scene_path, out, preview, memo, limits)
+             for i in indices]
     return WedgePlan(scene_path=scene_path, out=out, axes=axes, grid_size=grid_size,
                      shots=shots, preview=preview)
 
@@ -185,7 +193,8 @@ def _export_names(raw: dict[str, Any]) -> list[str]:
 
 
 def _shot(index: int, axes: list[Axis], base: dict[str, Any], exports: list[str],
-          scene_path: Path, out: Path, preview: bool, memo: dict[Path, str]) -> ShotSpec:
+          scene_path: Path, out: Path, preview: bool, memo: dict[Path, str],
+          limits: tuple[int | None, float | None] = (None, None)) -> ShotSpec:
     from blastvox.scene import scene_from_dict
     from blastvox.shot import check_simulation
 
@@ -196,7 +205,8 @@ def _shot(index: int, axes: list[Axis], base: dict[str, Any], exports: list[str]
     scene = scene_from_dict(_with_outputs(data, out / "_", exports), source, scene_path.parent)
     if not scene.charges:
         raise SceneError(f"{source}: charges: the shot has no [[charges]] to simulate")
-    check_simulation(scene, source)  # a shot over its budgets: refused before any runs
+    max_voxels, max_memory_gib = limits
+    check_simulation(scene, source, max_memory_gib)  # over its budgets: refused before any runs
     inputs = list(itertools.chain.from_iterable(mesh_resources(Path(o.mesh))
                                                 for o in scene.objects))
     if scene.materials_file is not None:
@@ -206,7 +216,7 @@ def _shot(index: int, axes: list[Axis], base: dict[str, Any], exports: list[str]
     return ShotSpec(index=index, key=key, params=params,
                     scene=_with_outputs(data, directory, exports),
                     scene_path=str(scene_path.absolute()), directory=str(directory),
-                    preview=preview)
+                    preview=preview, max_voxels=max_voxels, max_memory_gib=max_memory_gib)
 
 
 def _with_outputs(data: dict[str, Any], directory: Path, exports: list[str]) -> dict[str, Any]:

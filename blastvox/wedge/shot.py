@@ -58,7 +58,8 @@ def run_shot(spec: ShotSpec) -> dict[str, Any]:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             build_shot(scene, scene_path, log=lines.append,
-                       warn=lambda m: lines.append(f"warning: {m}"), seconds=seconds)
+                       warn=lambda m: lines.append(f"warning: {m}"), seconds=seconds,
+                       max_memory_gib=spec.max_memory_gib, max_voxels=spec.max_voxels)
         lines += [f"warning: {w.message}" for w in caught]
         cache = _load_cache(Path(scene.output.cache))
         stats = cache_stats(cache)
