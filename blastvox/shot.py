@@ -119,6 +119,23 @@ def check_simulation(scene: Scene, source: str, max_memory_gib: float | None = N
     return sim
 
 
+def voxelize_scene(scene: Scene, scene_path: Path, max_voxels: int | None = None,
+                   references_anywhere: bool = False,
+                   warn: Callable[[str], None] | None = None) -> Any:
+    """The scene's VoxelModel, as ``blastvox voxelize SCENE`` makes it (the same
+    settings recorded: :func:`~blastvox.voxelize.provenance.recorded_settings`).
+    ``max_voxels``: the budget (None: voxelize's default)."""
+    from blastvox.voxelize.pipeline import voxelize
+    from blastvox.voxelize.provenance import recorded_settings
+    from blastvox.voxelize.requests import requests_from_scene, settings_from_scene
+
+    settings = settings_from_scene(scene, max_voxels)
+    requests = requests_from_scene(scene)
+    settings.recorded = recorded_settings(requests, settings, scene_path)
+    settings.references_anywhere = references_anywhere
+    return voxelize(requests, settings, warn=warn)
+
+
 def build_shot(scene: Scene, scene_path: Path, force: bool = False,
                log: Callable[[str], None] = print, warn: Callable[[str], None] | None = None,
                seconds: dict[str, float] | None = None,
@@ -152,15 +169,9 @@ def build_shot(scene: Scene, scene_path: Path, force: bool = False,
     sim = check_simulation(scene, str(scene_path), max_memory_gib)
     model = None
     if force or _stale(out.model, voxel_inputs):
-        from blastvox.voxelize.pipeline import voxelize
-        from blastvox.voxelize.requests import requests_from_scene, settings_from_scene
-
         log(f"voxelize -> {out.model}")
         started = time.perf_counter()
-        settings = settings_from_scene(scene, max_voxels)
-        settings.recorded = {"scene": scene_path.name}
-        settings.references_anywhere = references_anywhere
-        model = voxelize(requests_from_scene(scene), settings, warn=warn)
+        model = voxelize_scene(scene, scene_path, max_voxels, references_anywhere, warn)
         model.save(out.model)
         seconds["voxelize"] = time.perf_counter() - started
         ran.append("voxelize")

@@ -367,3 +367,21 @@ def test_info_rejects_non_models(kind: str, tmp_path: Path, runs: dict[str, Run]
         result = run_cli("info", target.name, *extra, cwd=tmp_path)
         assert_one_line_error(result, target.name)
         assert result.stdout == ""
+
+
+def test_a_scene_gives_the_same_model_from_voxelize_and_from_run(
+        runs: dict[str, Run], tmp_path: Path) -> None:
+    """``blastvox voxelize --scene`` and ``blastvox run`` (a wedge's shots too: both go
+    through :func:`blastvox.shot.voxelize_scene`) record the same settings, so a scene
+    makes one model file whichever command made it; a budget is not recorded (the
+    building's 450 kg city shot differed in its meta only, stop 55)."""
+    from blastvox.scene import load_scene
+    from blastvox.shot import voxelize_scene
+
+    cli = runs["building"]
+    scene_path = cli.cwd / "scene.toml"
+    model = voxelize_scene(load_scene(scene_path), scene_path, max_voxels=123_456_789)
+    model.save(tmp_path / "run.npz")
+    assert (tmp_path / "run.npz").read_bytes() == cli.model.read_bytes()
+    assert "max_voxels" not in model.meta["settings"]
+    assert model.meta["settings"]["scene"] == "scene.toml"

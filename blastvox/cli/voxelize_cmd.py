@@ -218,7 +218,9 @@ def voxelize(
     check_output(output, [scene, materials_file, *(r.mesh for r in requests)],
                  make_dirs=scene is not None and output == spec.output.model, label=label)
     check_npz_output(output, label, "VoxelModel")
-    settings.recorded = _recorded(requests, settings, scene)
+    from blastvox.voxelize.provenance import recorded_settings
+
+    settings.recorded = recorded_settings(requests, settings, scene)
 
     console = err_console()
     started = time.perf_counter()
@@ -236,30 +238,6 @@ def _read_toml(path: Path) -> dict:
     from blastvox.materials import read_toml
 
     return read_toml(path, MaterialError)
-
-
-def _recorded(requests, settings, scene) -> dict:
-    """The settings that made the model, JSON-safe, without absolute paths."""
-    from blastvox.bounds import printable
-
-    return {
-        "scene": printable(Path(scene).name) if scene else None,
-        "up_axis": settings.up_axis, "ground": settings.ground, "seed": settings.seed,
-        "max_voxels": settings.max_voxels,
-        "objects": [{
-            "mesh": printable(Path(r.mesh).name), "name": r.name,
-            "voxel_size": list(r.voxel_size) if r.voxel_size else None,
-            "resolution": r.resolution, "shape": r.shape, "jitter": r.jitter,
-            "chunk_size": r.chunk_size, "part_bond": r.part_bond, "anchored": r.anchored,
-            "sheet_thickness": r.sheet_thickness,
-            "material": r.material, "material_map": dict(r.material_map),
-            "transform": r.transform.tolist() if r.transform is not None else None,
-            "rules": [{"kind": x.kind, "a": list(x.a), "b": x.b if isinstance(x.b, float)
-                       else list(x.b), "material": x.material,
-                       "strength_scale": x.strength_scale, "chunk_size": x.chunk_size}
-                      for x in r.rules],
-        } for r in requests],
-    }
 
 
 def _print_summary(console, model, output: Path, seconds: float) -> None:
