@@ -10,9 +10,25 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import subprocess
 from importlib import metadata
+from pathlib import Path
 
 import blastvox  # noqa: F401  (see the docstring)
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def revision() -> str:
+    """The git commit of the checkout, "+ local changes" if blastvox/ differs from it."""
+    try:
+        sha = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, check=True,
+                             capture_output=True, text=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "blastvox"], cwd=ROOT,
+                               check=True, capture_output=True, text=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "not a git checkout"
+    return f"git {sha}" + (" + local changes in blastvox/" if dirty else "")
 
 
 def machine(packages: tuple[str, ...] = ("blastvox", "numpy", "numba")) -> str:

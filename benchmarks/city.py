@@ -42,10 +42,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from _machine import machine  # benchmarks/ is on sys.path when run as a script
+from _machine import machine, revision  # benchmarks/ is on sys.path when run as a script
 from performance import stream_gbs
 
-ROOT = Path(__file__).resolve().parent.parent
 STOREY = 3.2  # m, floor to floor
 WALL = 0.3  # m, outer walls
 SLAB = 0.25  # m, floor slabs and roof
@@ -255,17 +254,6 @@ def info(path: Path) -> dict:
     return json.loads(out.stdout)
 
 
-def git_commit() -> str:
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, check=True,
-                              capture_output=True, text=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "blastvox"], cwd=ROOT,
-                               check=True, capture_output=True, text=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return head + (" (blastvox/ modified)" if dirty else "")
-
-
 # --------------------------------------------------------------------------- main
 
 
@@ -359,7 +347,7 @@ def main(argv: list[str] | None = None) -> int:
               f"({scene.solid_m3:,.0f} m^3 of wall and slab)")
         return 0
     print(machine(("blastvox", "numpy", "numba", "distributed")))
-    print(f"Commit: {git_commit()}; date {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
+    print(f"Commit: {revision()}; date {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     gbs = stream_gbs()
     print(f"NumPy copy bandwidth of this machine (256 MiB, read + write): {gbs:.1f} GB/s")
     work = args.out or Path(tempfile.mkdtemp(prefix="blastvox-city-"))

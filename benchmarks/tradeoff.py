@@ -48,7 +48,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from _machine import machine  # benchmarks/ is on sys.path when run as a script
+from _machine import machine, revision  # benchmarks/ is on sys.path when run as a script
 
 from blastvox.analysis.tradeoff import (
     METRICS,
@@ -188,20 +188,6 @@ def log(message: str) -> None:
 
 
 # --------------------------------------------------------------------------- report
-
-
-def revision() -> str:
-    """The git commit of the checkout, "+ local changes" if blastvox/ differs from it."""
-    import subprocess
-
-    try:
-        sha = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, check=True,
-                             capture_output=True, text=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "blastvox"], cwd=ROOT,
-                               check=True, capture_output=True, text=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "not a git checkout"
-    return f"git {sha}" + (" + local changes in blastvox/" if dirty else "")
 
 
 def load() -> str:

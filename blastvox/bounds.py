@@ -42,6 +42,8 @@ MAX_VOXEL_SIZE_M = 1e6
 MAX_SEED = 2**64 - 1
 #: Largest --max-voxels (voxel and vertex indices are stored as int32).
 MAX_VOXELS_LIMIT = 100_000_000
+#: Voxels one voxelize makes unless --max-voxels says otherwise.
+DEFAULT_MAX_VOXELS = 4_000_000
 #: Largest scene or materials TOML file read (bytes).
 MAX_TOML_BYTES = 64 * 2**20
 

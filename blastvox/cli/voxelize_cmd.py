@@ -9,7 +9,7 @@ from pathlib import Path
 
 import typer
 
-from blastvox.bounds import DEFAULT_SHEET_THICKNESS_M, printable
+from blastvox.bounds import DEFAULT_MAX_VOXELS, DEFAULT_SHEET_THICKNESS_M, printable
 from blastvox.cli.options import UpAxis
 from blastvox.errors import BlastvoxError, SceneError
 
@@ -93,8 +93,8 @@ def voxelize(
                                "none (free-floating, no foundation), or metres [default: auto]."),
     seed: int = typer.Option(None, "--seed", help="Seed for jitter and yield perturbation "
                              "[default: 0]."),
-    max_voxels: int = typer.Option(4_000_000, "--max-voxels", help="Refuse to make more voxels "
-                                   "than this."),
+    max_voxels: int = typer.Option(DEFAULT_MAX_VOXELS, "--max-voxels",
+                                   help="Refuse to make more voxels than this."),
     max_triangles: int = typer.Option(2_000_000, "--max-triangles", help="Refuse to read more "
                                       "triangles than this (all meshes together), before "
                                       "parsing a file that says it holds more."),

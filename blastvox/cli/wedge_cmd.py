@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from blastvox.bounds import MAX_MEMORY_GIB
+from blastvox.bounds import DEFAULT_MAX_VOXELS, MAX_MEMORY_GIB
 
 
 def wedge(
@@ -42,7 +42,7 @@ def wedge(
                                       "sheet [default: wedge.preview, else on]."),
     dry_run: bool = typer.Option(False, "--dry-run", help="List the shots and their keys; "
                                  "run nothing."),
-    max_voxels: int = typer.Option(4_000_000, "--max-voxels", help="Refuse a shot that "
+    max_voxels: int = typer.Option(DEFAULT_MAX_VOXELS, "--max-voxels", help="Refuse a shot that "
                                    "would make more voxels than this (`blastvox voxelize "
                                    "--help`)."),
     max_memory: float = typer.Option(MAX_MEMORY_GIB, "--max-memory", metavar="GIB",

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from blastvox import __version__
-from blastvox.bounds import MAX_COORDINATE_M, printable
+from blastvox.bounds import DEFAULT_MAX_VOXELS, MAX_COORDINATE_M, printable
 from blastvox.errors import MeshError
 from blastvox.geometry.frames import up_index
 from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG
@@ -49,7 +49,6 @@ from blastvox.voxelize.topology import (
     tagged_area_centroid,
 )
 
-DEFAULT_MAX_VOXELS = 4_000_000
 #: Triangles one voxelize reads (all objects): a 1.3 M-triangle sphere at resolution 8
 #: took 47 s and 1.5 GB, 5.2 M triangles 65 s and 4 GB (issue 36)
 DEFAULT_MAX_TRIANGLES = 2_000_000

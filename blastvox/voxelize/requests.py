@@ -62,8 +62,9 @@ def settings_from_scene(scene: Any, max_voxels: int | None = None) -> Any:
     Without ``max_voxels`` (``blastvox run``, which has no --max-voxels) the default
     budget applies, and a refusal says to voxelize the scene with a larger one first.
     """
+    from blastvox.bounds import DEFAULT_MAX_VOXELS
     from blastvox.voxelize.budget import HINT
-    from blastvox.voxelize.pipeline import DEFAULT_MAX_VOXELS, VoxelizeSettings
+    from blastvox.voxelize.pipeline import VoxelizeSettings
 
     hint = HINT
     if max_voxels is None:
