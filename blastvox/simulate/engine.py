@@ -49,7 +49,7 @@ from blastvox.simulate import cues
 from blastvox.simulate.bodies import aggregate, inverse_inertia
 from blastvox.simulate.clearing import reset_clearing
 from blastvox.simulate.confinement import Rooms, find_rooms, gas_phase
-from blastvox.simulate.contact.fragments import begin_contacts, collide_phase
+from blastvox.simulate.contact.fragments import begin_contacts, collide_phase, strike_phase
 from blastvox.simulate.contact.ground import ground_phase, rest_speed
 from blastvox.simulate.contact.loads import Punch, punch_phase
 from blastvox.simulate.contact.warmstart import lighten_carried, mass_kept
@@ -359,29 +359,35 @@ PUNCH_ROUNDS = 8
 
 def _collide(run: Run, n: int, t1: float, frame_next: int) -> None:
     """Step n's fragment contacts (:func:`~blastvox.simulate.contact.fragments.collide_phase`),
-    with their dust and splits. When they pushed a chunk out of a founded body
-    (:func:`~blastvox.simulate.contact.loads.punch_phase`), the step's contacts are solved
-    again from the momenta before them, with the chunk free: the pieces that struck
-    it share their momentum with it as with any free body (an immovable wall stopped
-    them dead)."""
+    then what they struck (:func:`~blastvox.simulate.contact.fragments.strike_phase`),
+    with its dust and splits. When the contacts pushed a chunk out of a founded body
+    (:func:`~blastvox.simulate.contact.loads.punch_phase`), the step's contacts are
+    solved again from the bodies as they were before them, with the chunk free: the
+    pieces that struck it share their momentum with it as with any free body (an
+    immovable wall stopped them dead). A solve taken back leaves nothing behind: no
+    strike, dust or flag of it counts."""
     model, state, s = run.model, run.state, run.settings
     count = state.n_bodies
+    begin_contacts(state)
     if run.punch is not None:  # what the contacts are solved again from
         b = state.bodies
-        before = tuple(a[:count].copy() for a in (b.lin, b.ang, b.pos, b.quat, b.rot))
+        before = tuple(a[:count].copy() for a in (b.lin, b.ang, b.pos, b.quat, b.rot,
+                                                  b.asleep))
     for attempt in range(PUNCH_ROUNDS):
-        resolved = collide_phase(model, state, s, run.dt)
-        if s.dust and resolved:
-            run.effects.collision_dust(model, state.contacts.hits[:resolved], t1)
-        if state.marks.destroyed.any():
-            split(run, n, t1, frame_next)
+        collide_phase(model, state, s, run.dt)
         if attempt == PUNCH_ROUNDS - 1 or run.punch is None or not punch_phase(
                 model, state, run.stress, run.punch, state.contacts.memory.rows,
                 *state.caches.fragment_rows, run.dt, rest_speed(s, run.dt), model.up):
-            _sustain(run)
-            return
-        _restore(state.bodies, count, before)
+            break
+        _restore(state, count, before)
         split(run, n, t1, frame_next)
+        state.marks.dirty[:] = False  # split: the punched bodies are apart
+    resolved = strike_phase(model, state, s)
+    if s.dust and resolved:
+        run.effects.collision_dust(model, state.contacts.hits[:resolved], t1)
+    if state.marks.destroyed.any():
+        split(run, n, t1, frame_next)
+    _sustain(run)
 
 
 def _sustain(run: Run) -> None:
@@ -396,14 +402,16 @@ def _sustain(run: Run) -> None:
     punch.sustained.close(run.state, run.stress, run.gravity, run.model.voxels.mass, run.dt)
 
 
-def _restore(bodies, count: int, before: tuple) -> None:
-    """The momenta and poses before a step's contacts (the solve moves bodies too):
-    before, lin, ang, pos (count, 3), quat (count, 4), rot (count, 3, 3) of the first
-    ``count`` bodies; a body split off since starts from its parent's momenta (a fixed
-    one's: none)."""
+def _restore(state, count: int, before: tuple) -> None:
+    """The bodies as they were before a step's contacts (the solve moves bodies and puts
+    them to sleep too): before, lin, ang, pos (count, 3), quat (count, 4), rot (count,
+    3, 3) and asleep (count,) of the first ``count`` bodies; a body split off since
+    starts from its parent's momenta (a fixed one's: none). The flags of support the
+    solve set for the next step are cleared (the next solve sets them again)."""
+    bodies = state.bodies
     live = bodies.live[:count]
-    for now, then in zip((bodies.lin, bodies.ang, bodies.pos, bodies.quat, bodies.rot),
-                         before, strict=True):
+    for now, then in zip((bodies.lin, bodies.ang, bodies.pos, bodies.quat, bodies.rot,
+                          bodies.asleep), before, strict=True):
         now[:count][live] = then[live]
     for b in range(count, int(bodies.count[0])):
         parent = int(bodies.parent[b])
@@ -413,6 +421,7 @@ def _restore(bodies, count: int, before: tuple) -> None:
             bodies.lin[b] = 0.0
             bodies.ang[b] = 0.0
         # a piece of a free body keeps what the split gave it: its parent moved on
+    state.contacts.supported_next[:] = False
 
 
 def _sustained_speed(run: Run, dt: float) -> float:

@@ -80,7 +80,9 @@ def compile_late_phases(run) -> None:
     if s.collisions or run.ground is not None:
         _compile_solver(state, s, dt, model.up)
     if s.collisions:
+        collide.begin_contacts(state)
         collide.collide_phase(model, state, s, dt)
+        collide.strike_phase(model, state, s)
     if run.ground is not None:
         ground.ground_phase(model, state, s, dt, run.ground)
     if s.collisions or run.ground is not None:

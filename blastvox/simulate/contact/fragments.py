@@ -208,37 +208,41 @@ def _touching_gap(half, va, vb) -> float:
 
 
 @kernel
-def contact_effects(rows, count, density, voxels, marks, resting, hits, params, half,
+def resting_flags(rows, count, rest_speed, resting) -> None:
+    """Flag in ``resting`` (B,) both bodies of every solved fragment contact (the first
+    ``count`` rows) that pushed and approached slower than ``rest_speed`` (m/s): they
+    rest on each other (for :func:`damp_resting`)."""
+    for r in range(count):
+        if rows.impulse[r] > 0.0 and -rows.approach[r] < rest_speed:
+            resting[rows.body[r, 0]] = True
+            resting[rows.body[r, 1]] = True
+
+
+@kernel
+def contact_strikes(rows, count, density, voxels, marks, hits, weakening, half,
                     crush) -> int:
-    """What the step's solved fragment contacts (the first ``count`` rows) did: a
-    contact that pushed and approached slower than params.rest_speed is resting and
-    flags both bodies in ``resting`` (for :func:`damp_resting`); one that struck
-    weakens both voxels by params.weakening x the impact pressure rho v_n^2 / 2 (Pa;
-    rho the voxel's density in kg/m^3, v_n the approach speed): a stone voxel shrugs
-    off 5 m/s (33 kPa) and turns to dust at 20 m/s (520 kPa, above its yield). A
-    contact strikes if its voxels were apart at the step's start (by more than
-    :data:`TOUCHING` x the smaller voxel's edge; half (N, 3) m: the voxels' contact box
-    half extents); voxels touching already push: a wall's layers,
-    freed by the wave and pressed together by it, do not strike each other (their
-    approach, the wave's push over one step, p dt / (rho L), is dt's, not an
-    impact's). A voxel whose yield the pressure exceeds, and its ``crush`` (N,) Pa
+    """What the step's solved fragment contacts (the first ``count`` rows) struck: one
+    that pushed, approached and whose voxels were apart
+    at the step's start (by more than :data:`TOUCHING` x the smaller voxel's edge;
+    half (N, 3) m: the voxels' contact box half extents) weakens both voxels by
+    ``weakening`` x the impact pressure rho v_n^2 / 2 (Pa; rho the voxel's density in
+    kg/m^3, v_n the approach speed): a stone voxel shrugs off 5 m/s (33 kPa) and turns
+    to dust at 20 m/s (520 kPa, above its yield). Voxels touching already push: a
+    wall's layers, freed by the wave and pressed together by it, do not strike each
+    other (their approach, the wave's push over one step, p dt / (rho L), is dt's, not
+    an impact's). A voxel whose yield the pressure exceeds, and its ``crush`` (N,) Pa
     (a voxel that is the material's rubble already is pulverized only by a crushing
     impact, whatever the blast left of its yield), is marked in marks.destroyed (its
-    body in marks.dirty). hits (H, 4) receives the points and
-    approach speeds (m/s, for dust). Returns how many rows struck. rows:
-    :class:`~blastvox.simulate.contact.ground.ContactRows`; density (N,): voxels' kg/m^3;
-    resting: contacts.resting (B,)."""
+    body in marks.dirty). hits (H, 4) receives the points and approach speeds (m/s,
+    for dust). Returns how many rows struck. rows:
+    :class:`~blastvox.simulate.contact.ground.ContactRows`; density (N,): voxels' kg/m^3."""
     voxel_density, voxel_yield, voxel_alive = density, voxels.yield_pa, voxels.alive
     resolved = 0
     for r in range(count):
         vn = rows.approach[r]
-        if rows.impulse[r] <= 0.0:
+        if rows.impulse[r] <= 0.0 or vn >= 0.0:
             continue
-        if -vn < params.rest_speed:
-            resting[rows.body[r, 0]] = True
-            resting[rows.body[r, 1]] = True
-        if vn >= 0.0 or rows.gap[r] <= _touching_gap(half, rows.voxel[r, 0],
-                                                               rows.voxel[r, 1]):
+        if rows.gap[r] <= _touching_gap(half, rows.voxel[r, 0], rows.voxel[r, 1]):
             continue
         for side in range(2):
             v = rows.voxel[r, side]
@@ -248,7 +252,7 @@ def contact_effects(rows, count, density, voxels, marks, resting, hits, params, 
                 marks.destroyed[v] = True
                 marks.dirty[rows.body[r, side]] = True
             else:
-                voxel_yield[v] = max(0.0, voxel_yield[v] - params.weakening * pressure)
+                voxel_yield[v] = max(0.0, voxel_yield[v] - weakening * pressure)
         if resolved < hits.shape[0]:
             for a in range(3):
                 hits[resolved, a] = rows.point[r, a]
@@ -339,21 +343,19 @@ def begin_contacts(state) -> None:
     c.supported[:] = False
 
 
-def collide_phase(model, state, settings, dt: float) -> int:
+def collide_phase(model, state, settings, dt: float) -> None:
     """Phase: contacts between fragments and, with a ground, with the ground, solved
     together at velocity level; then resting-contact damping.
 
     Reads the bodies' poses and momenta and the boundary; writes momenta, poses
-    (where bodies interpenetrate), asleep, voxels' yield and alive (impacts),
-    marks.destroyed and dirty, the contact flags, memory and hits. Returns how
-    many of this step's contacts are in contacts.hits (for dust); a caller splits
-    bodies when marks.destroyed has any. ``settings``: the run's SimSettings. The
-    ground phase then has nothing left to do
+    (where bodies interpenetrate), asleep, the contact flags (after
+    :func:`begin_contacts`, once a step) and memory. What the contacts struck is
+    :func:`strike_phase`'s, after the step's last solve. ``settings``: the run's
+    SimSettings. The ground phase then has nothing left to do
     (:func:`~blastvox.simulate.contact.ground.ground_phase`).
     """
     s = settings
     boundary = boundary_of(model, state)
-    begin_contacts(state)
     memory = state.contacts.memory
     if memory is None:
         v = model.voxels
@@ -382,12 +384,9 @@ def collide_phase(model, state, settings, dt: float) -> int:
     memory.rows.grip[:count] = 1.0
     state.caches.fragment_rows = (int(count), int(end))
     c = state.contacts
-    resolved = contact_effects(memory.rows, count, model.voxels.density, state.voxels,
-                               state.marks, c.resting, c.hits, params, memory.half,
-                               model.strength.shatter_pa)
+    resting_flags(memory.rows, count, params.rest_speed, c.resting)
     if ground is not None:
         settle_on_ground(model, state, s, dt, count, end)
-    state.counters.collisions += int(resolved)
     b = state.bodies
     balanced = state.caches.balanced
     if balanced is None or len(balanced) != len(b.mass):
@@ -398,7 +397,25 @@ def collide_phase(model, state, settings, dt: float) -> int:
     decay = math.exp(-s.rest_damping * dt) if s.gravity > 0.0 else 1.0
     damp_resting(state.contacts.resting, b.mass, b.inv_inertia, b.rot, b.lin, b.ang, b.radius,
                  state.n_bodies, decay, 4.0 * s.sleep_speed)
-    return min(int(resolved), len(state.contacts.hits))
+
+
+def strike_phase(model, state, settings) -> int:
+    """Phase: what the step's fragment contacts, as finally solved (the last
+    :func:`collide_phase`'s rows), struck (:func:`contact_strikes`): voxels weakened or
+    marked destroyed (the caller splits), contacts.hits and counters.collisions. Run
+    once a step, after the last solve: a solve that is taken back and done again
+    (:func:`blastvox.simulate.engine._collide`'s punch rounds) strikes nothing.
+    Returns how many of the strikes are in contacts.hits (for dust)."""
+    memory = state.contacts.memory
+    count = state.caches.fragment_rows[0]
+    if memory is None or count == 0:
+        return 0
+    c = state.contacts
+    resolved = contact_strikes(memory.rows, count, model.voxels.density, state.voxels,
+                               state.marks, c.hits, settings.weakening, memory.half,
+                               model.strength.shatter_pa)
+    state.counters.collisions += int(resolved)
+    return min(int(resolved), len(c.hits))
 
 
 def _holds(state) -> np.ndarray:
