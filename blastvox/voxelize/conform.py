@@ -22,9 +22,11 @@ import numpy as np
 import trimesh
 
 from blastvox.errors import MeshError
-from blastvox.geometry.voxel_faces import SURFACE_TAG, hex_triangles
+from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG
 
 _BLOCK = 8  # cells per block edge for the two-level clip
+#: (12, 3) uint64: each cell triangle's face id (triangle 2f and 2f+1 on face f)
+_FACE_IDS = np.arange(12, dtype=np.uint64)
 
 
 @dataclass
@@ -59,9 +61,9 @@ def solid_manifold(mesh: trimesh.Trimesh, where: str, origin: str | None = None
 
 
 def _hex_manifold(corners: np.ndarray, tris: np.ndarray) -> m3d.Manifold:
-    mesh = m3d.Mesh64(vert_properties=np.ascontiguousarray(corners, dtype=np.float64),
-                      tri_verts=tris, face_id=np.arange(12, dtype=np.uint64))
-    return m3d.Manifold(mesh)
+    """The cell of ``corners`` (8, 3) float64 and ``tris`` (12, 3) uint64, both C-contiguous
+    (rows of the arrays :func:`clipped_cells` takes)."""
+    return m3d.Manifold(m3d.Mesh64(vert_properties=corners, tri_verts=tris, face_id=_FACE_IDS))
 
 
 def clipped_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
@@ -71,6 +73,8 @@ def clipped_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarr
     ones, block by block (the cells of a block are clipped against the same pre-clipped
     piece of the solid, which keeps each clip small); arguments as for
     :func:`clip_cells`."""
+    corners = np.ascontiguousarray(corners, dtype=np.float64)
+    local_tris = np.ascontiguousarray(local_tris, dtype=np.uint64)
     order = np.argsort(block_keys, kind="stable")
     bounds = np.sort(np.unique(block_keys[order], return_index=True)[1])
     for group in np.split(order, bounds[1:]):
@@ -83,10 +87,10 @@ def clipped_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarr
             advance(len(group))
         if piece.is_empty():
             continue
-        for k in group:
-            clipped = _hex_manifold(corners[k], local_tris[k].astype(np.uint64)) ^ piece
+        for k in group.tolist():
+            clipped = _hex_manifold(corners[k], local_tris[k]) ^ piece
             if not clipped.is_empty():
-                yield int(k), clipped
+                yield k, clipped
 
 
 def clip_volumes(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
@@ -160,9 +164,19 @@ def block_keys_for(ijk: np.ndarray) -> np.ndarray:
     return (b[:, 0] * 1_000_003 + b[:, 1]) * 1_000_003 + b[:, 2]
 
 
+#: (2, 6, 2, 3) corner numbers of each face's two triangles, split through the face's
+#: corners 0 and 2 ([0]) or 1 and 3 ([1]): :func:`~blastvox.geometry.voxel_faces.face_triangles`
+#: of the corner numbers
+_SPLITS = np.stack([
+    np.stack([FACE_CORNERS[:, [0, 1, 2]], FACE_CORNERS[:, [0, 2, 3]]], axis=1),
+    np.stack([FACE_CORNERS[:, [1, 2, 3]], FACE_CORNERS[:, [1, 3, 0]]], axis=1)])
+
+
 def local_hex_triangles(voxel_vertices: np.ndarray) -> np.ndarray:
-    """(K, 12, 3) corner numbers 0..7 of each hexahedron's triangles (shared split rule)."""
-    tris = hex_triangles(voxel_vertices)  # global ids
-    # map global ids back to corner numbers
-    match = tris[..., None] == voxel_vertices[:, None, None, :]
-    return np.argmax(match, axis=-1)
+    """(K, 12, 3) uint64 corner numbers 0..7 of each hexahedron's triangles (voxel_vertices
+    (K, 8) distinct global vertex ids): the split rule of
+    :func:`~blastvox.geometry.voxel_faces.hex_triangles` (each face split through its
+    smallest vertex id), in the cell's own corner numbers."""
+    first = np.argmin(voxel_vertices[:, FACE_CORNERS], axis=-1)  # (K, 6)
+    return _SPLITS[(first % 2).astype(np.int8), np.arange(6)].astype(np.uint64).reshape(
+        len(voxel_vertices), 12, 3)

@@ -2,9 +2,9 @@
 
 Per input (one lattice each): read parts, clean them, pick cells by winding
 number, place (jittered) lattice vertices, clip conform cells, measure mass
-properties, link face neighbours. Then across inputs: split into objects
-(connected components), assign materials and region rules, perturb yield
-limits from the seed, tag foundation voxels, and pack the flat arrays.
+properties, link face neighbours. Then across inputs (:mod:`blastvox.voxelize.assemble`):
+split into objects (connected components), assign materials and region rules, perturb
+yield limits from the seed, tag foundation voxels, and pack the flat arrays.
 """
 
 from __future__ import annotations
@@ -15,17 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
-from blastvox import __version__
 from blastvox.bounds import DEFAULT_MAX_VOXELS, MAX_COORDINATE_M, printable
 from blastvox.errors import MeshError
 from blastvox.geometry.frames import up_index
 from blastvox.geometry.voxel_faces import CORNER_OFFSETS, SURFACE_BIT, SURFACE_TAG
 from blastvox.io.references import ReferencePolicy
-from blastvox.materials import MaterialLibrary, material_table, perturbed
+from blastvox.materials import MaterialLibrary
 from blastvox.model import VoxelModel
 from blastvox.voxelize import budget, chunks
 from blastvox.voxelize import cells as cellsel
-from blastvox.voxelize.components import component_labels
+from blastvox.voxelize.assemble import Lattice, assemble
 from blastvox.voxelize.conform import (
     block_keys_for,
     clip_cells,
@@ -36,7 +35,6 @@ from blastvox.voxelize.diagnostics import warn_islands, warn_overlaps
 from blastvox.voxelize.fill import corner_bounds, cube_fill, solid_mass_frame, triangle_bounds
 from blastvox.voxelize.hashing import uniform_by_key
 from blastvox.voxelize.lattice import Grid, fit_grid, spacing_for
-from blastvox.voxelize.look import LookBuilder
 from blastvox.voxelize.mass import hex_mass_properties, soup_mass_properties
 from blastvox.voxelize.mesh_io import check_readable, load_parts, missing_textures
 from blastvox.voxelize.regions import RegionRule
@@ -136,36 +134,6 @@ class Progress:
     def stop(self) -> None: ...
 
 
-@dataclass
-class _Lattice:
-    """Voxels of one input before they are merged with the others."""
-
-    request: ObjectRequest
-    name: str
-    grid: Grid
-    solids: list
-    ijk: np.ndarray
-    part: np.ndarray
-    vertex_ids: np.ndarray      # (V,) lattice vertex ids used
-    positions: np.ndarray       # (V, 3)
-    voxel_vertices: np.ndarray  # (N, 8) into positions
-    volume: np.ndarray
-    centroid: np.ndarray
-    inertia: np.ndarray
-    conform_local: np.ndarray   # (C,) local voxel indices
-    conform_offsets: np.ndarray
-    conform_triangles: np.ndarray
-    conform_tags: np.ndarray
-    link_voxels: np.ndarray
-    link_face: np.ndarray
-    link_midpoint: np.ndarray
-    link_area: np.ndarray
-    boundary: np.ndarray
-    parts: list = field(default_factory=list)  # the input surfaces, for the look
-    fill: np.ndarray | None = None  # (N,) m^3 of solid per cube voxel (fill.py), None: volume
-    solid_box: np.ndarray | None = None  # (N, 2, 3) m, the bounds of each voxel's solid
-
-
 def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
              progress: Progress | None = None,
              warn: Callable[[str], None] | None = None) -> VoxelModel:
@@ -176,7 +144,7 @@ def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
     budget.check_objects(requests, settings)
     for request in requests:  # an unreadable input fails before any work
         check_readable(Path(request.mesh))
-    lattices: list[_Lattice] = []
+    lattices: list[Lattice] = []
     budget_left = settings.max_voxels
     triangles_left = [settings.max_triangles]
     for index, request in enumerate(requests):
@@ -186,7 +154,7 @@ def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
         lattices.append(lattice)
     warn_overlaps([(lat.name, lat.grid, lat.ijk, lat.centroid, lat.volume)
                    for lat in lattices], warn)
-    return _assemble(lattices, settings, up)
+    return assemble(lattices, settings, up)  # consumes the lattices
 
 
 def _size_label(request: ObjectRequest) -> str:
@@ -220,7 +188,7 @@ def _check_coordinates(request: ObjectRequest, parts: list) -> None:
 
 def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings, up: int,
                   budget_left: int, progress: Progress, warn,
-                  triangles_left: list[int] | None = None) -> _Lattice:
+                  triangles_left: list[int] | None = None) -> Lattice:
     source = printable(request.mesh)
     progress.start(f"reading {Path(source).name}", 1)
     policy = ReferencePolicy(anywhere=settings.references_anywhere)
@@ -302,7 +270,7 @@ def _voxelize_one(index: int, request: ObjectRequest, settings: VoxelizeSettings
     used, voxel_vertices = np.unique(voxel_vertices, return_inverse=True)
     voxel_vertices = voxel_vertices.reshape(-1, 8)
     vertex_ids, positions = vertex_ids[used], positions[used]
-    lat = _Lattice(request=request, name=request.name or Path(source).stem, grid=grid,
+    lat = Lattice(request=request, name=request.name or Path(source).stem, grid=grid,
                    solids=solids, ijk=ijk, part=part, vertex_ids=vertex_ids,
                    positions=positions, voxel_vertices=voxel_vertices, volume=volume[keep],
                    centroid=centroid[keep], inertia=inertia[keep], conform_local=conform_local,
@@ -394,7 +362,7 @@ def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progres
     return keep, (candidates[clipped.cells], clipped.offsets, clipped.triangles, clipped.tags)
 
 
-def _link(lat: _Lattice) -> None:
+def _link(lat: Lattice) -> None:
     """Fill in the links of one lattice's voxels (one per shared face)."""
     grid = index_grid(lat.ijk, lat.grid.shape)
     neighbours = face_neighbours(lat.ijk, grid)
@@ -432,7 +400,7 @@ def _link(lat: _Lattice) -> None:
     lat.link_area = np.concatenate(area_list)[order]
 
 
-def _merge_slivers(lat: _Lattice, cell_volume: np.ndarray, fraction: float, source: str,
+def _merge_slivers(lat: Lattice, cell_volume: np.ndarray, fraction: float, source: str,
                    warn) -> None:
     """Merge the lattice's conform slivers into neighbours (see :mod:`.slivers`)."""
     cells = Cells(ijk=lat.ijk, part=lat.part, positions=lat.positions,
@@ -466,7 +434,7 @@ def _merge_slivers(lat: _Lattice, cell_volume: np.ndarray, fraction: float, sour
                                                        lat.conform_offsets)
 
 
-def _boundary(lat: _Lattice) -> None:
+def _boundary(lat: Lattice) -> None:
     """Fill in the exposed faces (and the surface bit) of one lattice's voxels."""
     linked = np.zeros((len(lat.ijk), 6), dtype=bool)
     linked[lat.link_voxels[:, 0], lat.link_face] = True
@@ -479,204 +447,3 @@ def _boundary(lat: _Lattice) -> None:
     has_surface[owner[lat.conform_tags == SURFACE_TAG]] = True
     boundary[has_surface] |= np.uint8(1 << SURFACE_BIT)
     lat.boundary = boundary
-
-
-def _assemble(lattices: list[_Lattice], settings: VoxelizeSettings, up: int) -> VoxelModel:
-    library = settings.library
-    objects: list[dict] = []
-    material_names: list[str] = []
-    per: dict[str, list[np.ndarray]] = {k: [] for k in (
-        "vertices", "voxel_vertices", "voxel_ijk", "voxel_object", "material_name_idx",
-        "voxel_volume", "voxel_centroid", "voxel_inertia", "voxel_boundary", "strength",
-        "link_voxels", "link_face", "link_midpoint", "link_area", "conform_voxels",
-        "conform_offsets", "conform_triangles", "conform_tag", "chunk_size", "voxel_side",
-        "link_bond", "anchored", "voxel_fill", "voxel_part", "voxel_solid_box")}
-    parts: list[dict] = []  # meta["parts"]: every input part (node) of every object
-    voxel_base = vertex_base = tri_base = 0
-    look = LookBuilder()
-
-    def material_index(name: str) -> int:
-        key = library[name].name
-        if key not in material_names:
-            material_names.append(key)
-        return material_names.index(key)
-
-    for lat in lattices:
-        n = len(lat.ijk)
-        labels = component_labels(lat.link_voxels, n)  # numbered by lowest voxel
-        count = int(labels.max()) + 1
-        for c in range(count):
-            objects.append({"name": lat.name if count == 1 else f"{lat.name}.{c:03d}",
-                            "source": lat.request.recorded_source(),
-                            "shape": lat.request.shape,
-                            "voxel_size_m": lat.grid.spacing.tolist(),
-                            "jitter": lat.request.jitter, "lattice_origin_m":
-                            lat.grid.origin.tolist(), "voxel_count": int((labels == c).sum())})
-        object_ids = len(objects) - count + labels
-        look.add_object(lat.name, lat.parts, len(parts))
-        per["voxel_part"].append(len(parts) + _part_indices(lat)[lat.part])
-        parts.extend({"object": lat.name, "name": part.name, "material": part.material}
-                     for part in lat.parts)
-        names = _voxel_materials(lat)
-        scale = np.ones(n)
-        for rule in lat.request.rules:
-            inside = rule.contains(lat.centroid)
-            if rule.material is not None:
-                names[inside] = library[rule.material].name
-            scale[inside] *= rule.strength_scale
-        unique_names, inverse = np.unique(names, return_inverse=True)
-        lookup = np.array([material_index(str(u)) for u in unique_names], dtype=np.int32)
-        per["material_name_idx"].append(lookup[inverse.ravel()])
-        per["vertices"].append(lat.positions)
-        per["voxel_vertices"].append(lat.voxel_vertices + vertex_base)
-        per["voxel_ijk"].append(lat.ijk)
-        per["voxel_object"].append(object_ids)
-        per["voxel_volume"].append(lat.volume)
-        per["voxel_fill"].append(lat.volume if lat.fill is None else lat.fill)
-        per["voxel_solid_box"].append(lat.solid_box)
-        per["voxel_centroid"].append(lat.centroid)
-        per["voxel_inertia"].append(lat.inertia)
-        per["voxel_boundary"].append(lat.boundary)
-        per["strength"].append(scale)
-        per["chunk_size"].append(chunks.requested_sizes(lat.request, lat.centroid))
-        per["voxel_side"].append(np.full(n, float(np.cbrt(np.prod(lat.grid.spacing)))))
-        per["link_voxels"].append(lat.link_voxels + voxel_base)
-        per["link_face"].append(lat.link_face)
-        per["link_midpoint"].append(lat.link_midpoint)
-        per["link_area"].append(lat.link_area)
-        across = lat.part[lat.link_voxels[:, 0]] != lat.part[lat.link_voxels[:, 1]]
-        per["link_bond"].append(np.where(across, lat.request.part_bond, 1.0))
-        per["anchored"].append(np.full(n, lat.request.anchored))
-        per["conform_voxels"].append(lat.conform_local + voxel_base)
-        per["conform_offsets"].append(lat.conform_offsets[:-1] + tri_base)
-        per["conform_triangles"].append(lat.conform_triangles)
-        per["conform_tag"].append(lat.conform_tags)
-        voxel_base += n
-        vertex_base += len(lat.positions)
-        tri_base += len(lat.conform_triangles)
-
-    cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in per.items()}
-    arrays = _material_arrays(cat, material_names, library, settings, up)
-    arrays.update(
-        vertices=cat["vertices"].astype(np.float64).reshape(-1, 3),
-        voxel_vertices=cat["voxel_vertices"].astype(np.int32).reshape(-1, 8),
-        voxel_ijk=cat["voxel_ijk"].astype(np.int32).reshape(-1, 3),
-        voxel_object=cat["voxel_object"].astype(np.int32),
-        voxel_part=cat["voxel_part"].astype(np.int32),
-        voxel_solid_box=cat["voxel_solid_box"].astype(np.float64).reshape(-1, 2, 3),
-        voxel_material=cat["material_name_idx"].astype(np.int32),
-        voxel_volume=cat["voxel_volume"].astype(np.float64),
-        voxel_centroid=cat["voxel_centroid"].reshape(-1, 3),
-        voxel_inertia=cat["voxel_inertia"].reshape(-1, 3, 3),
-        voxel_boundary=cat["voxel_boundary"].astype(np.uint8),
-        link_voxels=cat["link_voxels"].astype(np.int32).reshape(-1, 2),
-        link_face=cat["link_face"].astype(np.uint8),
-        link_midpoint=cat["link_midpoint"].reshape(-1, 3),
-        link_area=cat["link_area"].astype(np.float64),
-        conform_voxels=cat["conform_voxels"].astype(np.int32),
-        conform_offsets=np.append(cat["conform_offsets"], tri_base).astype(np.int64),
-        conform_triangles=cat["conform_triangles"].reshape(-1, 3, 3).astype(np.float64),
-        conform_tag=cat["conform_tag"].astype(np.uint8),
-    )
-    lv = arrays["link_voxels"]
-    d = arrays["voxel_centroid"][lv[:, 1]] - arrays["voxel_centroid"][lv[:, 0]]
-    arrays["link_direction"] = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
-    density = arrays["material_density"][arrays["voxel_material"]]
-    fill = cat["voxel_fill"].astype(np.float64)  # the solid a voxel holds: its mass
-    arrays["voxel_mass"] = fill * density
-    arrays["voxel_inertia"] = (arrays["voxel_inertia"] * density[:, None, None]
-                               * (fill / arrays["voxel_volume"])[:, None, None])
-    ground = _ground_height(settings.ground, arrays["voxel_solid_box"], up)
-    meta = {
-        "tool_version": __version__, "up_axis": settings.up_axis, "ground_height": ground,
-        "seed": settings.seed, "settings": settings.recorded, "objects": objects,
-        "materials": material_names, "parts": parts,
-    }
-    surface, textures = look.arrays()
-    if surface:  # only a textured or smooth input adds the look (others are unchanged)
-        arrays.update(surface)
-        meta["textures"] = textures
-    _foundations(arrays, ground, up, cat["strength"], cat["anchored"].astype(bool))
-    return VoxelModel(arrays=arrays, meta=meta)
-
-
-def _part_indices(lat: _Lattice) -> np.ndarray:
-    """(solids,) int: the index in ``lat.parts`` of each solid (a part that failed to
-    clean has no solid)."""
-    return np.array([next(i for i, part in enumerate(lat.parts) if part is solid.part)
-                     for solid in lat.solids], dtype=np.int64)
-
-
-def _voxel_materials(lat: _Lattice) -> np.ndarray:
-    """Material name per voxel before region rules: object default, then mesh material."""
-    library_names = {lat.request.material}
-    per_part = []
-    mapping = {k.lower(): v for k, v in lat.request.material_map.items()}
-    for solid in lat.solids:
-        own = (solid.part.material or "").lower()
-        name = mapping.get(own, lat.request.material)
-        per_part.append(name)
-        library_names.add(name)
-    # object dtype: a fixed-width str array would truncate longer names set by rules
-    return np.array(per_part, dtype=object)[lat.part]
-
-
-def _material_arrays(cat, material_names, library: MaterialLibrary, settings, up) -> dict:
-    table = material_table(library, material_names)
-    mat = cat["material_name_idx"].astype(np.int64)
-    strength = cat["strength"]
-    n = len(mat)
-    seq = np.random.SeedSequence(settings.seed)
-    rng_voxel, rng_link, rng_found, rng_chunk = (np.random.default_rng(s) for s in seq.spawn(4))
-    voxel_yield = perturbed(table["material_voxel_yield_mean"][mat],
-                            table["material_voxel_yield_var"][mat], rng_voxel, n) * strength
-    lv = cat["link_voxels"].astype(np.int64).reshape(-1, 2)
-    la, lb = mat[lv[:, 0]], mat[lv[:, 1]]
-    link_mean = table["material_link_yield_mean"]
-    weaker = np.where(link_mean[la] <= link_mean[lb], la, lb)
-    link_strength = np.minimum(strength[lv[:, 0]], strength[lv[:, 1]])
-    link_yield = perturbed(link_mean[weaker], table["material_link_yield_var"][weaker],
-                           rng_link, len(lv)) * link_strength
-    voxel_chunk = chunks.group(mat, cat["chunk_size"], cat["voxel_side"], cat["voxel_volume"],
-                               cat["voxel_centroid"].reshape(-1, 3), lv, table, rng_chunk)
-    link_yield = link_yield * chunks.bond_factor(voxel_chunk, lv,
-                                                 table["material_chunk_bond_scale"][weaker])
-    link_yield = link_yield * cat["link_bond"]  # touching parts: ObjectRequest.part_bond
-    table.update(voxel_yield=voxel_yield, link_yield=link_yield, voxel_chunk=voxel_chunk,
-                 voxel_combustibility=table["material_combustibility"][mat].astype(np.float64),
-                 _rng_found=np.asarray(rng_found.random(n)))
-    return table
-
-
-def _ground_height(ground, solid_box: np.ndarray, up: int) -> float | None:
-    """The ground plane's height (m along ``up``): as set, or "auto", the lowest point of
-    the voxels' solid (solid_box (N, 2, 3) m), not of their cells: a crate whose cells
-    reach below its mesh stands on the ground with the rest."""
-    if ground is None or ground == "none":
-        return None
-    if ground == "auto":
-        return float(solid_box[:, 0, up].min())
-    return float(ground)
-
-
-def _foundations(arrays: dict, ground: float | None, up: int, strength: np.ndarray,
-                 anchored: np.ndarray) -> None:
-    """Tag voxels touching the ground (of anchored objects, (N,) bool) and give them
-    perturbed foundation yields."""
-    u = arrays.pop("_rng_found")
-    n = len(arrays["voxel_mass"])
-    if ground is None:
-        arrays["voxel_foundation"] = np.zeros(n, dtype=bool)
-        arrays["voxel_foundation_yield"] = np.zeros(n)
-        return
-    lowest = arrays["voxel_solid_box"][:, 0, up]  # where its solid reaches down to
-    size = np.cbrt(np.maximum(arrays["voxel_volume"], 0.0))
-    found = (lowest <= ground + 1e-3 * size) & anchored
-    mat = arrays["voxel_material"]
-    mean = arrays["material_foundation_yield"][mat]
-    voxel_mean = arrays["material_voxel_yield_mean"][mat]
-    rel = np.divide(arrays["material_voxel_yield_var"][mat], voxel_mean, out=np.zeros(n),
-                    where=np.isfinite(voxel_mean) & (voxel_mean > 0))
-    value = mean * (1.0 + rel * (2.0 * u - 1.0)) * strength
-    arrays["voxel_foundation"] = found
-    arrays["voxel_foundation_yield"] = np.where(found, np.maximum(value, 0.0), 0.0)
