@@ -11,6 +11,9 @@ peak before, see docs/benchmarks.md).
 
 from __future__ import annotations
 
+import ctypes
+import functools
+import sys
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -91,6 +94,28 @@ _OWN = {"voxel_centroid": "centroid", "voxel_inertia": "inertia",
         "link_midpoint": "link_midpoint"}
 #: Columns used only while assembling.
 _WORK = ("strength", "chunk_size", "voxel_side", "link_bond", "anchored", "voxel_fill")
+
+
+def release_freed_memory() -> None:
+    """Hand the heap's free pages back to the system (glibc's ``malloc_trim``; nothing
+    elsewhere). Arrays under glibc's mmap threshold (which rises to 32 MiB as large
+    blocks are freed) live on the heap, and the heap keeps what is freed: without this
+    the lattices freed one by one while the model is filled would still count in the
+    process's memory (its RSS) when the model is complete."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+@functools.cache
+def _malloc_trim():
+    """glibc's ``malloc_trim`` or None (another C library, or none to load)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        return ctypes.CDLL(None).malloc_trim
+    except (AttributeError, OSError):
+        return None
 
 
 def _counts(lat: Lattice) -> dict[str, int]:
@@ -191,6 +216,7 @@ def assemble(lattices: list[Lattice], settings, up: int) -> VoxelModel:
             at[key] += c
         lattices[index] = lat = None  # free this input's arrays: they are copied
         del values
+        release_freed_memory()
 
     work = {name: col.pop(name) for name in _WORK}
     col["conform_offsets"] = np.append(col["conform_offsets"], at["triangles"])

@@ -22,6 +22,7 @@ import numpy as np
 import trimesh
 
 from blastvox.errors import MeshError
+from blastvox.geometry.boxes import corner_boxes
 from blastvox.geometry.voxel_faces import FACE_CORNERS, SURFACE_TAG
 
 _BLOCK = 8  # cells per block edge for the two-level clip
@@ -66,20 +67,20 @@ def _hex_manifold(corners: np.ndarray, tris: np.ndarray) -> m3d.Manifold:
     return m3d.Manifold(m3d.Mesh64(vert_properties=corners, tri_verts=tris, face_id=_FACE_IDS))
 
 
-def clipped_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
+def clipped_cells(solid: m3d.Manifold, positions: np.ndarray, cells: np.ndarray,
                   block_keys: np.ndarray, advance: Callable[[int], None] | None = None
                   ) -> Iterator[tuple[int, m3d.Manifold]]:
     """Each candidate cell k intersected with ``solid``, (k, clipped), skipping the empty
     ones, block by block (the cells of a block are clipped against the same pre-clipped
-    piece of the solid, which keeps each clip small); arguments as for
+    piece of the solid, which keeps each clip small; their corners and triangles are
+    gathered a block at a time, not for all cells at once); arguments as for
     :func:`clip_cells`."""
-    corners = np.ascontiguousarray(corners, dtype=np.float64)
-    local_tris = np.ascontiguousarray(local_tris, dtype=np.uint64)
     order = np.argsort(block_keys, kind="stable")
     bounds = np.sort(np.unique(block_keys[order], return_index=True)[1])
     for group in np.split(order, bounds[1:]):
-        lo = corners[group].reshape(-1, 3).min(axis=0)
-        hi = corners[group].reshape(-1, 3).max(axis=0)
+        corners = np.ascontiguousarray(positions[cells[group]], dtype=np.float64)
+        lo = corners.reshape(-1, 3).min(axis=0)
+        hi = corners.reshape(-1, 3).max(axis=0)
         pad = 1e-6 * float(np.max(hi - lo))
         box = m3d.Manifold.cube(tuple(hi - lo + 2 * pad)).translate(tuple(lo - pad))
         piece = solid ^ box
@@ -87,43 +88,45 @@ def clipped_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarr
             advance(len(group))
         if piece.is_empty():
             continue
-        for k in group.tolist():
-            clipped = _hex_manifold(corners[k], local_tris[k]) ^ piece
+        tris = local_hex_triangles(cells[group])
+        for i, k in enumerate(group.tolist()):
+            clipped = _hex_manifold(corners[i], tris[i]) ^ piece
             if not clipped.is_empty():
                 yield k, clipped
 
 
-def clip_volumes(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
+def clip_volumes(solid: m3d.Manifold, positions: np.ndarray, cells: np.ndarray,
                  block_keys: np.ndarray, advance: Callable[[int], None] | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
     """The volume (m^3) of each candidate cell inside ``solid``, (K,), and the bounds of
     that solid, (K, 2, 3) m (lo, hi; the cell's own corners' where nothing is inside):
     arguments as for :func:`clip_cells`, which this measures without keeping the
     clipped surfaces."""
-    volume = np.zeros(len(corners))
-    bounds = np.stack([corners.min(axis=1), corners.max(axis=1)], axis=1)
-    for k, clipped in clipped_cells(solid, corners, local_tris, block_keys, advance):
+    volume = np.zeros(len(cells))
+    bounds = np.stack(corner_boxes(positions, cells), axis=1)
+    for k, clipped in clipped_cells(solid, positions, cells, block_keys, advance):
         volume[k] = clipped.volume()
         box = clipped.bounding_box()
         bounds[k, 0], bounds[k, 1] = box[:3], box[3:]
     return volume, bounds
 
 
-def clip_cells(solid: m3d.Manifold, corners: np.ndarray, local_tris: np.ndarray,
+def clip_cells(solid: m3d.Manifold, positions: np.ndarray, cells: np.ndarray,
                block_keys: np.ndarray, min_volume: np.ndarray,
                advance: Callable[[int], None] | None = None) -> ConformCells:
     """Intersect each candidate cell with ``solid``.
 
-    corners: (K, 8, 3) cell corners in metres; local_tris: (K, 12, 3) corner
-    numbers (0..7) of each cell's outward triangles, triangle ``2f``/``2f+1`` on
-    face ``f``; block_keys: (K,) integer block id per cell (cells of a block are
-    clipped against the same pre-clipped piece of the solid); min_volume: (K,)
-    m^3, cells whose clipped volume is at or below it are dropped; ``advance(n)``
-    is called as cells are done (progress).
+    positions: (V, 3) lattice vertices in metres; cells: (K, 8) the candidate cells'
+    corners, rows of positions (distinct in a cell; its triangles split each face as
+    :func:`local_hex_triangles` does, triangle ``2f``/``2f+1`` on face ``f``);
+    block_keys: (K,) integer block id per cell (cells of a block are clipped against the
+    same pre-clipped piece of the solid); min_volume: (K,) m^3, cells whose clipped
+    volume is at or below it are dropped; ``advance(n)`` is called as cells are done
+    (progress).
     """
     kept, offsets, tri_chunks, tag_chunks = [], [0], [], []
     surface_ids = np.asarray(_original_ids(solid), dtype=np.int64)
-    for k, clipped in clipped_cells(solid, corners, local_tris, block_keys, advance):
+    for k, clipped in clipped_cells(solid, positions, cells, block_keys, advance):
         if clipped.volume() <= min_volume[k]:
             continue
         tris, tags = _tagged_triangles(clipped.to_mesh64(), surface_ids)

@@ -19,7 +19,6 @@ from blastvox.geometry.boxes import corner_boxes, triangle_boxes
 from blastvox.voxelize.conform import (
     block_keys_for,
     clip_volumes,
-    local_hex_triangles,
     solid_manifold,
 )
 from blastvox.voxelize.topology import face_neighbours, index_grid
@@ -38,11 +37,12 @@ def fill_volumes(solid, candidates: np.ndarray, clip: tuple, cell_volume: np.nda
     """Each cell's volume of solid (m^3), (N,), for N cells (lattice indices ijk (N, 3)
     in a grid of ``shape``, centroids (N, 3) m) of which ``keep`` (N,) are voxels:
     ``cell_volume`` (N,) but at the ``candidates`` (K,) (the cells the surface
-    crosses; clip: their corners (K, 8, 3) m, local_tris (K, 12, 3) and block_keys (K,)
-    as for :func:`~blastvox.voxelize.conform.clip_cells`), where it is the cell's volume
-    inside ``solid`` (a manifold3d Manifold). What a dropped candidate holds is shared
-    equally by its kept face neighbours (a gap cell between two parts feeds both), or
-    given to the nearest kept voxel if none; dropped cells end at 0.
+    crosses; clip: the lattice vertices (V, 3) m, the candidates' corners (K, 8) rows of
+    them and block_keys (K,), as for :func:`~blastvox.voxelize.conform.clip_cells`),
+    where it is the cell's volume inside ``solid`` (a manifold3d Manifold). What a
+    dropped candidate holds is shared equally by its kept face neighbours (a gap cell
+    between two parts feeds both), or given to the nearest kept voxel if none; dropped
+    cells end at 0.
 
     bounds (N, 2, 3) m: each cell's (lo, hi), updated in place to the bounds of the
     solid it holds: a candidate's clipped solid, grown by what it was handed (the
@@ -131,8 +131,7 @@ def cube_fill(solids, chosen, shape: tuple[int, int, int], cells: tuple, volume:
         return volume.copy()
     progress.start(f"fill ({len(candidates):,} cells)", len(candidates))
     positions, voxel_vertices = cells
-    clip = (positions[voxel_vertices[candidates]], local_hex_triangles(voxel_vertices[candidates]),
-            block_keys_for(chosen.ijk[candidates]))
+    clip = (positions, voxel_vertices[candidates], block_keys_for(chosen.ijk[candidates]))
     return fill_volumes(solid, candidates, clip, volume, keep, chosen.ijk, shape, centroid,
                         solid_box, progress.advance)
 

@@ -24,11 +24,10 @@ from blastvox.materials import MaterialLibrary
 from blastvox.model import VoxelModel
 from blastvox.voxelize import budget, chunks
 from blastvox.voxelize import cells as cellsel
-from blastvox.voxelize.assemble import Lattice, assemble
+from blastvox.voxelize.assemble import Lattice, assemble, release_freed_memory
 from blastvox.voxelize.conform import (
     block_keys_for,
     clip_cells,
-    local_hex_triangles,
     solid_manifold,
 )
 from blastvox.voxelize.diagnostics import warn_islands, warn_overlaps
@@ -148,10 +147,10 @@ def voxelize(requests: list[ObjectRequest], settings: VoxelizeSettings,
     budget_left = settings.max_voxels
     triangles_left = [settings.max_triangles]
     for index, request in enumerate(requests):
-        lattice = _voxelize_one(index, request, settings, up, budget_left, progress, warn,
-                                triangles_left)
-        budget_left -= len(lattice.ijk)
-        lattices.append(lattice)
+        lattices.append(_voxelize_one(index, request, settings, up, budget_left, progress,
+                                      warn, triangles_left))
+        budget_left -= len(lattices[-1].ijk)
+        release_freed_memory()  # its cells' and clips' work arrays
     warn_overlaps([(lat.name, lat.grid, lat.ijk, lat.centroid, lat.volume)
                    for lat in lattices], warn)
     return assemble(lattices, settings, up)  # consumes the lattices
@@ -353,9 +352,8 @@ def _clip_conform(solids, chosen, positions, voxel_vertices, hex_volume, progres
         solid = solid + solid_manifold(other.mesh, other.label, origin)
     candidates = np.flatnonzero(chosen.touched)
     progress.start(f"conform clip ({len(candidates):,} cells)", len(candidates))
-    corners = positions[voxel_vertices[candidates]]
-    local_tris = local_hex_triangles(voxel_vertices[candidates])
-    clipped = clip_cells(solid, corners, local_tris, block_keys_for(chosen.ijk[candidates]),
+    clipped = clip_cells(solid, positions, voxel_vertices[candidates],
+                         block_keys_for(chosen.ijk[candidates]),
                          MIN_CLIP_FRACTION * hex_volume[candidates], progress.advance)
     keep = chosen.inside & ~chosen.touched
     keep[candidates[clipped.cells]] = True
