@@ -8,6 +8,15 @@ it: each contact point holds it by a spring on its translation that only pushes
 its support holds again), so a deck on two piers pivots on their inner edges and
 spans between them, as beam theory's simply supported beam, instead of being
 clamped over its bearings.
+
+A body its supports do not hold still (its weight outside them: it pivots on one
+edge, or on one point) has no static equilibrium: K is singular along the rigid
+motions they leave free. Such a body is solved with inertia relief (MSC Nastran's
+INREL; Barnett & Reed, "Inertia relief", 1969 NASA CR): its nodes carry the
+d'Alembert loads of the rigid acceleration the unbalanced weight gives it, so its
+links read the stresses of the instant it starts to turn (a bar on a pivot at one
+end: w L^2 / 27 at a third of its length, :data:`RELIEF`), not the round-off of a
+singular factor (up to 1e5 times the strength before, in the building's rubble).
 """
 
 from __future__ import annotations
@@ -32,6 +41,14 @@ SLIDING = 1e-3
 #: factored 2-5x slower on the city block's slabs (5,922 dofs: 0.087 s against 0.025-0.040 s).
 SYMMETRIC_LU = {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0,
                 "options": {"SymmetricMode": True}}
+#: Inertia relief of a bearing solve: each node's translations are held by a spring of
+#: stiffness its mass times RELIEF x the stiffest entry of K over the heaviest node's
+#: mass. Along the rigid motions the supports leave free these springs are all there
+#: is, and mass-proportional springs there are exactly the d'Alembert loads of that
+#: rigid acceleration (the springs' stretch times the rate is the acceleration), which
+#: rigid motions leave the links unstrained by; along the held motions they change
+#: the solution by about RELIEF relative (their stiffness is a 1e-3 x K at least).
+RELIEF = 1e-10
 
 
 class BearingSprings(NamedTuple):
@@ -95,6 +112,8 @@ def equilibrium(g: Graph, held: np.ndarray, gravity: np.ndarray,
         rows = np.concatenate([rows, np.repeat(base, 6, axis=1).ravel()])
         cols = np.concatenate([cols, np.tile(base, 6).ravel()])
         vals = np.concatenate([vals, block.ravel()])
+    if bed is not None:
+        rows, cols, vals = _relief(g, dof, free, rows, cols, vals)
     matrix = csc_matrix((vals, (rows, cols)), shape=(size, size))
     rhs = np.zeros(size)
     blocks = np.flatnonzero(free)
@@ -108,6 +127,19 @@ def equilibrium(g: Graph, held: np.ndarray, gravity: np.ndarray,
     except RuntimeError:  # "Factor is exactly singular": a part let go of everything
         return None
 
+
+
+def _relief(g: Graph, dof: np.ndarray, free: np.ndarray, rows: np.ndarray,
+            cols: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The COO triplets (rows, cols, vals) of K with the inertia relief springs of the
+    ``free`` (M,) nodes (dof (M,): their blocks) on their translations (:data:`RELIEF`)."""
+    nodes = np.flatnonzero(free)
+    if not nodes.size or not vals.size:
+        return rows, cols, vals
+    rate = RELIEF * float(np.abs(vals).max()) / float(g.node_mass[nodes].max())
+    index = (6 * dof[nodes][:, None] + np.arange(3)).ravel()
+    return (np.concatenate([rows, index]), np.concatenate([cols, index]),
+            np.concatenate([vals, rate * np.repeat(g.node_mass[nodes], 3)]))
 
 
 def node_loads(g: Graph, force: np.ndarray, centroid: np.ndarray
